@@ -1,0 +1,198 @@
+//! Image geometry: validated sizes, strides and the in-place subband layout.
+//!
+//! # Subband layout (Mallat, in place)
+//!
+//! One level on a `w × h` region splits each row into `⌈w/2⌉` low then `⌊w/2⌋` high
+//! samples, then each column the same way. The region then holds
+//!
+//! ```text
+//!  ┌────────────┬────────────┐   LL: low along rows, low along columns   (⌈w/2⌉ × ⌈h/2⌉)
+//!  │     LL     │     HL     │   HL: high along rows, low along columns  (⌊w/2⌋ × ⌈h/2⌉)
+//!  ├────────────┼────────────┤   LH: low along rows, high along columns  (⌈w/2⌉ × ⌊h/2⌋)
+//!  │     LH     │     HH     │   HH: high along both                     (⌊w/2⌋ × ⌊h/2⌋)
+//!  └────────────┴────────────┘
+//! ```
+//!
+//! The first letter names the filter along rows (x), the second along columns (y); the
+//! paper's "horizontal, vertical, diagonal" details are HL, LH, HH. The next level works on
+//! the LL corner. A side of length 1 is left as it is (it is all low band).
+
+use crate::Error;
+
+/// The largest width or height the core accepts. It keeps every index and every
+/// `width × height` product far inside `u32`, which the bounds proofs rely on.
+pub const MAX_DIMENSION: usize = 1 << 14;
+
+/// The deepest decomposition the core offers.
+pub const MAX_LEVELS: u8 = 4;
+
+/// A validated 2-D region of a row-major buffer: `width × height` elements, rows `stride`
+/// elements apart.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Dims {
+    width: usize,
+    height: usize,
+    stride: usize,
+}
+
+impl Dims {
+    /// A tightly packed `width × height` image (stride = width).
+    pub fn new(width: usize, height: usize) -> Result<Self, Error> {
+        Self::with_stride(width, height, width)
+    }
+
+    /// A `width × height` region whose rows are `stride` elements apart.
+    pub fn with_stride(width: usize, height: usize, stride: usize) -> Result<Self, Error> {
+        if width == 0 || height == 0 {
+            return Err(Error::ZeroSize);
+        }
+        if width > MAX_DIMENSION || height > MAX_DIMENSION || stride > 4 * MAX_DIMENSION {
+            return Err(Error::TooLarge);
+        }
+        if stride < width {
+            return Err(Error::StrideTooSmall { stride, width });
+        }
+        Ok(Self {
+            width,
+            height,
+            stride,
+        })
+    }
+
+    /// Width in elements.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Height in rows.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Distance between rows, in elements.
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+
+    /// Number of pixels, `width × height`.
+    pub fn pixels(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// The smallest buffer length that holds this region: `(height − 1) · stride + width`.
+    pub fn buffer_len(&self) -> usize {
+        (self.height - 1) * self.stride + self.width
+    }
+
+    /// Fails with [`Error::BufferTooSmall`] unless `len` holds the region.
+    pub fn check_buffer(&self, which: &'static str, len: usize) -> Result<(), Error> {
+        let needed = self.buffer_len();
+        if len < needed {
+            return Err(Error::BufferTooSmall {
+                which,
+                needed,
+                got: len,
+            });
+        }
+        Ok(())
+    }
+
+    /// The low-band (LL) corner after one level: `⌈w/2⌉ × ⌈h/2⌉`, same stride.
+    pub fn low_band(&self) -> Self {
+        Self {
+            width: self.width.div_ceil(2),
+            height: self.height.div_ceil(2),
+            stride: self.stride,
+        }
+    }
+
+    /// The most levels this size allows: level `k` needs the low band of level `k − 1`
+    /// to have at least two samples along one side. A 1×1 image allows none.
+    pub fn max_levels(&self) -> u8 {
+        let mut d = *self;
+        let mut levels = 0;
+        while levels < MAX_LEVELS && d.width.max(d.height) >= 2 {
+            levels += 1;
+            d = d.low_band();
+        }
+        levels
+    }
+
+    /// Checks `levels` is in `1..=4` and allowed for this size.
+    pub fn check_levels(&self, levels: u8) -> Result<(), Error> {
+        if levels == 0 || levels > MAX_LEVELS {
+            return Err(Error::LevelsOutOfRange { levels });
+        }
+        let max = self.max_levels();
+        if levels > max {
+            return Err(Error::LevelsTooDeep { levels, max });
+        }
+        Ok(())
+    }
+
+    /// Index of element `(x, y)`.
+    #[inline]
+    pub(crate) fn at(&self, x: usize, y: usize) -> usize {
+        y * self.stride + x
+    }
+}
+
+/// Whole-sample symmetric extension: maps any index onto `0..n` by mirroring about the
+/// first and last samples (`… 2 1 | 0 1 2 … n−1 | n−2 …`). A sequence of length 1 is
+/// extended as a constant. `n` must be at least 1.
+#[inline]
+pub(crate) fn mirror(i: isize, n: usize) -> usize {
+    if n <= 1 {
+        return 0;
+    }
+    let period = 2 * (n as isize - 1);
+    let m = i.rem_euclid(period);
+    (if m >= n as isize { period - m } else { m }) as usize
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mirror_is_whole_sample_symmetric() {
+        let n = 4;
+        let got: [usize; 12] = core::array::from_fn(|k| mirror(k as isize - 4, n));
+        assert_eq!(got, [2, 3, 2, 1, 0, 1, 2, 3, 2, 1, 0, 1]);
+        assert_eq!(mirror(-7, 1), 0);
+        assert_eq!(mirror(5, 2), 1);
+    }
+
+    #[test]
+    fn max_levels_follow_the_halving_rule() {
+        let levels = |w, h| Dims::new(w, h).unwrap().max_levels();
+        assert_eq!(levels(1, 1), 0);
+        assert_eq!(levels(2, 1), 1);
+        assert_eq!(levels(1, 3), 2);
+        assert_eq!(levels(5, 5), 3);
+        assert_eq!(levels(9, 1), 4);
+        assert_eq!(levels(640, 480), 4);
+    }
+
+    #[test]
+    fn bad_geometry_is_refused() {
+        assert_eq!(Dims::new(0, 3), Err(Error::ZeroSize));
+        assert_eq!(
+            Dims::with_stride(4, 2, 3),
+            Err(Error::StrideTooSmall {
+                stride: 3,
+                width: 4
+            })
+        );
+        assert_eq!(Dims::new(MAX_DIMENSION + 1, 1), Err(Error::TooLarge));
+        let d = Dims::new(4, 4).unwrap();
+        assert_eq!(
+            d.check_levels(0),
+            Err(Error::LevelsOutOfRange { levels: 0 })
+        );
+        assert_eq!(
+            Dims::new(2, 2).unwrap().check_levels(2),
+            Err(Error::LevelsTooDeep { levels: 2, max: 1 })
+        );
+    }
+}

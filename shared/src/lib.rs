@@ -1,0 +1,30 @@
+//! `rollfuse-core`: the numeric core of rollfuse, shared by the firmware and the host.
+//!
+//! It implements the cyclic wavelet fusion of tactile images from a rolling, curved
+//! elastomer sensor: each frame sees the object at a different contact depth, and fusing
+//! the frames' wavelet subbands — low band averaged, high bands weighted by a Laplacian
+//! saliency — keeps the deepest, sharpest contact of every frame.
+//!
+//! `#![no_std]`, no allocation, no `unsafe`, and no panics on any input: bad sizes and
+//! parameters come back as [`Error`] values. Buffers are the caller's.
+//!
+//! # Layers
+//!
+//! - [`geometry`]: validated sizes and strides ([`Dims`]), the in-place subband layout.
+//! - [`lifting`]: reversible integer Haar and db2 lifting, 1-D and 2-D, with proven
+//!   coefficient bounds per level ([`lifting::bounds`]).
+//! - [`saliency`]: the integer Laplacian saliency map and the `exp(x/255) − 1` table.
+//! - [`fusion`]: the pairwise fuse step, the ablations, and [`fusion::CyclicFuser`], on
+//!   the integer path the MCU runs.
+//! - [`float`]: the same algorithm in `f32` for full-resolution work on the host; its
+//!   transforms match PyWavelets' `periodization` mode.
+#![no_std]
+#![forbid(unsafe_code)]
+
+pub mod error;
+pub mod geometry;
+pub mod lifting;
+
+pub use error::Error;
+pub use geometry::{Dims, MAX_DIMENSION, MAX_LEVELS};
+pub use lifting::Wavelet;

@@ -1,0 +1,125 @@
+//! Integer db2 (Daubechies-4) by the Daubechies–Sweldens lifting factorization, with
+//! rounding in every step (Calderbank, Daubechies, Sweldens & Yeo, 1998):
+//!
+//! ```text
+//! s¹[l] = e[l] + R(√3 · o[l])
+//! d¹[l] = o[l] − R(√3/4 · s¹[l] + (√3 − 2)/4 · s¹[l − 1])
+//! s²[l] = s¹[l] − d¹[l + 1]
+//! ```
+//!
+//! `R(v)` rounds half up; the constants are Q16. The final scaling by `(√3 ∓ 1)/√2` is left
+//! out so the transform stays integer and reversible: the low band therefore has DC gain
+//! `1 + √3 ≈ 2.73` per 1-D pass. Indices outside a channel are mapped back by whole-sample
+//! symmetric extension of that channel ([`mirror`]); every step reads only the other
+//! channel, so the inverse applies the same extension to the same values and undoes each
+//! step exactly, for every length ≥ 1.
+
+use crate::geometry::mirror;
+
+/// Fraction bits of the lifting constants.
+pub(crate) const Q: u32 = 16;
+/// √3 in Q16.
+pub(crate) const SQRT3: i64 = 113_512;
+/// √3/4 in Q16.
+pub(crate) const A: i64 = 28_378;
+/// (√3 − 2)/4 in Q16 (negative).
+pub(crate) const B: i64 = -4_390;
+
+/// Rounds a Q16 product to the nearest integer, halves upward.
+#[inline(always)]
+fn round_q(v: i64) -> i32 {
+    ((v + (1 << (Q - 1))) >> Q) as i32
+}
+
+/// `R(√3/4 · s¹[l] + (√3−2)/4 · s¹[l−1])`, the predict term shared by both directions.
+#[inline(always)]
+fn predict(s_l: i32, s_prev: i32) -> i32 {
+    round_q(A * s_l as i64 + B * s_prev as i64)
+}
+
+#[inline(always)]
+fn update1(o: i32) -> i32 {
+    round_q(SQRT3 * o as i64)
+}
+
+/// Index of `d¹[l + 1]`: the neighbour inside, or its mirror image past the end.
+#[inline(always)]
+fn next_index(l: usize, nh: usize) -> usize {
+    if l + 1 < nh {
+        l + 1
+    } else {
+        mirror(l as isize + 1, nh)
+    }
+}
+
+/// Index of `s¹[l − 1]`.
+#[inline(always)]
+fn prev_index(l: usize, nl: usize) -> usize {
+    if l > 0 { l - 1 } else { mirror(-1, nl) }
+}
+
+/// Index of `o[l]` seen from the even channel (past the end for the last even sample of
+/// an odd length).
+#[inline(always)]
+fn odd_index(l: usize, nh: usize) -> usize {
+    if l < nh { l } else { mirror(l as isize, nh) }
+}
+
+/// Forward lifting of the split channels, in place. `low.len()` is `high.len()` or
+/// `high.len() + 1`. A length-1 signal (no odd sample) is left as it is.
+pub(crate) fn forward(low: &mut [i32], high: &mut [i32]) {
+    let (nl, nh) = (low.len(), high.len());
+    if nh == 0 {
+        return;
+    }
+    for l in 0..nl {
+        low[l] += update1(high[odd_index(l, nh)]);
+    }
+    for l in 0..nh {
+        high[l] -= predict(low[l], low[prev_index(l, nl)]);
+    }
+    for l in 0..nl {
+        low[l] -= high[next_index(l, nh)];
+    }
+}
+
+/// Inverse lifting, exactly undoing [`forward`].
+pub(crate) fn inverse(low: &mut [i32], high: &mut [i32]) {
+    let (nl, nh) = (low.len(), high.len());
+    if nh == 0 {
+        return;
+    }
+    for l in 0..nl {
+        low[l] += high[next_index(l, nh)];
+    }
+    for l in 0..nh {
+        high[l] += predict(low[l], low[prev_index(l, nl)]);
+    }
+    for l in 0..nl {
+        low[l] -= update1(high[odd_index(l, nh)]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn constants_are_the_rounded_q16_values() {
+        let s3 = 3f64.sqrt();
+        let q = (1u64 << Q) as f64;
+        assert_eq!(SQRT3, (s3 * q).round() as i64);
+        assert_eq!(A, (s3 / 4.0 * q).round() as i64);
+        assert_eq!(B, ((s3 - 2.0) / 4.0 * q).round() as i64);
+    }
+
+    #[test]
+    fn constant_signal_has_zero_high_band_and_dc_gain_one_plus_sqrt3() {
+        let mut low = [100; 5];
+        let mut high = [100; 5];
+        forward(&mut low, &mut high);
+        assert_eq!(high, [0; 5]);
+        // 100 · (1 + √3) = 273.2
+        assert!(low.iter().all(|&s| s == 273), "{low:?}");
+    }
+}
