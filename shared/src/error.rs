@@ -68,7 +68,10 @@ impl fmt::Display for Error {
                 write!(f, "levels must be 1..=4, got {levels}")
             }
             Error::LevelsTooDeep { levels, max } => {
-                write!(f, "{levels} levels is too deep for this size (at most {max})")
+                write!(
+                    f,
+                    "{levels} levels is too deep for this size (at most {max})"
+                )
             }
             Error::BufferTooSmall { which, needed, got } => {
                 write!(f, "{which} buffer too small: need {needed}, got {got}")

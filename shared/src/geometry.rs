@@ -137,6 +137,77 @@ impl Dims {
     }
 }
 
+/// A rectangle of interest inside a region: where the image proper lies when the region
+/// carries margins. Saliency is normalized by the maximum inside it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Roi {
+    pub x0: usize,
+    pub y0: usize,
+    pub width: usize,
+    pub height: usize,
+}
+
+impl Roi {
+    /// The whole region.
+    pub fn full(dims: Dims) -> Self {
+        Self {
+            x0: 0,
+            y0: 0,
+            width: dims.width(),
+            height: dims.height(),
+        }
+    }
+
+    /// The same rectangle on the next level's LL grid.
+    pub fn low_band(self) -> Self {
+        Self {
+            x0: self.x0 / 2,
+            y0: self.y0 / 2,
+            width: self.width.div_ceil(2).max(1),
+            height: self.height.div_ceil(2).max(1),
+        }
+    }
+
+    /// Whether `(x, y)` lies inside.
+    pub fn contains(&self, x: usize, y: usize) -> bool {
+        (self.x0..self.x0 + self.width).contains(&x)
+            && (self.y0..self.y0 + self.height).contains(&y)
+    }
+}
+
+/// A strided line inside a buffer: `len` elements, `step` apart, from `start`.
+#[derive(Clone, Copy)]
+pub(crate) struct Line {
+    pub start: usize,
+    pub step: usize,
+    pub len: usize,
+}
+
+impl Line {
+    /// The row `y` of a region.
+    pub fn row(dims: Dims, y: usize) -> Self {
+        Self {
+            start: dims.at(0, y),
+            step: 1,
+            len: dims.width(),
+        }
+    }
+
+    /// The column `x` of a region.
+    pub fn column(dims: Dims, x: usize) -> Self {
+        Self {
+            start: x,
+            step: dims.stride(),
+            len: dims.height(),
+        }
+    }
+
+    /// Buffer positions of the line's elements, in order.
+    pub fn positions(self) -> impl Iterator<Item = usize> {
+        (0..self.len).map(move |k| self.start + k * self.step)
+    }
+}
+
 /// Whole-sample symmetric extension: maps any index onto `0..n` by mirroring about the
 /// first and last samples (`… 2 1 | 0 1 2 … n−1 | n−2 …`). A sequence of length 1 is
 /// extended as a constant. `n` must be at least 1.

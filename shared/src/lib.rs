@@ -22,9 +22,14 @@
 #![forbid(unsafe_code)]
 
 pub mod error;
+pub mod float;
+pub mod fusion;
 pub mod geometry;
 pub mod lifting;
+pub mod saliency;
 
 pub use error::Error;
+pub use fusion::{Ablation, CyclicFuser, FuseConfig, LlWeighting};
 pub use geometry::{Dims, MAX_DIMENSION, MAX_LEVELS};
 pub use lifting::Wavelet;
+pub use saliency::SaliencyNorm;

@@ -169,9 +169,8 @@ mod tests {
             for j in 0..n {
                 let mut x = vec![0i32; n];
                 x[j] = K as i32;
-                let mut split: std::vec::Vec<i32> = (0..n)
-                    .map(|k| if k % 2 == 0 { x[k] } else { 0 })
-                    .collect();
+                let mut split: std::vec::Vec<i32> =
+                    (0..n).map(|k| if k % 2 == 0 { x[k] } else { 0 }).collect();
                 // Even samples first, then odd, as forward_line arranges them.
                 for k in 0..n {
                     let slot = if k % 2 == 0 { k / 2 } else { nl + k / 2 };

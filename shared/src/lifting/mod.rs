@@ -16,6 +16,7 @@ pub mod bounds;
 mod db2;
 mod haar;
 
+use crate::geometry::Line;
 use crate::{Dims, Error};
 pub use bounds::{LevelBounds, MAX_SAMPLE, level_bounds};
 
@@ -47,20 +48,6 @@ impl Wavelet {
 /// Scratch length (in `i32`) the 2-D transforms need for `dims`: one row or column.
 pub fn scratch_len(dims: Dims) -> usize {
     dims.width().max(dims.height())
-}
-
-/// A strided line inside a buffer: `len` elements, `step` apart, from `start`.
-#[derive(Clone, Copy)]
-struct Line {
-    start: usize,
-    step: usize,
-    len: usize,
-}
-
-impl Line {
-    fn positions(self) -> impl Iterator<Item = usize> {
-        (0..self.len).map(move |k| self.start + k * self.step)
-    }
 }
 
 /// One forward 1-D pass over `line`: the signal is split into even and odd samples,
@@ -104,7 +91,7 @@ fn inverse_line(
 }
 
 /// Checks that every sample of the region is within `±MAX_SAMPLE`.
-fn check_samples(buf: &[i32], dims: Dims) -> Result<(), Error> {
+pub(crate) fn check_samples(buf: &[i32], dims: Dims) -> Result<(), Error> {
     for y in 0..dims.height() {
         let row = &buf[dims.at(0, y)..dims.at(dims.width(), y)];
         if row.iter().any(|v| v.unsigned_abs() > MAX_SAMPLE) {
@@ -134,16 +121,16 @@ fn check_args(buf: &[i32], dims: Dims, levels: Option<u8>, scratch: &[i32]) -> R
 
 /// One forward 2-D level on the `dims` region (rows, then columns), in place.
 pub(crate) fn forward_level(wavelet: Wavelet, buf: &mut [i32], dims: Dims, scratch: &mut [i32]) {
-    let (w, h, stride) = (dims.width(), dims.height(), dims.stride());
+    let (w, h) = (dims.width(), dims.height());
     if w > 1 {
         for y in 0..h {
-            let line = Line { start: y * stride, step: 1, len: w };
+            let line = Line::row(dims, y);
             forward_line(wavelet, buf, line, scratch);
         }
     }
     if h > 1 {
         for x in 0..w {
-            let line = Line { start: x, step: stride, len: h };
+            let line = Line::column(dims, x);
             forward_line(wavelet, buf, line, scratch);
         }
     }
@@ -157,11 +144,11 @@ pub(crate) fn inverse_level(
     scratch: &mut [i32],
     bounds: &LevelBounds,
 ) {
-    let (w, h, stride) = (dims.width(), dims.height(), dims.stride());
+    let (w, h) = (dims.width(), dims.height());
     let nlx = w.div_ceil(2);
     if h > 1 {
         for x in 0..w {
-            let line = Line { start: x, step: stride, len: h };
+            let line = Line::column(dims, x);
             // Columns left of nlx came from the rows' low band, the rest from the high band;
             // a one-column region had no row pass, so its columns are the level's input.
             let clamp = if w == 1 {
@@ -176,7 +163,7 @@ pub(crate) fn inverse_level(
     }
     if w > 1 {
         for y in 0..h {
-            let line = Line { start: y * stride, step: 1, len: w };
+            let line = Line::row(dims, y);
             let clamp = (bounds.row_low, bounds.row_high, bounds.input);
             inverse_line(wavelet, buf, line, scratch, clamp);
         }
@@ -298,13 +285,28 @@ mod tests {
         ]
     }
 
-    fn region_within(buf: &[i32], stride: usize, x0: usize, y0: usize, w: usize, h: usize, bound: i32) -> bool {
+    fn region_within(
+        buf: &[i32],
+        stride: usize,
+        x0: usize,
+        y0: usize,
+        w: usize,
+        h: usize,
+        bound: i32,
+    ) -> bool {
         (y0..y0 + h).all(|y| (x0..x0 + w).all(|x| buf[y * stride + x].abs() <= bound))
     }
 
     /// Runs the forward transform pass by pass and checks each pass's output against its
     /// proven bound, then inverts and compares bit for bit.
-    fn check_round_trip(wavelet: Wavelet, w: usize, h: usize, levels: u8, img: &[i32], max_input: u32) {
+    fn check_round_trip(
+        wavelet: Wavelet,
+        w: usize,
+        h: usize,
+        levels: u8,
+        img: &[i32],
+        max_input: u32,
+    ) {
         let dims = Dims::new(w, h).unwrap();
         let bounds = bounds::level_bounds_for(wavelet, levels, max_input);
         let mut buf = img.to_vec();
@@ -316,20 +318,26 @@ mod tests {
             assert!(region_within(&buf, w, 0, 0, lw, lh, b.input));
             if lw > 1 {
                 for y in 0..lh {
-                    forward_line(wavelet, &mut buf, Line { start: y * w, step: 1, len: lw }, &mut scratch);
+                    forward_line(wavelet, &mut buf, Line::row(d, y), &mut scratch);
                 }
                 assert!(region_within(&buf, w, 0, 0, nlx, lh, b.row_low), "row low");
-                assert!(region_within(&buf, w, nlx, 0, lw - nlx, lh, b.row_high), "row high");
+                assert!(
+                    region_within(&buf, w, nlx, 0, lw - nlx, lh, b.row_high),
+                    "row high"
+                );
             }
             if lh > 1 {
                 for x in 0..lw {
-                    forward_line(wavelet, &mut buf, Line { start: x, step: w, len: lh }, &mut scratch);
+                    forward_line(wavelet, &mut buf, Line::column(d, x), &mut scratch);
                 }
             }
             assert!(region_within(&buf, w, 0, 0, nlx, nly, b.ll), "LL");
             assert!(region_within(&buf, w, nlx, 0, lw - nlx, nly, b.hl), "HL");
             assert!(region_within(&buf, w, 0, nly, nlx, lh - nly, b.lh), "LH");
-            assert!(region_within(&buf, w, nlx, nly, lw - nlx, lh - nly, b.hh), "HH");
+            assert!(
+                region_within(&buf, w, nlx, nly, lw - nlx, lh - nly, b.hh),
+                "HH"
+            );
             assert!(b.peak >= b.ll.max(b.hl).max(b.lh).max(b.hh));
             d = d.low_band();
         }
@@ -418,11 +426,19 @@ mod tests {
         let mut scratch = vec![0; 8];
         assert_eq!(
             forward_2d(Wavelet::Db2, &mut buf[..63], dims, 1, &mut scratch),
-            Err(Error::BufferTooSmall { which: "image", needed: 64, got: 63 })
+            Err(Error::BufferTooSmall {
+                which: "image",
+                needed: 64,
+                got: 63
+            })
         );
         assert_eq!(
             forward_2d(Wavelet::Db2, &mut buf, dims, 1, &mut scratch[..7]),
-            Err(Error::BufferTooSmall { which: "scratch", needed: 8, got: 7 })
+            Err(Error::BufferTooSmall {
+                which: "scratch",
+                needed: 8,
+                got: 7
+            })
         );
         assert_eq!(
             forward_2d(Wavelet::Haar, &mut buf, dims, 5, &mut scratch),
@@ -440,8 +456,15 @@ mod tests {
         let mut one = [7];
         assert_eq!(
             forward_1d(Wavelet::Db2, &mut one, &mut []),
-            Err(Error::BufferTooSmall { which: "scratch", needed: 1, got: 0 })
+            Err(Error::BufferTooSmall {
+                which: "scratch",
+                needed: 1,
+                got: 0
+            })
         );
-        assert_eq!(forward_1d(Wavelet::Db2, &mut [], &mut []), Err(Error::ZeroSize));
+        assert_eq!(
+            forward_1d(Wavelet::Db2, &mut [], &mut []),
+            Err(Error::ZeroSize)
+        );
     }
 }

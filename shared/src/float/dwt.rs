@@ -1,0 +1,195 @@
+//! Orthonormal periodic filter-bank transforms (PyWavelets' `periodization` mode).
+
+use crate::geometry::Line;
+use crate::{Dims, Error, Wavelet};
+
+/// Decomposition filters `(low, high)` as PyWavelets lists them (`dec_lo`, `dec_hi`).
+fn filters(wavelet: Wavelet) -> (&'static [f32], &'static [f32]) {
+    const H: f32 = core::f32::consts::FRAC_1_SQRT_2;
+    const HAAR_LO: [f32; 2] = [H, H];
+    const HAAR_HI: [f32; 2] = [-H, H];
+    const DB2_LO: [f32; 4] = [-0.129_409_52, 0.224_143_87, 0.836_516_3, 0.482_962_9];
+    const DB2_HI: [f32; 4] = [-0.482_962_9, 0.836_516_3, -0.224_143_87, -0.129_409_52];
+    match wavelet {
+        Wavelet::Haar => (&HAAR_LO, &HAAR_HI),
+        Wavelet::Db2 => (&DB2_LO, &DB2_HI),
+    }
+}
+
+/// Where a filter bank's taps sit on the signal: `cA[i] = Σₖ lo[k]·x[2i + lo_at − k]` and
+/// `cD[i] = Σₖ hi[k]·x[2i + hi_at − k]`, indices taken modulo the (even) length.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Phase {
+    lo_at: usize,
+    hi_at: usize,
+}
+
+impl Phase {
+    /// PyWavelets' `periodization` mode: both bands at `F/2`, so Haar's `cA[i]` covers
+    /// `x[2i..=2i+1]` and db2's covers `x[2i−1..=2i+2]`.
+    pub(crate) fn pywt(wavelet: Wavelet) -> Self {
+        let f = filters(wavelet).0.len();
+        Self {
+            lo_at: f / 2,
+            hi_at: f / 2,
+        }
+    }
+
+    /// The placement of the integer lifting of [`crate::lifting`]: as PyWavelets for
+    /// Haar; for db2 the low band one pixel later (`x[2i..=2i+3]`) and the high band one
+    /// pixel earlier (`x[2i−2..=2i+1]`). The fusion uses it so that both paths put their
+    /// coefficients, and so their weights, on the same pixels. It is PyWavelets' transform
+    /// of the signal shifted by one sample, its `cD` shifted by one coefficient.
+    pub(crate) fn lifting(wavelet: Wavelet) -> Self {
+        match wavelet {
+            Wavelet::Haar => Self::pywt(wavelet),
+            Wavelet::Db2 => Self { lo_at: 3, hi_at: 1 },
+        }
+    }
+}
+
+/// Index `2i + at − k` wrapped into `0..n` (`at ≤ 3`, `k < 4 ≤ n + 3`).
+#[inline(always)]
+fn tap(i: usize, at: usize, k: usize, n: usize) -> usize {
+    (2 * i + at + n - k) % n
+}
+
+/// Forward analysis of one even-length line `x` into `out`: `cA` then `cD`.
+fn analyze(wavelet: Wavelet, phase: Phase, x: &[f32], out: &mut [f32]) {
+    let (lo, hi) = filters(wavelet);
+    let n = x.len();
+    let half = n / 2;
+    for i in 0..half {
+        let (mut a, mut d) = (0f32, 0f32);
+        for (k, (&l, &h)) in lo.iter().zip(hi).enumerate() {
+            a += l * x[tap(i, phase.lo_at, k, n)];
+            d += h * x[tap(i, phase.hi_at, k, n)];
+        }
+        out[i] = a;
+        out[half + i] = d;
+    }
+}
+
+/// Inverse of [`analyze`] (its adjoint, the filter bank being orthonormal): `c` holds `cA`
+/// then `cD`; the even-length signal is written to `x`.
+fn synthesize(wavelet: Wavelet, phase: Phase, c: &[f32], x: &mut [f32]) {
+    let (lo, hi) = filters(wavelet);
+    let n = x.len();
+    let half = n / 2;
+    x.fill(0.0);
+    for i in 0..half {
+        let (a, d) = (c[i], c[half + i]);
+        for (k, (&l, &h)) in lo.iter().zip(hi).enumerate() {
+            x[tap(i, phase.lo_at, k, n)] += l * a;
+            x[tap(i, phase.hi_at, k, n)] += h * d;
+        }
+    }
+}
+
+/// One forward 2-D level on an even-sized region, in place: rows then columns, Mallat
+/// layout as in [`crate::geometry`]. `scratch` holds `2 · max(w, h)`.
+pub(crate) fn forward_level(
+    wavelet: Wavelet,
+    phase: Phase,
+    buf: &mut [f32],
+    dims: Dims,
+    scratch: &mut [f32],
+) {
+    let rows = (0..dims.height()).map(|y| Line::row(dims, y));
+    let cols = (0..dims.width()).map(|x| Line::column(dims, x));
+    for line in rows.chain(cols) {
+        let (x, out) = scratch.split_at_mut(line.len);
+        for (v, p) in x.iter_mut().zip(line.positions()) {
+            *v = buf[p];
+        }
+        analyze(wavelet, phase, x, &mut out[..line.len]);
+        for (p, &v) in line.positions().zip(out.iter()) {
+            buf[p] = v;
+        }
+    }
+}
+
+/// One inverse 2-D level on an even-sized region, in place (columns, then rows).
+pub(crate) fn inverse_level(
+    wavelet: Wavelet,
+    phase: Phase,
+    buf: &mut [f32],
+    dims: Dims,
+    scratch: &mut [f32],
+) {
+    let cols = (0..dims.width()).map(|x| Line::column(dims, x));
+    let rows = (0..dims.height()).map(|y| Line::row(dims, y));
+    for line in cols.chain(rows) {
+        let (c, x) = scratch.split_at_mut(line.len);
+        for (v, p) in c.iter_mut().zip(line.positions()) {
+            *v = buf[p];
+        }
+        synthesize(wavelet, phase, c, &mut x[..line.len]);
+        for (p, &v) in line.positions().zip(x.iter()) {
+            buf[p] = v;
+        }
+    }
+}
+
+/// Size of each subband of a single-level `dwt2` on a `w × h` image: `⌈w/2⌉ × ⌈h/2⌉`.
+pub fn subband_dims(width: usize, height: usize) -> (usize, usize) {
+    (width.div_ceil(2), height.div_ceil(2))
+}
+
+/// Single-level 2-D transform of the packed `dims` image `img`, as PyWavelets'
+/// `dwt2(img, wavelet, mode='periodization')`. `out` receives the subbands in Mallat
+/// layout on a packed `2⌈w/2⌉ × 2⌈h/2⌉` grid: `cA` top-left, `cV` (PyWavelets' vertical
+/// detail = HL here) top-right, `cH` (LH) bottom-left, `cD` (HH) bottom-right. `scratch`
+/// holds `2 · max(2⌈w/2⌉, 2⌈h/2⌉)`.
+pub fn dwt2(
+    wavelet: Wavelet,
+    img: &[f32],
+    dims: Dims,
+    out: &mut [f32],
+    scratch: &mut [f32],
+) -> Result<(), Error> {
+    dims.check_buffer("image", img.len())?;
+    let (bw, bh) = subband_dims(dims.width(), dims.height());
+    let padded = Dims::new(2 * bw, 2 * bh)?;
+    check_len("output", out.len(), padded.pixels())?;
+    check_len("scratch", scratch.len(), 2 * (2 * bw).max(2 * bh))?;
+    for y in 0..padded.height() {
+        let sy = y.min(dims.height() - 1);
+        for x in 0..padded.width() {
+            out[padded.at(x, y)] = img[dims.at(x.min(dims.width() - 1), sy)];
+        }
+    }
+    forward_level(wavelet, Phase::pywt(wavelet), out, padded, scratch);
+    Ok(())
+}
+
+/// Inverse of [`dwt2`]: `coeffs` is the `2⌈w/2⌉ × 2⌈h/2⌉` Mallat grid; the
+/// reconstruction (as PyWavelets' `idwt2`, cropped to `w × h`) goes to `out`, packed.
+/// `coeffs` is used as work space.
+pub fn idwt2(
+    wavelet: Wavelet,
+    coeffs: &mut [f32],
+    dims: Dims,
+    out: &mut [f32],
+    scratch: &mut [f32],
+) -> Result<(), Error> {
+    let (bw, bh) = subband_dims(dims.width(), dims.height());
+    let padded = Dims::new(2 * bw, 2 * bh)?;
+    check_len("coefficients", coeffs.len(), padded.pixels())?;
+    check_len("output", out.len(), dims.pixels())?;
+    check_len("scratch", scratch.len(), 2 * (2 * bw).max(2 * bh))?;
+    inverse_level(wavelet, Phase::pywt(wavelet), coeffs, padded, scratch);
+    for y in 0..dims.height() {
+        for x in 0..dims.width() {
+            out[y * dims.width() + x] = coeffs[padded.at(x, y)];
+        }
+    }
+    Ok(())
+}
+
+pub(crate) fn check_len(which: &'static str, got: usize, needed: usize) -> Result<(), Error> {
+    if got < needed {
+        return Err(Error::BufferTooSmall { which, needed, got });
+    }
+    Ok(())
+}

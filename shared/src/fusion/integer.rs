@@ -1,0 +1,175 @@
+//! The integer fusion path: i32 coefficients, Q15 weights, the lifting of
+//! [`crate::lifting`]. This is what the MCU runs.
+
+use super::{Arith, BandOffsets, FuseConfig, LlWeight, fuse_generic, maps_len, split_scratch};
+use crate::geometry::Roi;
+use crate::lifting::{self, bounds::level_bounds};
+use crate::saliency::{self, SaliencyNorm};
+use crate::{Dims, Error, Wavelet};
+
+impl Arith for i32 {
+    fn forward_level(wavelet: Wavelet, buf: &mut [i32], dims: Dims, scratch: &mut [i32]) {
+        lifting::forward_level(wavelet, buf, dims, scratch);
+    }
+
+    fn inverse(wavelet: Wavelet, buf: &mut [i32], dims: Dims, levels: u8, scratch: &mut [i32]) {
+        let bounds = level_bounds(wavelet, levels);
+        let mut sizes = [dims; 4];
+        for k in 1..levels as usize {
+            sizes[k] = sizes[k - 1].low_band();
+        }
+        for k in (0..levels as usize).rev() {
+            lifting::inverse_level(wavelet, buf, sizes[k], scratch, &bounds[k]);
+        }
+    }
+
+    fn band_offsets(wavelet: Wavelet) -> BandOffsets {
+        match wavelet {
+            Wavelet::Haar => [(0, 0); 3],
+            // Low band one pixel later, high band one earlier (see BandOffsets).
+            Wavelet::Db2 => [(-1, 1), (1, -1), (-1, -1)],
+        }
+    }
+
+    fn for_each_saliency(
+        buf: &[i32],
+        dims: Dims,
+        roi: Roi,
+        norm: SaliencyNorm,
+        wavelet: Wavelet,
+        level: u8,
+        f: impl FnMut(usize, usize, i32),
+    ) {
+        let max = saliency::level_max(buf, dims, roi, norm, wavelet, level);
+        saliency::for_each_saliency(buf, dims, max, f);
+    }
+
+    fn weight(s1: i32, s2: i32) -> i32 {
+        i32::from(saliency::weight(s1.unsigned_abs(), s2.unsigned_abs()).to_bits())
+    }
+
+    #[inline(always)]
+    fn blend(h1: i32, h2: i32, w1: i32) -> i32 {
+        let w1 = i64::from(w1);
+        ((i64::from(h1) * w1 + i64::from(h2) * ((1 << 15) - w1) + (1 << 14)) >> 15) as i32
+    }
+
+    #[inline(always)]
+    fn mix(a: i32, b: i32, w: LlWeight) -> i32 {
+        let w = i64::from(w.0);
+        ((i64::from(a) * ((1 << 15) - w) + i64::from(b) * w + (1 << 14)) >> 15) as i32
+    }
+
+    #[inline(always)]
+    fn abs_ge(a: i32, b: i32) -> bool {
+        a.unsigned_abs() >= b.unsigned_abs()
+    }
+}
+
+/// Scratch length (in `i32`) that [`fuse_pair`] and [`fuse_u8`] need for `dims`: a
+/// transform line and the saliency maps.
+pub fn fuse_scratch_len(dims: Dims) -> usize {
+    lifting::scratch_len(dims) + maps_len(dims)
+}
+
+/// One integer fuse step: the fused image of `a` and `b` replaces `a`; `b` is used as work
+/// space. Both hold samples with `|x| ≤ MAX_SAMPLE` on the `dims` region; `ll_weight` is
+/// the second image's LL weight ([`LlWeight::HALF`] for the paper's mean). The result is
+/// not clamped: callers that keep 8-bit images clamp it (as [`super::CyclicFuser`] does).
+pub fn fuse_pair(
+    a: &mut [i32],
+    b: &mut [i32],
+    dims: Dims,
+    cfg: &FuseConfig,
+    ll_weight: LlWeight,
+    scratch: &mut [i32],
+) -> Result<(), Error> {
+    dims.check_buffer("first image", a.len())?;
+    dims.check_buffer("second image", b.len())?;
+    dims.check_levels(cfg.levels)?;
+    if ll_weight.0 > 1 << 15 {
+        return Err(Error::InvalidParameter { name: "ll_weight" });
+    }
+    lifting::check_samples(a, dims)?;
+    lifting::check_samples(b, dims)?;
+    let work = split_scratch(scratch, lifting::scratch_len(dims), dims)?;
+    fuse_generic(a, b, dims, Roi::full(dims), cfg, ll_weight, work);
+    Ok(())
+}
+
+/// Fraction bits the 8-bit fusion keeps below the pixel's integer part while it works.
+///
+/// The unscaled lifting stores high bands at about half the orthonormal scale and the
+/// inverse amplifies their rounding; three guard bits (samples × 8, at most 2040, well
+/// inside `MAX_SAMPLE`) keep the fused 8-bit result within a gray level of exact
+/// arithmetic, at no cost in bounds.
+pub const GUARD_BITS: u32 = 3;
+
+/// Work buffers of [`fuse_u8`]: `a` and `b` hold at least `w·h` words, `scratch` at least
+/// [`fuse_scratch_len`].
+pub struct U8Work<'w> {
+    /// Transform work for the first image; holds the fused 8-bit values on return.
+    pub a: &'w mut [i32],
+    /// Transform work for the second image.
+    pub b: &'w mut [i32],
+    /// Lines and saliency maps.
+    pub scratch: &'w mut [i32],
+}
+
+/// Fuses two 8-bit images (each with its own stride) on the integer path with
+/// [`GUARD_BITS`] of extra precision. The result, rounded and clamped to 0..=255, is left
+/// packed `w × h` in `work.a`, so a caller may fuse into one of its inputs.
+pub fn fuse_u8(
+    (a, a_dims): (&[u8], Dims),
+    (b, b_dims): (&[u8], Dims),
+    cfg: &FuseConfig,
+    ll_weight: LlWeight,
+    work: U8Work<'_>,
+) -> Result<(), Error> {
+    let (w, h) = (a_dims.width(), a_dims.height());
+    if (w, h) != (b_dims.width(), b_dims.height()) {
+        return Err(Error::SizeMismatch);
+    }
+    a_dims.check_buffer("first image", a.len())?;
+    b_dims.check_buffer("second image", b.len())?;
+    let packed = Dims::new(w, h)?;
+    packed.check_levels(cfg.levels)?;
+    packed.check_buffer("work_a", work.a.len())?;
+    packed.check_buffer("work_b", work.b.len())?;
+    if ll_weight.0 > 1 << 15 {
+        return Err(Error::InvalidParameter { name: "ll_weight" });
+    }
+    let parts = split_scratch(work.scratch, lifting::scratch_len(packed), packed)?;
+    for (src, src_dims, dst) in [(a, a_dims, &mut *work.a), (b, b_dims, &mut *work.b)] {
+        for y in 0..h {
+            let row = &src[src_dims.at(0, y)..src_dims.at(w, y)];
+            for (d, &v) in dst[y * w..(y + 1) * w].iter_mut().zip(row) {
+                *d = i32::from(v) << GUARD_BITS;
+            }
+        }
+    }
+    // A reference maximum is in 8-bit units; the samples now carry the guard bits.
+    let cfg = &FuseConfig {
+        norm: match cfg.norm {
+            SaliencyNorm::Reference(r) => {
+                SaliencyNorm::Reference(r.saturating_mul(1 << GUARD_BITS))
+            }
+            local => local,
+        },
+        ..*cfg
+    };
+    fuse_generic(
+        work.a,
+        work.b,
+        packed,
+        Roi::full(packed),
+        cfg,
+        ll_weight,
+        parts,
+    );
+    let half = 1 << (GUARD_BITS - 1);
+    for v in work.a[..packed.pixels()].iter_mut() {
+        *v = ((*v + half) >> GUARD_BITS).clamp(0, 255);
+    }
+    Ok(())
+}

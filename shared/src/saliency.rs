@@ -1,0 +1,283 @@
+//! Integer saliency (paper eqs. 3–5) and the fusion weights built from it.
+//!
+//! For a level's input image `I` (the image at level 1, the LL band of the level above
+//! otherwise):
+//!
+//! 1. `L = |I(x−1,y) + I(x+1,y) + I(x,y−1) + I(x,y+1) − 4·I(x,y)|`, the 4-neighbour
+//!    Laplacian, with whole-sample symmetric extension at the borders.
+//! 2. `Sal = L · 255 / max L`, rounded down, where `max L` is taken over the region being
+//!    fused ([`SaliencyNorm::Local`]: the whole image, or the tile on the device) or given
+//!    by the caller ([`SaliencyNorm::Reference`]: e.g. the whole frame's maximum when tiles
+//!    are fused). A flat region (`max L = 0`) has `Sal = 0` everywhere.
+//! 3. `S = exp(Sal/255) − 1`, looked up in [`EXP_TABLE`] (Q24, built at compile time).
+//!    `Sal` keeps 8 fraction bits and the table is interpolated linearly between entries:
+//!    weakly salient pixels, the most common kind at deeper levels, would otherwise all
+//!    round to `S = 0` and turn their weights into ½ where the float path sees a real
+//!    preference.
+//! 4. Brought to subband resolution by summing `S` over the 2×2 window of the level's input
+//!    under the two middle taps of each coefficient's filter (see the fusion module; fewer
+//!    pixels at an edge, and both images sum the same pixels, so the ratio below is a ratio
+//!    of 2×2 means).
+//! 5. `W₁ = S₁ / (S₁ + S₂)` in Q15, and `W₁ = ½` where `S₁ + S₂ = 0`.
+
+use crate::geometry::{Roi, mirror};
+use crate::{Dims, Wavelet};
+use fixed::types::{U1F15, U8F24};
+
+/// Fraction bits of the saliency table.
+const TABLE_Q: u32 = 24;
+
+/// `exp(k/255) − 1` for `k = 0..=255`, in Q24 (`U8F24`): 0 … 1.71828.
+pub const EXP_TABLE: [U8F24; 256] = build_exp_table();
+
+/// Computes `e^(k/255)` by its Taylor series in Q62 integer arithmetic (exact to far below
+/// the table's Q24 step), at compile time.
+const fn build_exp_table() -> [U8F24; 256] {
+    const ONE: u128 = 1 << 62;
+    let mut table = [U8F24::ZERO; 256];
+    let mut k = 0;
+    while k < 256 {
+        let mut sum: u128 = ONE;
+        let mut term: u128 = ONE;
+        let mut n = 1;
+        while n < 40 {
+            term = term * k as u128 / (255 * n as u128);
+            sum += term;
+            n += 1;
+        }
+        let frac = sum - ONE;
+        let q = (frac + (1 << (62 - TABLE_Q - 1))) >> (62 - TABLE_Q);
+        table[k] = U8F24::from_bits(q as u32);
+        k += 1;
+    }
+    table
+}
+
+/// How the Laplacian is normalized to 0..=255 (eq. 3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SaliencyNorm {
+    /// By the maximum over the region being fused: the whole image, or one tile.
+    Local,
+    /// By a caller-supplied level-1 maximum, e.g. the whole frame's (see
+    /// [`laplacian_max`]), so every tile of a frame is judged on one scale. Deeper levels
+    /// scale it by the wavelet's LL gain ([`ll_gain_q16`]); larger values saturate at 255.
+    Reference(u32),
+}
+
+/// The DC gain of one 2-D level's LL band, in Q16: 1 for Haar (the S-transform keeps the
+/// mean), `(1 + √3)² ≈ 7.464` for the unscaled db2 lifting.
+pub fn ll_gain_q16(wavelet: Wavelet) -> u64 {
+    match wavelet {
+        Wavelet::Haar => 1 << 16,
+        Wavelet::Db2 => 489_165, // (1 + √3)² · 2¹⁶
+    }
+}
+
+/// Calls `f(x, y, centre, [up, down, left, right])` for every pixel of the region, in
+/// row-major order, with whole-sample symmetric extension at the borders. Both fusion
+/// paths compute their Laplacian through this walk.
+#[inline]
+pub(crate) fn for_each_neighbourhood<T: Copy>(
+    buf: &[T],
+    dims: Dims,
+    mut f: impl FnMut(usize, usize, T, [T; 4]),
+) {
+    let (w, h) = (dims.width(), dims.height());
+    for y in 0..h {
+        let up = dims.at(0, mirror(y as isize - 1, h));
+        let mid = dims.at(0, y);
+        let down = dims.at(0, mirror(y as isize + 1, h));
+        for x in 0..w {
+            let left = mirror(x as isize - 1, w);
+            let right = mirror(x as isize + 1, w);
+            let around = [
+                buf[up + x],
+                buf[down + x],
+                buf[mid + left],
+                buf[mid + right],
+            ];
+            f(x, y, buf[mid + x], around);
+        }
+    }
+}
+
+/// Calls `f(x, y, |∇²I|)` for every pixel of the region.
+#[inline]
+fn for_each_laplacian(buf: &[i32], dims: Dims, mut f: impl FnMut(usize, usize, u32)) {
+    for_each_neighbourhood(buf, dims, |x, y, c, around| {
+        let sum: i64 = around.iter().map(|&v| i64::from(v)).sum();
+        // |values| ≤ the deepest level bound < 2²⁸, so 8× that fits in u32.
+        let lap = (sum - 4 * i64::from(c))
+            .unsigned_abs()
+            .min(u64::from(u32::MAX)) as u32;
+        f(x, y, lap);
+    });
+}
+
+/// The largest `|∇²I|` over the region: the `max L` of eq. 3.
+pub fn laplacian_max(buf: &[i32], dims: Dims) -> u32 {
+    laplacian_max_in(buf, dims, Roi::full(dims))
+}
+
+/// The largest `|∇²I|` over the pixels of `roi`.
+fn laplacian_max_in(buf: &[i32], dims: Dims, roi: Roi) -> u32 {
+    let mut max = 0;
+    for_each_laplacian(buf, dims, |x, y, l| {
+        if roi.contains(x, y) {
+            max = max.max(l);
+        }
+    });
+    max
+}
+
+/// Maps `|∇²I|` to `Sal` in 0..=255 for a given maximum without a per-pixel division.
+#[derive(Clone, Copy)]
+struct Normalizer {
+    shift: u32,
+    max: u64,
+    recip: u64,
+}
+
+impl Normalizer {
+    fn new(max: u32) -> Self {
+        // Bring max below 2¹⁶ so that l · recip (l ≤ max) stays below 2⁵⁶.
+        let shift = 32 - max.leading_zeros().min(32);
+        let shift = shift.saturating_sub(16);
+        let m = u64::from(max >> shift).max(1);
+        // +1 makes l = max map to exactly 255; l ≤ max never exceeds it.
+        let recip = ((255u64 << 32) / m) + 1;
+        Self {
+            shift,
+            max: m,
+            recip,
+        }
+    }
+
+    /// `Sal` in Q8 (0 ..= 255·256).
+    #[inline(always)]
+    fn sal_q8(self, lap: u32) -> u32 {
+        // Values above the maximum (Reference normalization) saturate at 255.
+        let l = u64::from(lap >> self.shift).min(self.max);
+        let v = (l * self.recip) >> 24;
+        v.min(255 << 8) as u32
+    }
+
+    /// `S = exp(Sal/255) − 1` in Q24, interpolated between table entries.
+    #[inline(always)]
+    fn saliency(self, lap: u32) -> u32 {
+        let q = self.sal_q8(lap);
+        let (k, frac) = ((q >> 8) as usize, q & 0xff);
+        let lo = EXP_TABLE[k].to_bits();
+        let hi = EXP_TABLE[(k + 1).min(255)].to_bits();
+        // The table rises, so hi ≥ lo; the step is below 2²⁴·0.007 and times 255 fits u32.
+        lo + (((hi - lo) * frac + 128) >> 8)
+    }
+}
+
+/// The normalizing maximum at `level` (1-based) under `norm`.
+pub(crate) fn level_max(
+    buf: &[i32],
+    dims: Dims,
+    roi: Roi,
+    norm: SaliencyNorm,
+    wavelet: Wavelet,
+    level: u8,
+) -> u32 {
+    match norm {
+        SaliencyNorm::Local => laplacian_max_in(buf, dims, roi),
+        SaliencyNorm::Reference(r) => {
+            let mut m = u64::from(r);
+            for _ in 1..level {
+                m = (m * ll_gain_q16(wavelet)) >> 16;
+            }
+            m.min(u64::from(u32::MAX)) as u32
+        }
+    }
+}
+
+/// Calls `f(x, y, S)` with `S = exp(Sal/255) − 1` (Q24) for every pixel, `max` being the
+/// normalizing maximum. A flat region (`max = 0`) has `S = 0` everywhere and makes no calls.
+pub(crate) fn for_each_saliency(
+    buf: &[i32],
+    dims: Dims,
+    max: u32,
+    mut f: impl FnMut(usize, usize, i32),
+) {
+    if max == 0 {
+        return;
+    }
+    let norm = Normalizer::new(max);
+    for_each_laplacian(buf, dims, |x, y, l| {
+        // S ≤ 1.7183 · 2²⁴ < 2³¹.
+        f(x, y, norm.saliency(l) as i32);
+    });
+}
+
+/// `W₁ = S₁ / (S₁ + S₂)` as Q15 (`1.0` = 32768), `½` when both are zero.
+///
+/// Sums are first scaled down below 2¹⁷ together (keeping their ratio to 17 bits), so the
+/// division fits in `u64` for any input.
+pub fn weight(s1: u32, s2: u32) -> U1F15 {
+    let (mut a, mut b) = (u64::from(s1), u64::from(s2));
+    let total = a + b;
+    if total == 0 {
+        return U1F15::from_bits(1 << 14);
+    }
+    while a + b > (1 << 17) {
+        a >>= 1;
+        b >>= 1;
+    }
+    let w = ((a << 15) + (a + b) / 2) / (a + b).max(1);
+    U1F15::from_bits(w.min(1 << 15) as u16)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exp_table_matches_libm_to_half_a_step() {
+        for (k, v) in EXP_TABLE.iter().enumerate() {
+            let exact = libm::exp(k as f64 / 255.0) - 1.0;
+            let got = v.to_num::<f64>();
+            assert!(
+                (got - exact).abs() <= 0.5 / 16384.0 + 1e-12,
+                "k={k}: {got} vs {exact}"
+            );
+        }
+        assert_eq!(EXP_TABLE[0], U8F24::ZERO);
+    }
+
+    #[test]
+    fn weights_are_half_for_flat_and_complementary_otherwise() {
+        assert_eq!(weight(0, 0).to_bits(), 16384);
+        assert_eq!(weight(5, 0).to_bits(), 32768);
+        assert_eq!(weight(0, 9).to_bits(), 0);
+        assert_eq!(weight(1000, 3000).to_bits(), 8192);
+        assert_eq!(weight(u32::MAX, u32::MAX).to_bits(), 16384);
+    }
+
+    #[test]
+    fn normalizer_maps_max_to_255_and_never_beyond() {
+        for max in [1u32, 2, 3, 255, 1000, 65_535, 65_536, 1 << 27, u32::MAX] {
+            let n = Normalizer::new(max);
+            assert_eq!(n.sal_q8(max) >> 8, 255, "max {max}");
+            assert_eq!(n.sal_q8(0), 0);
+            if max >= 1000 {
+                let half = n.sal_q8(max / 2) >> 8;
+                assert!((126..=128).contains(&half), "max {max}: {half}");
+            }
+            assert_eq!(n.sal_q8(u32::MAX), 255 << 8);
+            assert_eq!(n.saliency(u32::MAX), EXP_TABLE[255].to_bits());
+        }
+    }
+
+    #[test]
+    fn flat_image_has_zero_laplacian() {
+        let dims = Dims::new(5, 3).unwrap();
+        assert_eq!(laplacian_max(&[77; 15], dims), 0);
+        let mut impulse = [0i32; 15];
+        impulse[7] = 10;
+        assert_eq!(laplacian_max(&impulse, dims), 40);
+    }
+}

@@ -1,0 +1,432 @@
+//! Behaviour of the fuse step and the cyclic fuser, integer and f32.
+
+mod common;
+
+use common::{step_edge, tactile_scene};
+use rollfuse_core::float;
+use rollfuse_core::fusion::{
+    CyclicBuffers, LlWeight, U8Work, fuse_pair, fuse_scratch_len, fuse_u8,
+};
+use rollfuse_core::{
+    Ablation, CyclicFuser, Dims, Error, FuseConfig, LlWeighting, SaliencyNorm, Wavelet,
+};
+
+fn cfg(wavelet: Wavelet, levels: u8) -> FuseConfig {
+    FuseConfig {
+        wavelet,
+        levels,
+        ..FuseConfig::default()
+    }
+}
+
+/// Integer fuse of two 8-bit images, as the MCU does it.
+fn fuse_int(a: &[u8], b: &[u8], w: usize, h: usize, cfg: &FuseConfig) -> Vec<u8> {
+    let dims = Dims::new(w, h).unwrap();
+    let (mut wa, mut wb) = (vec![0i32; w * h], vec![0i32; w * h]);
+    let mut scratch = vec![0; fuse_scratch_len(dims)];
+    let work = U8Work {
+        a: &mut wa,
+        b: &mut wb,
+        scratch: &mut scratch,
+    };
+    fuse_u8((a, dims), (b, dims), cfg, LlWeight::HALF, work).unwrap();
+    wa.iter().map(|&v| v as u8).collect()
+}
+
+/// f32 fuse of two 8-bit images (padded as the host does), rounded and clamped to 8 bits.
+fn fuse_f32(a: &[u8], b: &[u8], w: usize, h: usize, cfg: &FuseConfig) -> Vec<u8> {
+    let p = float::Padded::new(w, h, cfg.levels).unwrap();
+    let load = |img: &[u8]| {
+        let mut buf = vec![0f32; p.dims.pixels()];
+        p.fill(&mut buf, |x, y| img[y * w + x] as f32).unwrap();
+        buf
+    };
+    let (mut fa, mut fb) = (load(a), load(b));
+    let mut scratch = vec![0f32; float::fuse_scratch_len(p.dims)];
+    float::fuse_pair(&mut fa, &mut fb, &p, cfg, LlWeight::HALF, &mut scratch).unwrap();
+    (0..w * h)
+        .map(|i| fa[p.at(i % w, i / w)].round().clamp(0.0, 255.0) as u8)
+        .collect()
+}
+
+fn max_abs_diff(a: &[u8], b: &[u8]) -> u8 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| x.abs_diff(*y))
+        .max()
+        .unwrap_or(0)
+}
+
+/// Largest horizontal step between neighbours along row `y`.
+fn edge_strength(img: &[u8], w: usize, y: usize) -> u8 {
+    img[y * w..(y + 1) * w]
+        .windows(2)
+        .map(|p| p[0].abs_diff(p[1]))
+        .max()
+        .unwrap()
+}
+
+#[test]
+fn fusing_an_image_with_itself_returns_it() {
+    for wavelet in [Wavelet::Haar, Wavelet::Db2] {
+        for levels in 1..=4 {
+            for (w, h) in [(64, 48), (37, 29), (1, 20), (20, 1)] {
+                let Ok(()) = Dims::new(w, h).unwrap().check_levels(levels) else {
+                    continue;
+                };
+                let img = tactile_scene(w, h, 7, 0.8);
+                let c = cfg(wavelet, levels);
+                assert_eq!(
+                    fuse_int(&img, &img, w, h, &c),
+                    img,
+                    "{wavelet:?} L{levels} {w}x{h}"
+                );
+                let f = fuse_f32(&img, &img, w, h, &c);
+                assert!(
+                    max_abs_diff(&f, &img) <= 1,
+                    "f32 {wavelet:?} L{levels} {w}x{h}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn fusing_with_a_flat_image_keeps_the_edges() {
+    let (w, h) = (64, 32);
+    let edge = step_edge(w, h, 31, 60, 200);
+    let flat = vec![130u8; w * h];
+    let original = edge_strength(&edge, w, h / 2);
+    for wavelet in [Wavelet::Haar, Wavelet::Db2] {
+        for levels in 1..=3 {
+            let c = cfg(wavelet, levels);
+            let fused = fuse_int(&edge, &flat, w, h, &c);
+            let averaged = fuse_int(
+                &edge,
+                &flat,
+                w,
+                h,
+                &FuseConfig {
+                    ablation: Ablation::NoWavelet,
+                    ..c
+                },
+            );
+            let kept = edge_strength(&fused, w, h / 2);
+            let avg = edge_strength(&averaged, w, h / 2);
+            println!("{wavelet:?} L{levels}: edge {original} → fused {kept}, pixel average {avg}");
+            // The flat image has no saliency, so the edge's detail bands pass with weight 1:
+            // at least three quarters of the step survives, where averaging keeps half.
+            assert!(
+                kept as f64 >= 0.75 * original as f64,
+                "{wavelet:?} L{levels}: {kept}"
+            );
+            assert!(kept > avg, "{wavelet:?} L{levels}: {kept} vs {avg}");
+        }
+    }
+}
+
+/// Largest difference inside the image and within `border` pixels of its edge.
+fn interior_and_border_diff(a: &[u8], b: &[u8], w: usize, h: usize, border: usize) -> (u8, u8) {
+    let (mut inner, mut edge) = (0, 0);
+    for (i, (x, y)) in a.iter().zip(b).enumerate() {
+        let (px, py) = (i % w, i / w);
+        let d = x.abs_diff(*y);
+        let near = px < border || py < border || px + border >= w || py + border >= h;
+        if near {
+            edge = edge.max(d);
+        } else {
+            inner = inner.max(d);
+        }
+    }
+    (inner, edge)
+}
+
+#[test]
+fn float_and_integer_fusion_agree_within_two_gray_levels() {
+    // Away from the borders both paths run the same filters on the same pixels with the
+    // same weights; they differ only by the integer path's rounding. Within the reach of
+    // the deepest basis function (3·2^L pixels) of a border they extend the image
+    // differently (symmetric lifting channels vs a reflected margin), which the second
+    // bound covers (docs/numerics.md).
+    let (mut worst_inner, mut worst_edge) = (0, 0);
+    for wavelet in [Wavelet::Haar, Wavelet::Db2] {
+        for levels in 1..=3 {
+            for seed in 0..4 {
+                let (w, h) = (96, 72);
+                let shallow = tactile_scene(w, h, seed, 0.2);
+                let deep = tactile_scene(w, h, seed, 1.0);
+                let c = cfg(wavelet, levels);
+                let int = fuse_int(&shallow, &deep, w, h, &c);
+                let flt = fuse_f32(&shallow, &deep, w, h, &c);
+                let (inner, edge) = interior_and_border_diff(&int, &flt, w, h, 3 << levels);
+                println!(
+                    "{wavelet:?} L{levels} seed {seed}: max |f32 − integer| interior {inner}, border {edge}"
+                );
+                worst_inner = worst_inner.max(inner);
+                worst_edge = worst_edge.max(edge);
+            }
+        }
+    }
+    println!("worst: interior {worst_inner}, border {worst_edge} gray levels");
+    assert!(worst_inner <= 2, "interior: {worst_inner} gray levels");
+    assert!(worst_edge <= 6, "border: {worst_edge} gray levels");
+}
+
+#[test]
+fn pixel_average_ablation_is_the_rounded_mean() {
+    let (w, h) = (17, 9);
+    let a = tactile_scene(w, h, 1, 0.5);
+    let b = tactile_scene(w, h, 2, 0.9);
+    let c = FuseConfig {
+        ablation: Ablation::NoWavelet,
+        ..FuseConfig::default()
+    };
+    let fused = fuse_int(&a, &b, w, h, &c);
+    for ((&f, &x), &y) in fused.iter().zip(&a).zip(&b) {
+        assert_eq!(f as u32, (x as u32 + y as u32 + 1) / 2);
+    }
+}
+
+#[test]
+fn max_high_and_single_ll_ablations_differ_from_the_method() {
+    let (w, h) = (48, 40);
+    let a = tactile_scene(w, h, 3, 0.1);
+    let b = tactile_scene(w, h, 4, 1.0);
+    let full = fuse_int(&a, &b, w, h, &FuseConfig::default());
+    for ablation in [Ablation::MaxHigh, Ablation::SingleLl] {
+        let c = FuseConfig {
+            ablation,
+            ..FuseConfig::default()
+        };
+        assert_ne!(fuse_int(&a, &b, w, h, &c), full, "{ablation:?}");
+    }
+    // With a flat second image, keeping the first image's LL and its (only salient)
+    // detail returns the first image.
+    let flat = vec![100u8; w * h];
+    let c = FuseConfig {
+        ablation: Ablation::SingleLl,
+        ..FuseConfig::default()
+    };
+    let kept = fuse_int(&a, &flat, w, h, &c);
+    assert!(max_abs_diff(&kept, &a) <= 1);
+}
+
+#[test]
+fn two_flat_images_fuse_to_their_mean() {
+    // Zero Laplacian everywhere: weights must be ½, not 0/0.
+    for levels in 1..=4 {
+        let fused = fuse_int(&[40; 256], &[200; 256], 16, 16, &cfg(Wavelet::Db2, levels));
+        assert!(fused.iter().all(|&v| v == 120), "L{levels}: {fused:?}");
+        let fused = fuse_f32(&[40; 256], &[200; 256], 16, 16, &cfg(Wavelet::Db2, levels));
+        assert!(fused.iter().all(|&v| v == 120), "f32 L{levels}");
+    }
+}
+
+struct Owned {
+    fused: Vec<u8>,
+    a: Vec<i32>,
+    b: Vec<i32>,
+    scratch: Vec<i32>,
+}
+
+impl Owned {
+    fn new(w: usize, h: usize) -> Self {
+        let n = w * h;
+        Self {
+            fused: vec![0; n],
+            a: vec![0; n],
+            b: vec![0; n],
+            scratch: vec![0; fuse_scratch_len(Dims::new(w, h).unwrap())],
+        }
+    }
+
+    fn buffers(&mut self) -> CyclicBuffers<'_> {
+        CyclicBuffers {
+            fused: &mut self.fused,
+            work_a: &mut self.a,
+            work_b: &mut self.b,
+            scratch: &mut self.scratch,
+        }
+    }
+}
+
+#[test]
+fn cyclic_fuser_keeps_a_constant_sequence_constant() {
+    let (w, h) = (24, 16);
+    let mut mem = Owned::new(w, h);
+    for weighting in [LlWeighting::Paper, LlWeighting::Equal] {
+        let c = FuseConfig {
+            ll_weighting: weighting,
+            levels: 2,
+            ..FuseConfig::default()
+        };
+        let mut fuser = CyclicFuser::new(c, w, h, mem.buffers()).unwrap();
+        let frame = tactile_scene(w, h, 11, 0.6);
+        for n in 1..=20 {
+            fuser.push(&frame, w).unwrap();
+            assert_eq!(fuser.frames(), n);
+            assert_eq!(fuser.fused(), &frame[..]);
+        }
+    }
+}
+
+#[test]
+fn equal_ll_weighting_averages_flat_frames_evenly() {
+    let (w, h) = (8, 8);
+    let mut mem = Owned::new(w, h);
+    let c = FuseConfig {
+        ll_weighting: LlWeighting::Equal,
+        ..FuseConfig::default()
+    };
+    let mut fuser = CyclicFuser::new(c, w, h, mem.buffers()).unwrap();
+    for v in [30u8, 60, 90, 120] {
+        fuser.push(&[v; 64], w).unwrap();
+    }
+    // Equal weights: (30 + 60 + 90 + 120) / 4 = 75 (the paper's pairwise mean gives 97.5).
+    assert!(
+        fuser.fused().iter().all(|&v| v.abs_diff(75) <= 1),
+        "{:?}",
+        fuser.fused()
+    );
+}
+
+#[test]
+fn cyclic_fuser_reads_strided_frames_and_refuses_bad_ones() {
+    let (w, h) = (10, 6);
+    let mut mem = Owned::new(w, h);
+    let mut fuser = CyclicFuser::new(FuseConfig::default(), w, h, mem.buffers()).unwrap();
+    assert_eq!(fuser.fused(), &[] as &[u8]);
+    let stride = 13;
+    let mut frame = vec![255u8; stride * h];
+    for y in 0..h {
+        frame[y * stride..y * stride + w].fill(50);
+    }
+    fuser.push(&frame, stride).unwrap();
+    assert!(fuser.fused().iter().all(|&v| v == 50));
+    assert_eq!(
+        fuser.push(&frame[..stride * h - 4], stride),
+        Err(Error::BufferTooSmall {
+            which: "frame",
+            needed: stride * (h - 1) + w,
+            got: stride * h - 4
+        })
+    );
+    assert_eq!(
+        fuser.push(&frame, 5),
+        Err(Error::StrideTooSmall {
+            stride: 5,
+            width: w
+        })
+    );
+    // The good result is untouched by the refused frames.
+    assert_eq!(fuser.frames(), 1);
+    assert!(fuser.fused().iter().all(|&v| v == 50));
+}
+
+#[test]
+fn cyclic_fuser_refuses_short_buffers_and_deep_levels() {
+    let mut mem = Owned::new(4, 4);
+    let c = FuseConfig {
+        levels: 3,
+        ..FuseConfig::default()
+    };
+    assert_eq!(
+        CyclicFuser::new(c, 4, 4, mem.buffers()).err(),
+        Some(Error::LevelsTooDeep { levels: 3, max: 2 })
+    );
+    assert_eq!(
+        CyclicFuser::new(FuseConfig::default(), 5, 4, mem.buffers()).err(),
+        Some(Error::BufferTooSmall {
+            which: "fused",
+            needed: 20,
+            got: 16
+        })
+    );
+}
+
+#[test]
+fn reference_normalization_saturates_instead_of_overflowing() {
+    let (w, h) = (64, 64);
+    let a = tactile_scene(w, h, 5, 1.0);
+    let b = tactile_scene(w, h, 5, 0.3);
+    for r in [0, 1, 10, u32::MAX] {
+        for levels in 1..=4 {
+            let c = FuseConfig {
+                norm: SaliencyNorm::Reference(r),
+                levels,
+                ..FuseConfig::default()
+            };
+            let fused = fuse_int(&a, &b, w, h, &c);
+            assert_eq!(fused.len(), w * h);
+            // The same bounds as with local normalization: both paths scale the reference
+            // alike (8-bit units, times each level's LL gain).
+            let f = fuse_f32(&a, &b, w, h, &c);
+            let (inner, edge) = interior_and_border_diff(&fused, &f, w, h, 3 << levels);
+            println!("r {r} L{levels}: interior {inner}, border {edge}");
+            if levels <= 3 {
+                assert!(inner <= 2 && edge <= 6, "r {r} L{levels}: {inner}, {edge}");
+            }
+        }
+    }
+}
+
+#[test]
+fn fuse_pair_refuses_bad_arguments() {
+    let dims = Dims::new(8, 8).unwrap();
+    let mut a = vec![0i32; 64];
+    let mut b = vec![0i32; 64];
+    let mut s = vec![0i32; fuse_scratch_len(dims)];
+    let c = FuseConfig::default();
+    assert_eq!(
+        fuse_pair(&mut a, &mut b[..60], dims, &c, LlWeight::HALF, &mut s),
+        Err(Error::BufferTooSmall {
+            which: "second image",
+            needed: 64,
+            got: 60
+        })
+    );
+    let short = s.len() - 1;
+    assert!(matches!(
+        fuse_pair(&mut a, &mut b, dims, &c, LlWeight::HALF, &mut s[..short]),
+        Err(Error::BufferTooSmall {
+            which: "scratch",
+            ..
+        })
+    ));
+    b[3] = 1 << 20;
+    assert_eq!(
+        fuse_pair(&mut a, &mut b, dims, &c, LlWeight::HALF, &mut s),
+        Err(Error::SampleOutOfRange)
+    );
+    let frame = float::Padded::new(8, 8, 1).unwrap();
+    let n = frame.dims.pixels();
+    let mut fa = vec![0f32; n];
+    let mut fb = vec![f32::NAN; n];
+    let mut fs = vec![0f32; float::fuse_scratch_len(frame.dims)];
+    assert_eq!(
+        float::fuse_pair(&mut fa, &mut fb, &frame, &c, LlWeight::HALF, &mut fs),
+        Err(Error::InvalidParameter {
+            name: "sample (NaN or infinite)"
+        })
+    );
+    fb.fill(1.0);
+    let deeper = FuseConfig { levels: 4, ..c };
+    assert!(matches!(
+        float::fuse_pair(&mut fa, &mut fb, &frame, &deeper, LlWeight::HALF, &mut fs),
+        Err(Error::InvalidParameter { .. }) | Err(Error::LevelsTooDeep { .. })
+    ));
+    assert!(matches!(
+        float::fuse_pair(
+            &mut fa[..n - 1],
+            &mut fb,
+            &frame,
+            &c,
+            LlWeight::HALF,
+            &mut fs
+        ),
+        Err(Error::BufferTooSmall {
+            which: "first image",
+            ..
+        })
+    ));
+}
