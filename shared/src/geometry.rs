@@ -213,6 +213,10 @@ impl Line {
 /// extended as a constant. `n` must be at least 1.
 #[inline]
 pub(crate) fn mirror(i: isize, n: usize) -> usize {
+    // Most calls are inside the sequence; keep the division for the rest.
+    if i >= 0 && (i as usize) < n {
+        return i as usize;
+    }
     if n <= 1 {
         return 0;
     }

@@ -183,7 +183,7 @@ fn pixel_average_ablation_is_the_rounded_mean() {
     };
     let fused = fuse_int(&a, &b, w, h, &c);
     for ((&f, &x), &y) in fused.iter().zip(&a).zip(&b) {
-        assert_eq!(f as u32, (x as u32 + y as u32 + 1) / 2);
+        assert_eq!(f as u32, (x as u32 + y as u32).div_ceil(2));
     }
 }
 

@@ -48,10 +48,12 @@ impl Phase {
     }
 }
 
-/// Index `2i + at − k` wrapped into `0..n` (`at ≤ 3`, `k < 4 ≤ n + 3`).
+/// Index `2i + at − k` wrapped into `0..n` (`2i < n`, `at ≤ 3`, `k < 4`).
 #[inline(always)]
 fn tap(i: usize, at: usize, k: usize, n: usize) -> usize {
-    (2 * i + at + n - k) % n
+    let j = 2 * i + at;
+    // Only the first and last coefficients wrap; spare the others a division.
+    if j >= k && j - k < n { j - k } else { (j + n - k) % n }
 }
 
 /// Forward analysis of one even-length line `x` into `out`: `cA` then `cD`.

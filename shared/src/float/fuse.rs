@@ -166,7 +166,7 @@ pub fn fuse_pair(
     dims.check_buffer("second image", b.len())?;
     dims.check_levels(cfg.levels)?;
     let m = 1usize << cfg.levels;
-    if dims.width() % m != 0 || dims.height() % m != 0 {
+    if !dims.width().is_multiple_of(m) || !dims.height().is_multiple_of(m) {
         return Err(Error::InvalidParameter {
             name: "frame (made for fewer levels than cfg.levels)",
         });

@@ -20,9 +20,10 @@
 //! steps, fed values saturated to these bounds, stay within `peak` below; the test
 //! `every_bound_fits_in_i32` checks the deepest level's peak for `MAX_SAMPLE` inputs.
 //!
-//! The table for 8-bit input (`M = 255`) is printed by
-//! `cargo test -p rollfuse-core -- --ignored print_bounds_table --nocapture` and stated in
-//! `docs/numerics.md`.
+//! The table for 8-bit input as the fusion feeds it (`M = 255 · 2^GUARD_BITS = 2040`) and
+//! for `MAX_SAMPLE` is printed by
+//! `cargo test -p rollfuse-core --lib -- --ignored print_bounds_table --nocapture` and
+//! stated in `docs/numerics.md`.
 
 use super::Wavelet;
 
@@ -169,12 +170,11 @@ mod tests {
             for j in 0..n {
                 let mut x = vec![0i32; n];
                 x[j] = K as i32;
-                let mut split: std::vec::Vec<i32> =
-                    (0..n).map(|k| if k % 2 == 0 { x[k] } else { 0 }).collect();
                 // Even samples first, then odd, as forward_line arranges them.
-                for k in 0..n {
+                let mut split = vec![0i32; n];
+                for (k, &v) in x.iter().enumerate() {
                     let slot = if k % 2 == 0 { k / 2 } else { nl + k / 2 };
-                    split[slot] = x[k];
+                    split[slot] = v;
                 }
                 let (lo, hi) = split.split_at_mut(nl);
                 lift(lo, hi);
@@ -225,8 +225,12 @@ mod tests {
     #[test]
     #[ignore = "prints the table for docs/numerics.md"]
     fn print_bounds_table() {
+        // 8-bit samples with the fusion's guard bits, and the largest accepted input.
+        let guarded = 255 << crate::fusion::GUARD_BITS;
+        println!("| wavelet | level | input | LL | HL, LH, HH | peak ({guarded}) | peak ({MAX_SAMPLE}) |");
         for w in [Wavelet::Haar, Wavelet::Db2] {
-            for (k, b) in level_bounds_for(w, 4, 255).iter().enumerate() {
+            let full = level_bounds(w, 4);
+            for (k, b) in level_bounds_for(w, 4, guarded).iter().enumerate() {
                 println!(
                     "| {w:?} | {} | {} | {} | {} | {} | {} |",
                     k + 1,
@@ -234,7 +238,7 @@ mod tests {
                     b.ll,
                     b.hl.max(b.lh).max(b.hh),
                     b.peak,
-                    level_bounds(w, 4)[k].peak
+                    full[k].peak
                 );
             }
         }
