@@ -53,7 +53,11 @@ impl Phase {
 fn tap(i: usize, at: usize, k: usize, n: usize) -> usize {
     let j = 2 * i + at;
     // Only the first and last coefficients wrap; spare the others a division.
-    if j >= k && j - k < n { j - k } else { (j + n - k) % n }
+    if j >= k && j - k < n {
+        j - k
+    } else {
+        (j + n - k) % n
+    }
 }
 
 /// Forward analysis of one even-length line `x` into `out`: `cA` then `cD`.
@@ -88,6 +92,26 @@ fn synthesize(wavelet: Wavelet, phase: Phase, c: &[f32], x: &mut [f32]) {
     }
 }
 
+/// Runs `op(input, output)` on each line in turn: the line is copied into the first half
+/// of `scratch`, and `op`'s result, in the second half, is written back in its place.
+fn each_line(
+    buf: &mut [f32],
+    lines: impl Iterator<Item = Line>,
+    scratch: &mut [f32],
+    op: impl Fn(&[f32], &mut [f32]),
+) {
+    for line in lines {
+        let (input, output) = scratch.split_at_mut(line.len);
+        for (v, p) in input.iter_mut().zip(line.positions()) {
+            *v = buf[p];
+        }
+        op(input, &mut output[..line.len]);
+        for (p, &v) in line.positions().zip(output.iter()) {
+            buf[p] = v;
+        }
+    }
+}
+
 /// One forward 2-D level on an even-sized region, in place: rows then columns, Mallat
 /// layout as in [`crate::geometry`]. `scratch` holds `2 · max(w, h)`.
 pub(crate) fn forward_level(
@@ -99,16 +123,9 @@ pub(crate) fn forward_level(
 ) {
     let rows = (0..dims.height()).map(|y| Line::row(dims, y));
     let cols = (0..dims.width()).map(|x| Line::column(dims, x));
-    for line in rows.chain(cols) {
-        let (x, out) = scratch.split_at_mut(line.len);
-        for (v, p) in x.iter_mut().zip(line.positions()) {
-            *v = buf[p];
-        }
-        analyze(wavelet, phase, x, &mut out[..line.len]);
-        for (p, &v) in line.positions().zip(out.iter()) {
-            buf[p] = v;
-        }
-    }
+    each_line(buf, rows.chain(cols), scratch, |x, out| {
+        analyze(wavelet, phase, x, out)
+    });
 }
 
 /// One inverse 2-D level on an even-sized region, in place (columns, then rows).
@@ -121,16 +138,9 @@ pub(crate) fn inverse_level(
 ) {
     let cols = (0..dims.width()).map(|x| Line::column(dims, x));
     let rows = (0..dims.height()).map(|y| Line::row(dims, y));
-    for line in cols.chain(rows) {
-        let (c, x) = scratch.split_at_mut(line.len);
-        for (v, p) in c.iter_mut().zip(line.positions()) {
-            *v = buf[p];
-        }
-        synthesize(wavelet, phase, c, &mut x[..line.len]);
-        for (p, &v) in line.positions().zip(x.iter()) {
-            buf[p] = v;
-        }
-    }
+    each_line(buf, cols.chain(rows), scratch, |c, x| {
+        synthesize(wavelet, phase, c, x)
+    });
 }
 
 /// Size of each subband of a single-level `dwt2` on a `w × h` image: `⌈w/2⌉ × ⌈h/2⌉`.

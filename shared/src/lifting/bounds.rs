@@ -227,7 +227,9 @@ mod tests {
     fn print_bounds_table() {
         // 8-bit samples with the fusion's guard bits, and the largest accepted input.
         let guarded = 255 << crate::fusion::GUARD_BITS;
-        println!("| wavelet | level | input | LL | HL, LH, HH | peak ({guarded}) | peak ({MAX_SAMPLE}) |");
+        println!(
+            "| wavelet | level | input | LL | HL, LH, HH | peak ({guarded}) | peak ({MAX_SAMPLE}) |"
+        );
         for w in [Wavelet::Haar, Wavelet::Db2] {
             let full = level_bounds(w, 4);
             for (k, b) in level_bounds_for(w, 4, guarded).iter().enumerate() {
