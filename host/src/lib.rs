@@ -3,7 +3,12 @@
 //!
 //! The numeric core — integer and `f32` wavelet lifting, saliency, the fuse step and the
 //! cyclic fuser — is the `no_std` crate [`rollfuse_core`], re-exported here as [`core`].
-//! This crate will add what needs `std`: image files, the simulator, the device link,
-//! depth and evaluation (see the README's roadmap).
+//! This crate adds what needs `std`:
+//!
+//! - [`sim`]: the tactile simulator (scenes, effects on demand, ground truth).
+//! - [`npy`]: NumPy array files.
 
 pub use rollfuse_core as core;
+
+pub mod npy;
+pub mod sim;

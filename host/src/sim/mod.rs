@@ -1,0 +1,16 @@
+//! The tactile simulator: renders what the sensor would see as the roller passes over an
+//! object, computing only the effects a scene lists, and the ground truth beside it.
+//!
+//! - [`scene`]: the scene file (TOML) and its checks.
+//! - [`object`]: the objects' height maps.
+//! - [`render`]: the stages — contact, gel, shading, defocus, background, noise, jitter.
+//! - [`output`]: frames, truth and manifest on disk.
+
+pub mod font;
+pub mod object;
+pub mod output;
+pub mod render;
+pub mod scene;
+
+pub use render::{Frame, Planes, Simulator, Strip};
+pub use scene::{Effect, Scene};

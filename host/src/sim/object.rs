@@ -1,0 +1,437 @@
+//! Height maps of the objects on the belt, in belt millimetres.
+//!
+//! The canvas: `x` across the belt from the image's left edge (`0..width_mm`), `y` along
+//! the belt (`0..length_mm`). Built-in objects lay themselves out inside it with a margin;
+//! every height is in mm above the belt.
+
+use super::font;
+use super::scene::{Object, Shape};
+use std::f64::consts::PI;
+
+/// Edge rounding of raised features, mm: how wide the shoulder of a 1 mm step is.
+const EDGE_MM: f64 = 0.12;
+
+/// The canvas an object is laid out in.
+#[derive(Debug, Clone, Copy)]
+pub struct Canvas {
+    /// Across the belt, mm.
+    pub width_mm: f64,
+    /// Along the belt, mm.
+    pub length_mm: f64,
+}
+
+/// A labelled region of the object (for masks), as a predicate on belt mm.
+pub struct Region {
+    /// Its name.
+    pub name: String,
+    /// Whether a point (x, y) in mm lies in it.
+    pub contains: Box<dyn Fn(f64, f64) -> bool + Send + Sync>,
+}
+
+/// A laid-out object: its height at any point, and its regions.
+pub struct Layout {
+    height: Box<dyn Fn(f64, f64) -> f64 + Send + Sync>,
+    /// The regions the object defines (may be empty).
+    pub regions: Vec<Region>,
+}
+
+impl Layout {
+    /// Height above the belt at `(x, y)` mm; 0 off the object.
+    pub fn height(&self, x: f64, y: f64) -> f64 {
+        (self.height)(x, y)
+    }
+}
+
+/// A raised profile: `h` inside (distance ≤ 0), falling smoothly to 0 over `EDGE_MM`.
+fn shoulder(h: f64, outside_by: f64) -> f64 {
+    if outside_by <= 0.0 {
+        h
+    } else if outside_by >= EDGE_MM {
+        0.0
+    } else {
+        let t = outside_by / EDGE_MM;
+        h * (1.0 - t * t * (3.0 - 2.0 * t))
+    }
+}
+
+/// Distance from `(px, py)` to the segment `a–b`.
+fn segment_distance(px: f64, py: f64, (ax, ay): (f64, f64), (bx, by): (f64, f64)) -> f64 {
+    let (dx, dy) = (bx - ax, by - ay);
+    let len2 = dx * dx + dy * dy;
+    let t = if len2 > 0.0 {
+        (((px - ax) * dx + (py - ay) * dy) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    ((px - ax - t * dx).powi(2) + (py - ay - t * dy).powi(2)).sqrt()
+}
+
+/// Height of a round wire of radius `r` lying on the belt, at distance `d` from its axis.
+fn wire(r: f64, d: f64) -> f64 {
+    if d < r {
+        r + (r * r - d * d).sqrt()
+    } else {
+        0.0
+    }
+}
+
+/// Lays `object` out in `canvas`.
+pub fn layout(object: &Object, canvas: Canvas) -> Layout {
+    let (w, l) = (canvas.width_mm, canvas.length_mm);
+    let no_regions = Vec::new;
+    match object.clone() {
+        Object::Letters { text, height_mm } => {
+            let chars: Vec<char> = text.chars().collect();
+            let n = chars.len() as f64;
+            // Glyphs stand along the belt, one after another, each 5 cells wide and 7
+            // long with 2 cells of spacing, as large as the canvas allows (cells ≤ 0.8 mm).
+            let cell = (0.6 * w / 5.0)
+                .min(0.9 * l / (n * 9.0 - 2.0).max(1.0))
+                .min(0.8);
+            let x0 = (w - 5.0 * cell) / 2.0;
+            let y0 = (l - (n * 9.0 - 2.0) * cell) / 2.0;
+            Layout {
+                height: Box::new(move |x, y| {
+                    let (cx, cy) = ((x - x0) / cell, (y - y0) / cell);
+                    let (ci, cj) = (cx.floor() as i64, cy.floor() as i64);
+                    let mut d = f64::INFINITY;
+                    for j in cj - 1..=cj + 1 {
+                        for i in ci - 1..=ci + 1 {
+                            if i < 0 || j < 0 || i >= 5 {
+                                continue;
+                            }
+                            let (k, row) = ((j / 9) as usize, (j % 9) as usize);
+                            let raised = row < 7
+                                && chars
+                                    .get(k)
+                                    .is_some_and(|&c| font::cell(c, i as usize, row));
+                            if raised {
+                                let ox = (i as f64 - cx).max(cx - (i + 1) as f64).max(0.0);
+                                let oy = (j as f64 - cy).max(cy - (j + 1) as f64).max(0.0);
+                                d = d.min((ox * ox + oy * oy).sqrt() * cell);
+                            }
+                        }
+                    }
+                    shoulder(height_mm, d)
+                }),
+                regions: no_regions(),
+            }
+        }
+        Object::Dots {
+            height_mm,
+            pitch_mm,
+            size_mm,
+        } => {
+            let r = size_mm / 2.0;
+            Layout {
+                height: matrix(w, l, pitch_mm, move |u, v| {
+                    shoulder(height_mm, (u * u + v * v).sqrt() - r)
+                }),
+                regions: no_regions(),
+            }
+        }
+        Object::Lines {
+            height_mm,
+            pitch_mm,
+            size_mm,
+        } => {
+            let half = 0.35 * pitch_mm;
+            Layout {
+                height: matrix(w, l, pitch_mm, move |u, v| {
+                    shoulder(
+                        height_mm,
+                        segment_distance(u, v, (-half, 0.0), (half, 0.0)) - size_mm / 2.0,
+                    )
+                }),
+                regions: no_regions(),
+            }
+        }
+        Object::Curves {
+            height_mm,
+            pitch_mm,
+            size_mm,
+        } => {
+            let radius = 0.3 * pitch_mm;
+            Layout {
+                height: matrix(w, l, pitch_mm, move |u, v| {
+                    // A half ring opening toward +y.
+                    let ring = ((u * u + (v - radius / 2.0).powi(2)).sqrt() - radius).abs();
+                    let d = if v - radius / 2.0 <= 0.0 {
+                        ring
+                    } else {
+                        ((u.abs() - radius).powi(2) + (v - radius / 2.0).powi(2)).sqrt()
+                    };
+                    shoulder(height_mm, d - size_mm / 2.0)
+                }),
+                regions: no_regions(),
+            }
+        }
+        Object::Spheres { diameter_mm } => {
+            let r = diameter_mm / 2.0;
+            // Diagonal across the canvas, so each passes the apex at a different frame.
+            let centres: Vec<(f64, f64)> = (1..=3)
+                .map(|k| (w * k as f64 / 4.0, l * k as f64 / 4.0))
+                .collect();
+            let regions = centres
+                .iter()
+                .enumerate()
+                .map(|(k, &(cx, cy))| Region {
+                    name: format!("sphere_{}", k + 1),
+                    contains: Box::new(move |x, y| (x - cx).powi(2) + (y - cy).powi(2) <= r * r),
+                })
+                .collect();
+            Layout {
+                height: Box::new(move |x, y| {
+                    centres
+                        .iter()
+                        .map(|&(cx, cy)| wire(r, ((x - cx).powi(2) + (y - cy).powi(2)).sqrt()))
+                        .fold(0.0, f64::max)
+                }),
+                regions,
+            }
+        }
+        Object::Fabric { yarn_mm, pitch_mm } => fabric(w, l, yarn_mm, pitch_mm),
+        Object::Screw {
+            diameter_mm,
+            pitch_mm,
+        } => {
+            let r = diameter_mm / 2.0;
+            let cx = w / 2.0;
+            let (y_head, y_tip) = (0.15 * l, 0.85 * l);
+            Layout {
+                height: Box::new(move |x, y| {
+                    let d = (x - cx).abs();
+                    if (y_head - 0.25 * l..y_head).contains(&y) {
+                        // The head: wider than the shank; lying on its side the screw rests on
+                        // both, so the head's top is cut level with the threads'.
+                        let head = wire(1.6 * r, d).min(2.0 * r + 0.05);
+                        let slot = (y - (y_head - 0.125 * l)).abs() < 0.2 * r;
+                        return if slot { head - 0.6 * r } else { head };
+                    }
+                    if !(y_head..y_tip).contains(&y) {
+                        return 0.0;
+                    }
+                    // Threads: the radius swings by a sixth of itself along a helix.
+                    let phase = (y / pitch_mm + (x - cx) / (2.0 * PI * r)).fract();
+                    let tooth = 1.0 - 2.0 * (phase - 0.5).abs();
+                    wire(r * (0.85 + 0.15 * tooth), d)
+                }),
+                regions: no_regions(),
+            }
+        }
+        Object::Paperclip { wire_mm } => {
+            let r = wire_mm / 2.0;
+            let path = paperclip_path(w, l);
+            Layout {
+                height: Box::new(move |x, y| {
+                    let d = path
+                        .windows(2)
+                        .map(|s| segment_distance(x, y, s[0], s[1]))
+                        .fold(f64::INFINITY, f64::min);
+                    wire(r, d)
+                }),
+                regions: no_regions(),
+            }
+        }
+        Object::Primitives { shapes } => primitives(shapes),
+    }
+}
+
+/// A pattern repeated on a square grid of `pitch` inside the canvas (one pitch of margin);
+/// `unit(u, v)` is the height at offset `(u, v)` from the nearest grid point.
+fn matrix(
+    w: f64,
+    l: f64,
+    pitch: f64,
+    unit: impl Fn(f64, f64) -> f64 + Send + Sync + 'static,
+) -> Box<dyn Fn(f64, f64) -> f64 + Send + Sync> {
+    let (nx, ny) = (
+        ((w / pitch) as i64 - 1).max(1),
+        ((l / pitch) as i64 - 1).max(1),
+    );
+    let (x0, y0) = (
+        (w - (nx - 1) as f64 * pitch) / 2.0,
+        (l - (ny - 1) as f64 * pitch) / 2.0,
+    );
+    Box::new(move |x, y| {
+        let i = ((x - x0) / pitch).round().clamp(0.0, (nx - 1) as f64);
+        let j = ((y - y0) / pitch).round().clamp(0.0, (ny - 1) as f64);
+        unit(x - x0 - i * pitch, y - y0 - j * pitch)
+    })
+}
+
+/// Three weaves side by side across the belt (plain 1/1, twill 2/2, satin 4/1) and three
+/// defects along it: a hole (missing crossings), a knot (a lump of yarn) and a broken warp
+/// yarn. Each defect is a region.
+fn fabric(w: f64, l: f64, yarn: f64, pitch: f64) -> Layout {
+    let band = w / 3.0;
+    // Is the warp (the yarn along the belt) on top at crossing (i, j)?
+    let warp_on_top = move |i: i64, j: i64, weave: usize| match weave {
+        0 => (i + j).rem_euclid(2) == 0,
+        1 => (i + j).rem_euclid(4) < 2,
+        _ => (i * 2 + j).rem_euclid(5) == 0,
+    };
+    let hole = (band * 0.5, l * 0.3, 1.6 * pitch);
+    let knot = (band * 1.5, l * 0.5, 1.2 * pitch);
+    let broken_x = band * 2.5;
+    let broken = (l * 0.6, l * 0.8);
+    let regions = vec![
+        Region {
+            name: "hole".into(),
+            contains: Box::new(move |x, y| {
+                (x - hole.0).abs() < hole.2 && (y - hole.1).abs() < hole.2
+            }),
+        },
+        Region {
+            name: "knot".into(),
+            contains: Box::new(move |x, y| {
+                (x - knot.0).powi(2) + (y - knot.1).powi(2) < knot.2 * knot.2
+            }),
+        },
+        Region {
+            name: "broken_yarn".into(),
+            contains: Box::new(move |x, y| {
+                (x - broken_x).abs() < pitch && (broken.0..broken.1).contains(&y)
+            }),
+        },
+    ];
+    let height = move |x: f64, y: f64| {
+        if (x - hole.0).abs() < hole.2 && (y - hole.1).abs() < hole.2 {
+            return 0.0;
+        }
+        let (i, j) = ((x / pitch).floor() as i64, (y / pitch).floor() as i64);
+        let (u, v) = (x / pitch - i as f64 - 0.5, y / pitch - j as f64 - 0.5);
+        let weave = ((x / band) as usize).min(2);
+        // Round yarn cross-sections, a little narrower than the pitch.
+        let profile = |t: f64| (1.0 - (2.2 * t).powi(2)).max(0.0).sqrt();
+        let mut warp = yarn * profile(u);
+        let weft = yarn * profile(v);
+        let warp_missing = (x - broken_x).abs() < pitch / 2.0 && (broken.0..broken.1).contains(&y);
+        if warp_missing {
+            warp = 0.0;
+        }
+        let h = if warp_on_top(i, j, weave) {
+            warp.max(0.5 * weft)
+        } else {
+            weft.max(0.5 * warp)
+        };
+        let k2 = ((x - knot.0).powi(2) + (y - knot.1).powi(2)) / (knot.2 * knot.2);
+        let lump = if k2 < 1.0 {
+            1.4 * yarn * (1.0 - k2).sqrt()
+        } else {
+            0.0
+        };
+        h.max(lump)
+    };
+    Layout {
+        height: Box::new(height),
+        regions,
+    }
+}
+
+/// The classic clip: nested U-turns of straight wire, as a polyline (mm).
+fn paperclip_path(w: f64, l: f64) -> Vec<(f64, f64)> {
+    let (cx, half_w) = (w / 2.0, (0.18 * w).min(0.12 * l));
+    let (y0, y1) = (0.12 * l, 0.88 * l);
+    let mut path = Vec::new();
+    let arc = |cxa: f64, cya: f64, r: f64, from: f64, to: f64, path: &mut Vec<(f64, f64)>| {
+        for k in 0..=16 {
+            let a = from + (to - from) * k as f64 / 16.0;
+            path.push((cxa + r * a.cos(), cya + r * a.sin()));
+        }
+    };
+    // Outer loop: down the left side, around the bottom, up the right, around the top,
+    // then the inner loop.
+    path.push((cx - half_w, y0 + half_w));
+    arc(cx, y1 - half_w, half_w, PI, 0.0, &mut path);
+    arc(
+        cx - 0.2 * half_w,
+        y0 + 0.8 * half_w,
+        0.8 * half_w,
+        0.0,
+        -PI,
+        &mut path,
+    );
+    arc(
+        cx - 0.1 * half_w,
+        y1 - 2.5 * half_w,
+        0.6 * half_w,
+        PI,
+        0.0,
+        &mut path,
+    );
+    path.push((cx + 0.5 * half_w, y0 + 2.0 * half_w));
+    path
+}
+
+fn primitives(shapes: Vec<Shape>) -> Layout {
+    let regions = shapes
+        .iter()
+        .filter_map(|s| match s.clone() {
+            Shape::Sphere {
+                x_mm,
+                y_mm,
+                radius_mm,
+                region: Some(name),
+                ..
+            } => Some(Region {
+                name,
+                contains: Box::new(move |x, y| {
+                    (x - x_mm).powi(2) + (y - y_mm).powi(2) <= radius_mm * radius_mm
+                }),
+            }),
+            Shape::Box {
+                x_mm,
+                y_mm,
+                width_mm,
+                length_mm,
+                region: Some(name),
+                ..
+            } => Some(Region {
+                name,
+                contains: Box::new(move |x, y| {
+                    (x - x_mm).abs() <= width_mm / 2.0 && (y - y_mm).abs() <= length_mm / 2.0
+                }),
+            }),
+            _ => None,
+        })
+        .collect();
+    let height = move |x: f64, y: f64| {
+        shapes
+            .iter()
+            .map(|s| match *s {
+                Shape::Sphere {
+                    x_mm,
+                    y_mm,
+                    radius_mm,
+                    height_mm,
+                    ..
+                } => {
+                    let top = height_mm.unwrap_or(radius_mm);
+                    let d2 = (x - x_mm).powi(2) + (y - y_mm).powi(2);
+                    if d2 < radius_mm * radius_mm {
+                        ((radius_mm * radius_mm - d2).sqrt() - (radius_mm - top)).max(0.0)
+                    } else {
+                        0.0
+                    }
+                }
+                Shape::Box {
+                    x_mm,
+                    y_mm,
+                    width_mm,
+                    length_mm,
+                    height_mm,
+                    ..
+                } => {
+                    let ox = ((x - x_mm).abs() - width_mm / 2.0).max(0.0);
+                    let oy = ((y - y_mm).abs() - length_mm / 2.0).max(0.0);
+                    shoulder(height_mm, (ox * ox + oy * oy).sqrt())
+                }
+            })
+            .sum()
+    };
+    Layout {
+        height: Box::new(height),
+        regions,
+    }
+}

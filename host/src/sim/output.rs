@@ -1,0 +1,161 @@
+//! Writing a simulation to disk: `frame_0000.png …`, `truth/` and `manifest.json`.
+
+use super::render::{Planes, Simulator};
+use crate::npy;
+use anyhow::Context;
+use serde::Serialize;
+use std::path::Path;
+
+/// What `manifest.json` records of one frame.
+#[derive(Debug, Serialize)]
+pub struct FrameRecord {
+    /// The PNG's file name.
+    pub file: String,
+    /// Commanded belt position of the roller's apex, mm (what the motion system reports).
+    pub offset_mm: f64,
+    /// True belt position (differs with `jitter`), mm.
+    pub actual_offset_mm: f64,
+    /// Commanded position as a strip row of image row 0 (fractional pixels).
+    pub strip_row: f64,
+    /// True position as a strip row of image row 0.
+    pub actual_strip_row: f64,
+    /// The stages that ran.
+    pub stages: Vec<&'static str>,
+}
+
+/// `manifest.json`.
+#[derive(Debug, Serialize)]
+pub struct Manifest {
+    /// Scene name.
+    pub scene: String,
+    /// Seed used.
+    pub seed: u64,
+    /// Effects listed.
+    pub effects: Vec<&'static str>,
+    /// `gray` or `rgb`.
+    pub color: &'static str,
+    /// Image width and height, pixels.
+    pub image_size: [usize; 2],
+    /// Belt mm per pixel.
+    pub mm_per_px: f64,
+    /// The frames.
+    pub frames: Vec<FrameRecord>,
+    /// Ground truth files, relative to the output folder.
+    pub truth: Truth,
+    /// The scene as simulated (defaults filled in).
+    pub scene_file: toml::Value,
+}
+
+/// Where the ground truth is.
+#[derive(Debug, Serialize)]
+pub struct Truth {
+    /// Height map over the strip, mm, float32 `.npy` (rows along the belt).
+    pub height_npy: String,
+    /// The same as a 16-bit PNG, 1 µm per level.
+    pub height_png: String,
+    /// The ideal contact image over the strip (the MS-SSIM reference).
+    pub ideal_png: String,
+    /// Strip size: [width, rows].
+    pub strip_size: [usize; 2],
+    /// Belt position of strip row 0, mm.
+    pub strip_origin_mm: f64,
+    /// Region masks (name → file), 255 inside.
+    pub regions: Vec<(String, String)>,
+}
+
+/// Saves `planes` as an 8-bit gray or RGB PNG.
+pub fn save_png(planes: &Planes, path: &Path) -> anyhow::Result<()> {
+    let (w, h) = (planes.width as u32, planes.height as u32);
+    let bytes = planes.to_u8();
+    let result = if planes.planes.len() == 3 {
+        image::RgbImage::from_raw(w, h, bytes).map(|img| img.save(path))
+    } else {
+        image::GrayImage::from_raw(w, h, bytes).map(|img| img.save(path))
+    };
+    result
+        .context("image buffer does not match its size")?
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Renders every frame of `sim` into `out` with its ground truth and manifest, calling
+/// `progress(done, total)` after each frame.
+pub fn write(
+    sim: &Simulator,
+    out: &Path,
+    mut progress: impl FnMut(usize, usize),
+) -> anyhow::Result<Manifest> {
+    std::fs::create_dir_all(out.join("truth"))
+        .with_context(|| format!("cannot create {}", out.display()))?;
+    let scene = sim.scene();
+    let mmpp = scene.sensor.mm_per_px;
+    let mut frames = Vec::with_capacity(sim.frames());
+    for k in 0..sim.frames() {
+        let f = sim.frame(k);
+        let file = format!("frame_{k:04}.png");
+        save_png(&f.image, &out.join(&file))?;
+        frames.push(FrameRecord {
+            file,
+            offset_mm: f.offset_mm,
+            actual_offset_mm: f.actual_offset_mm,
+            strip_row: sim.strip_row_of_top(f.offset_mm),
+            actual_strip_row: sim.strip_row_of_top(f.actual_offset_mm),
+            stages: f.stages.iter().map(|e| e.name()).collect(),
+        });
+        progress(k + 1, sim.frames());
+    }
+    let strip = sim.strip();
+    let truth_dir = out.join("truth");
+    std::fs::write(
+        truth_dir.join("height.npy"),
+        npy::encode_f32(&strip.height_mm, strip.rows, strip.width)?,
+    )
+    .context("cannot write truth/height.npy")?;
+    let microns: Vec<u16> = strip
+        .height_mm
+        .iter()
+        .map(|h| (h * 1000.0).round().clamp(0.0, 65535.0) as u16)
+        .collect();
+    image::ImageBuffer::<image::Luma<u16>, _>::from_raw(
+        strip.width as u32,
+        strip.rows as u32,
+        microns,
+    )
+    .context("height buffer does not match its size")?
+    .save(truth_dir.join("height.png"))
+    .context("cannot write truth/height.png")?;
+    save_png(&sim.ideal(), &truth_dir.join("ideal.png"))?;
+    let mut regions = Vec::new();
+    for (name, mask) in &strip.regions {
+        let file = format!("truth/region_{name}.png");
+        image::GrayImage::from_raw(strip.width as u32, strip.rows as u32, mask.clone())
+            .context("mask buffer does not match its size")?
+            .save(out.join(&file))
+            .with_context(|| format!("cannot write {file}"))?;
+        regions.push((name.clone(), file));
+    }
+    let manifest = Manifest {
+        scene: scene.name.clone(),
+        seed: scene.seed,
+        effects: scene.effects.iter().map(|e| e.name()).collect(),
+        color: if scene.has(super::Effect::Rgb) {
+            "rgb"
+        } else {
+            "gray"
+        },
+        image_size: [scene.sensor.width_px, scene.sensor.height_px],
+        mm_per_px: mmpp,
+        frames,
+        truth: Truth {
+            height_npy: "truth/height.npy".into(),
+            height_png: "truth/height.png".into(),
+            ideal_png: "truth/ideal.png".into(),
+            strip_size: [strip.width, strip.rows],
+            strip_origin_mm: strip.origin_mm,
+            regions,
+        },
+        scene_file: toml::Value::try_from(scene).context("cannot record the scene")?,
+    };
+    let json = serde_json::to_string_pretty(&manifest)?;
+    std::fs::write(out.join("manifest.json"), json + "\n").context("cannot write manifest.json")?;
+    Ok(manifest)
+}

@@ -1,0 +1,530 @@
+//! The scene file: what is under the roller, the sensor, the lights, and which effects to
+//! simulate. TOML, every field documented in `docs/simulator.md`; unknown fields are
+//! refused, and every value is checked with an error that names its field.
+
+use anyhow::{Context, anyhow, bail};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Largest accepted image side, in pixels.
+pub const MAX_IMAGE_SIDE: usize = 4096;
+/// Largest accepted number of frames in one simulation.
+pub const MAX_FRAMES: usize = 10_000;
+
+/// A complete scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// A short name for reports (defaults to the file's stem).
+    #[serde(default)]
+    pub name: String,
+    /// Seed of every random effect (noise, jitter).
+    #[serde(default)]
+    pub seed: u64,
+    /// The effects to compute, each a separate stage; unlisted effects cost nothing.
+    pub effects: Vec<Effect>,
+    /// What lies on the belt.
+    pub object: Object,
+    /// The sensor's geometry and motion.
+    pub sensor: Sensor,
+    /// The three LEDs (used by `gray` and `rgb` shading).
+    #[serde(default)]
+    pub lights: Lights,
+    /// Strengths of the optional effects.
+    #[serde(default)]
+    pub params: EffectParams,
+}
+
+/// One simulation stage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Effect {
+    /// Indentation into the curved gel: deepest under the roller's apex, shallower toward
+    /// the image edges. Without it the gel is pressed flat at the apex depth everywhere.
+    Contact,
+    /// Elastomer smoothing of the indentation (Gaussian, width set by gel thickness).
+    Gel,
+    /// Monochrome Lambertian shading under all three LEDs (the luma of `rgb`).
+    Gray,
+    /// One LED per colour channel, Lambertian (for photometric stereo).
+    Rgb,
+    /// Blur that grows with distance from the focal line.
+    Defocus,
+    /// Sensor read and shot noise, seeded.
+    Noise,
+    /// Random errors in each frame's belt position.
+    Jitter,
+    /// Uneven illumination (vignetting and a gradient).
+    Background,
+}
+
+impl Effect {
+    /// Every effect, in stage order.
+    pub const ALL: [Effect; 8] = [
+        Effect::Jitter,
+        Effect::Contact,
+        Effect::Gel,
+        Effect::Gray,
+        Effect::Rgb,
+        Effect::Defocus,
+        Effect::Background,
+        Effect::Noise,
+    ];
+
+    /// The name used in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Effect::Contact => "contact",
+            Effect::Gel => "gel",
+            Effect::Gray => "gray",
+            Effect::Rgb => "rgb",
+            Effect::Defocus => "defocus",
+            Effect::Noise => "noise",
+            Effect::Jitter => "jitter",
+            Effect::Background => "background",
+        }
+    }
+}
+
+/// The object on the belt.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum Object {
+    /// A word in raised strokes (built-in 5×7 stroke font, A–Z, 0–9, space).
+    Letters {
+        /// The word.
+        text: String,
+        /// Stroke height, mm.
+        #[serde(default = "one_mm")]
+        height_mm: f64,
+    },
+    /// The paper's standardized sample: a matrix of round dots raised `height_mm`.
+    Dots {
+        /// Raise, mm.
+        #[serde(default = "one_mm")]
+        height_mm: f64,
+        /// Centre-to-centre spacing, mm.
+        #[serde(default = "two_mm")]
+        pitch_mm: f64,
+        /// Dot diameter, mm.
+        #[serde(default = "one_mm")]
+        size_mm: f64,
+    },
+    /// A matrix of short straight bars.
+    Lines {
+        /// Raise, mm.
+        #[serde(default = "one_mm")]
+        height_mm: f64,
+        /// Centre-to-centre spacing, mm.
+        #[serde(default = "two_mm")]
+        pitch_mm: f64,
+        /// Bar width, mm.
+        #[serde(default = "half_mm")]
+        size_mm: f64,
+    },
+    /// A matrix of arcs.
+    Curves {
+        /// Raise, mm.
+        #[serde(default = "one_mm")]
+        height_mm: f64,
+        /// Centre-to-centre spacing, mm.
+        #[serde(default = "two_mm")]
+        pitch_mm: f64,
+        /// Stroke width, mm.
+        #[serde(default = "half_mm")]
+        size_mm: f64,
+    },
+    /// Three spheres of `diameter_mm` pressed side by side (the depth scene); each is a
+    /// region with its own mask.
+    Spheres {
+        /// Sphere diameter, mm.
+        #[serde(default = "four_mm")]
+        diameter_mm: f64,
+    },
+    /// Woven fabric: three weave patterns side by side and three defects.
+    Fabric {
+        /// Yarn thickness (height of a crossing), mm.
+        #[serde(default = "yarn_mm")]
+        yarn_mm: f64,
+        /// Yarn spacing, mm.
+        #[serde(default = "one_mm")]
+        pitch_mm: f64,
+    },
+    /// A machine screw lying along the belt.
+    Screw {
+        /// Major diameter, mm.
+        #[serde(default = "four_mm")]
+        diameter_mm: f64,
+        /// Thread pitch, mm.
+        #[serde(default = "thread_mm")]
+        pitch_mm: f64,
+    },
+    /// A paper clip (bent round wire).
+    Paperclip {
+        /// Wire diameter, mm.
+        #[serde(default = "wire_mm")]
+        wire_mm: f64,
+    },
+    /// Height-map primitives placed by hand, in belt millimetres (x across the belt from
+    /// the image's left edge, y along the belt from the first frame's apex).
+    Primitives {
+        /// The shapes; heights add where they overlap.
+        shapes: Vec<Shape>,
+    },
+}
+
+/// One primitive of [`Object::Primitives`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "shape", rename_all = "lowercase", deny_unknown_fields)]
+pub enum Shape {
+    /// A spherical cap: a sphere of `radius_mm` whose top is `height_mm` above the belt.
+    Sphere {
+        /// Centre across the belt, mm.
+        x_mm: f64,
+        /// Centre along the belt, mm.
+        y_mm: f64,
+        /// Sphere radius, mm.
+        radius_mm: f64,
+        /// Height of the top, mm (default: the radius — a half sphere).
+        height_mm: Option<f64>,
+        /// Region name: a mask is written for it.
+        region: Option<String>,
+    },
+    /// A flat-topped box.
+    Box {
+        /// Centre across the belt, mm.
+        x_mm: f64,
+        /// Centre along the belt, mm.
+        y_mm: f64,
+        /// Size across the belt, mm.
+        width_mm: f64,
+        /// Size along the belt, mm.
+        length_mm: f64,
+        /// Height, mm.
+        height_mm: f64,
+        /// Region name: a mask is written for it.
+        region: Option<String>,
+    },
+}
+
+fn one_mm() -> f64 {
+    1.0
+}
+fn two_mm() -> f64 {
+    2.0
+}
+fn half_mm() -> f64 {
+    0.5
+}
+fn four_mm() -> f64 {
+    4.0
+}
+fn yarn_mm() -> f64 {
+    0.3
+}
+fn thread_mm() -> f64 {
+    0.7
+}
+fn wire_mm() -> f64 {
+    0.9
+}
+
+/// The sensor's geometry and its motion along the belt.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Sensor {
+    /// Radius of the roller's outer (gel) surface, mm.
+    pub roller_radius_mm: f64,
+    /// Gel thickness, mm: the deepest an object can press in.
+    pub gel_thickness_mm: f64,
+    /// Belt millimetres per image pixel.
+    pub mm_per_px: f64,
+    /// Image width in pixels (across the belt).
+    pub width_px: usize,
+    /// Image height in pixels (along the belt; the roller's apex is the middle row).
+    pub height_px: usize,
+    /// How far the tallest feature presses into the gel at the apex, mm.
+    pub press_depth_mm: f64,
+    /// Belt travel between frames, mm.
+    pub frame_spacing_mm: f64,
+    /// Number of frames.
+    pub frames: usize,
+    /// The row in focus (default: the apex, the middle row).
+    pub focal_row: Option<usize>,
+}
+
+/// Light directions: unit vectors in image coordinates (x along columns to the right, y
+/// along rows downward, z out of the gel toward the camera), from the gel toward the LED.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Lights {
+    /// The red LED.
+    pub red: [f64; 3],
+    /// The green LED.
+    pub green: [f64; 3],
+    /// The blue LED.
+    pub blue: [f64; 3],
+}
+
+impl Default for Lights {
+    /// Three LEDs at 120° around the camera, 35° above the gel plane.
+    fn default() -> Self {
+        let elevation = 35f64.to_radians();
+        let at = |azimuth_deg: f64| {
+            let a = azimuth_deg.to_radians();
+            [
+                elevation.cos() * a.cos(),
+                elevation.cos() * a.sin(),
+                elevation.sin(),
+            ]
+        };
+        Self {
+            red: at(90.0),
+            green: at(210.0),
+            blue: at(330.0),
+        }
+    }
+}
+
+/// Strengths of the optional effects; each is used only if its effect is listed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EffectParams {
+    /// `gel`: smoothing σ as a fraction of the gel thickness.
+    pub gel_sigma_per_thickness: f64,
+    /// `defocus`: blur σ, pixels, at the row farthest from the focal line.
+    pub defocus_sigma_px: f64,
+    /// `noise`: read noise σ, gray levels.
+    pub read_noise: f64,
+    /// `noise`: shot noise variance per gray level of signal.
+    pub shot_noise: f64,
+    /// `jitter`: largest belt-position error per frame, pixels.
+    pub jitter_px: f64,
+    /// `background`: relative brightness loss at the image corners.
+    pub vignetting: f64,
+    /// `background`: relative brightness change from the left edge to the right.
+    pub gradient: f64,
+}
+
+impl Default for EffectParams {
+    fn default() -> Self {
+        Self {
+            gel_sigma_per_thickness: 0.1,
+            defocus_sigma_px: 2.0,
+            read_noise: 2.0,
+            shot_noise: 0.05,
+            jitter_px: 2.0,
+            vignetting: 0.25,
+            gradient: 0.1,
+        }
+    }
+}
+
+impl Scene {
+    /// Reads and checks a scene file; the scene's name defaults to the file's stem.
+    pub fn load(path: &Path) -> anyhow::Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read scene file {}", path.display()))?;
+        let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("scene");
+        Self::parse(&text, stem).with_context(|| format!("in scene file {}", path.display()))
+    }
+
+    /// Parses and checks a scene from TOML text.
+    pub fn parse(text: &str, default_name: &str) -> anyhow::Result<Self> {
+        let mut scene: Scene =
+            toml::from_str(text).map_err(|e| anyhow!("{}", e.to_string().trim_end()))?;
+        if scene.name.is_empty() {
+            scene.name = default_name.to_string();
+        }
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// Whether the scene lists `effect`.
+    pub fn has(&self, effect: Effect) -> bool {
+        self.effects.contains(&effect)
+    }
+
+    /// Checks every value, naming the field of the first bad one.
+    pub fn validate(&self) -> anyhow::Result<()> {
+        let s = &self.sensor;
+        positive("sensor.roller_radius_mm", s.roller_radius_mm)?;
+        positive("sensor.gel_thickness_mm", s.gel_thickness_mm)?;
+        positive("sensor.mm_per_px", s.mm_per_px)?;
+        non_negative("sensor.press_depth_mm", s.press_depth_mm)?;
+        non_negative("sensor.frame_spacing_mm", s.frame_spacing_mm)?;
+        for (field, v) in [
+            ("sensor.width_px", s.width_px),
+            ("sensor.height_px", s.height_px),
+        ] {
+            if !(8..=MAX_IMAGE_SIDE).contains(&v) {
+                bail!("{field} must be 8..={MAX_IMAGE_SIDE} pixels, got {v}");
+            }
+        }
+        if !(1..=MAX_FRAMES).contains(&s.frames) {
+            bail!("sensor.frames must be 1..={MAX_FRAMES}, got {}", s.frames);
+        }
+        if let Some(row) = s.focal_row
+            && row >= s.height_px
+        {
+            bail!(
+                "sensor.focal_row must be below sensor.height_px ({}), got {row}",
+                s.height_px
+            );
+        }
+        if s.roller_radius_mm * 2.0 < s.height_px as f64 * s.mm_per_px * 0.5 {
+            bail!(
+                "sensor.roller_radius_mm ({}) is too small for the field of view ({} mm along the belt)",
+                s.roller_radius_mm,
+                s.height_px as f64 * s.mm_per_px
+            );
+        }
+        if self.has(Effect::Gray) && self.has(Effect::Rgb) {
+            bail!("effects: list `gray` or `rgb`, not both");
+        }
+        for (i, e) in self.effects.iter().enumerate() {
+            if self.effects[..i].contains(e) {
+                bail!("effects: `{}` is listed twice", e.name());
+            }
+        }
+        for (field, v) in [
+            ("lights.red", self.lights.red),
+            ("lights.green", self.lights.green),
+            ("lights.blue", self.lights.blue),
+        ] {
+            let norm = v.iter().map(|c| c * c).sum::<f64>().sqrt();
+            if !v.iter().all(|c| c.is_finite()) || (norm - 1.0).abs() > 1e-3 || v[2] <= 0.0 {
+                bail!(
+                    "{field} must be a unit vector pointing toward the camera (z > 0), got {v:?}"
+                );
+            }
+        }
+        let p = &self.params;
+        non_negative("params.gel_sigma_per_thickness", p.gel_sigma_per_thickness)?;
+        non_negative("params.defocus_sigma_px", p.defocus_sigma_px)?;
+        non_negative("params.read_noise", p.read_noise)?;
+        non_negative("params.shot_noise", p.shot_noise)?;
+        non_negative("params.jitter_px", p.jitter_px)?;
+        if !(0.0..1.0).contains(&p.vignetting) {
+            bail!("params.vignetting must be in 0..1, got {}", p.vignetting);
+        }
+        if !(-1.0..1.0).contains(&p.gradient) {
+            bail!("params.gradient must be in -1..1, got {}", p.gradient);
+        }
+        self.validate_object()
+    }
+
+    fn validate_object(&self) -> anyhow::Result<()> {
+        match &self.object {
+            Object::Letters { text, height_mm } => {
+                positive("object.height_mm", *height_mm)?;
+                if text.trim().is_empty() || text.chars().count() > 64 {
+                    bail!("object.text must have 1..=64 characters");
+                }
+                if let Some(c) = text.chars().find(|c| !super::font::supports(*c)) {
+                    bail!("object.text: no glyph for {c:?} (A–Z, 0–9 and space)");
+                }
+            }
+            Object::Dots {
+                height_mm,
+                pitch_mm,
+                size_mm,
+            }
+            | Object::Lines {
+                height_mm,
+                pitch_mm,
+                size_mm,
+            }
+            | Object::Curves {
+                height_mm,
+                pitch_mm,
+                size_mm,
+            } => {
+                positive("object.height_mm", *height_mm)?;
+                positive("object.pitch_mm", *pitch_mm)?;
+                positive("object.size_mm", *size_mm)?;
+                if size_mm >= pitch_mm {
+                    bail!(
+                        "object.size_mm ({size_mm}) must be smaller than object.pitch_mm ({pitch_mm})"
+                    );
+                }
+            }
+            Object::Spheres { diameter_mm } => positive("object.diameter_mm", *diameter_mm)?,
+            Object::Fabric { yarn_mm, pitch_mm } => {
+                positive("object.yarn_mm", *yarn_mm)?;
+                positive("object.pitch_mm", *pitch_mm)?;
+            }
+            Object::Screw {
+                diameter_mm,
+                pitch_mm,
+            } => {
+                positive("object.diameter_mm", *diameter_mm)?;
+                positive("object.pitch_mm", *pitch_mm)?;
+            }
+            Object::Paperclip { wire_mm } => positive("object.wire_mm", *wire_mm)?,
+            Object::Primitives { shapes } => {
+                if shapes.is_empty() {
+                    bail!("object.shapes must list at least one shape");
+                }
+                for (i, shape) in shapes.iter().enumerate() {
+                    let at = |f: &str| format!("object.shapes[{i}].{f}");
+                    match shape {
+                        Shape::Sphere {
+                            x_mm,
+                            y_mm,
+                            radius_mm,
+                            height_mm,
+                            ..
+                        } => {
+                            finite(&at("x_mm"), *x_mm)?;
+                            finite(&at("y_mm"), *y_mm)?;
+                            positive(&at("radius_mm"), *radius_mm)?;
+                            if let Some(h) = height_mm {
+                                positive(&at("height_mm"), *h)?;
+                                if *h > 2.0 * radius_mm {
+                                    bail!("{} ({h}) must not exceed the diameter", at("height_mm"));
+                                }
+                            }
+                        }
+                        Shape::Box {
+                            x_mm,
+                            y_mm,
+                            width_mm,
+                            length_mm,
+                            height_mm,
+                            ..
+                        } => {
+                            finite(&at("x_mm"), *x_mm)?;
+                            finite(&at("y_mm"), *y_mm)?;
+                            positive(&at("width_mm"), *width_mm)?;
+                            positive(&at("length_mm"), *length_mm)?;
+                            positive(&at("height_mm"), *height_mm)?;
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+fn finite(field: &str, v: f64) -> anyhow::Result<()> {
+    if !v.is_finite() {
+        bail!("{field} must be a finite number, got {v}");
+    }
+    Ok(())
+}
+
+fn positive(field: &str, v: f64) -> anyhow::Result<()> {
+    if !(v.is_finite() && v > 0.0) {
+        bail!("{field} must be a positive number, got {v}");
+    }
+    Ok(())
+}
+
+fn non_negative(field: &str, v: f64) -> anyhow::Result<()> {
+    if !(v.is_finite() && v >= 0.0) {
+        bail!("{field} must be zero or positive, got {v}");
+    }
+    Ok(())
+}
