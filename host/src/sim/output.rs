@@ -1,4 +1,5 @@
-//! Writing a simulation to disk: `frame_0000.png …`, `truth/` and `manifest.json`.
+//! Writing a simulation to disk: `frame_0000.png …`, `truth/`, `contact_sheet.png` and
+//! `manifest.json`.
 
 use super::render::{Planes, Simulator};
 use crate::npy;
@@ -61,6 +62,29 @@ pub struct Truth {
     pub strip_origin_mm: f64,
     /// Region masks (name → file), 255 inside.
     pub regions: Vec<(String, String)>,
+    /// Up to six frames across the roll, side by side.
+    pub contact_sheet_png: String,
+}
+
+/// Puts up to six evenly spaced frames side by side, 4 px apart on white.
+fn contact_sheet(frames: &[Planes]) -> Planes {
+    let (w, h, c) = (frames[0].width, frames[0].height, frames[0].planes.len());
+    let gap = 4;
+    let width = frames.len() * (w + gap) - gap;
+    let mut planes = vec![vec![255f32; width * h]; c];
+    for (k, f) in frames.iter().enumerate() {
+        for (dst, src) in planes.iter_mut().zip(&f.planes) {
+            for y in 0..h {
+                let x0 = k * (w + gap);
+                dst[y * width + x0..y * width + x0 + w].copy_from_slice(&src[y * w..(y + 1) * w]);
+            }
+        }
+    }
+    Planes {
+        width,
+        height: h,
+        planes,
+    }
 }
 
 /// Saves `planes` as an 8-bit gray or RGB PNG.
@@ -89,8 +113,13 @@ pub fn write(
     let scene = sim.scene();
     let mmpp = scene.sensor.mm_per_px;
     let mut frames = Vec::with_capacity(sim.frames());
+    let sheet_every = sim.frames().div_ceil(6).max(1);
+    let mut sheet = Vec::new();
     for k in 0..sim.frames() {
         let f = sim.frame(k);
+        if k % sheet_every == sheet_every / 2 || sim.frames() == 1 {
+            sheet.push(f.image.clone());
+        }
         let file = format!("frame_{k:04}.png");
         save_png(&f.image, &out.join(&file))?;
         frames.push(FrameRecord {
@@ -124,6 +153,7 @@ pub fn write(
     .save(truth_dir.join("height.png"))
     .context("cannot write truth/height.png")?;
     save_png(&sim.ideal(), &truth_dir.join("ideal.png"))?;
+    save_png(&contact_sheet(&sheet), &out.join("contact_sheet.png"))?;
     let mut regions = Vec::new();
     for (name, mask) in &strip.regions {
         let file = format!("truth/region_{name}.png");
@@ -152,6 +182,7 @@ pub fn write(
             strip_size: [strip.width, strip.rows],
             strip_origin_mm: strip.origin_mm,
             regions,
+            contact_sheet_png: "contact_sheet.png".into(),
         },
         scene_file: toml::Value::try_from(scene).context("cannot record the scene")?,
     };
