@@ -15,8 +15,8 @@ pub enum Error {
         /// Image width, in elements.
         width: usize,
     },
-    /// `width × height` (or the stride-padded size) does not fit in `usize`, or exceeds the
-    /// largest image the core accepts ([`crate::MAX_DIMENSION`] per side).
+    /// A side exceeds the largest the core accepts ([`crate::MAX_DIMENSION`]), or the row
+    /// stride exceeds four times that.
     TooLarge,
     /// The number of decomposition levels is outside `1..=4`.
     LevelsOutOfRange {
@@ -61,8 +61,9 @@ impl fmt::Display for Error {
             }
             Error::TooLarge => write!(
                 f,
-                "image is larger than {} pixels on a side",
-                crate::MAX_DIMENSION
+                "image is larger than {} pixels on a side (or its stride than {})",
+                crate::MAX_DIMENSION,
+                4 * crate::MAX_DIMENSION
             ),
             Error::LevelsOutOfRange { levels } => {
                 write!(f, "levels must be 1..=4, got {levels}")

@@ -58,9 +58,11 @@ const fn build_exp_table() -> [U8F24; 256] {
 pub enum SaliencyNorm {
     /// By the maximum over the region being fused: the whole image, or one tile.
     Local,
-    /// By a caller-supplied level-1 maximum, e.g. the whole frame's (see
-    /// [`laplacian_max`]), so every tile of a frame is judged on one scale. Deeper levels
-    /// scale it by the wavelet's LL gain ([`ll_gain_q16`]); larger values saturate at 255.
+    /// By a caller-supplied level-1 maximum, in the input's units (8-bit gray levels for
+    /// [`crate::fusion::fuse_u8`]), e.g. the whole frame's (see [`laplacian_max`]), so every
+    /// tile of a frame is judged on one scale. Deeper levels scale it by the transform's
+    /// LL gain (integer path: [`ll_gain_q16`]; float path: 2, the orthonormal gain); larger
+    /// values saturate at 255. `Reference(0)` treats both images as flat: every weight ½.
     Reference(u32),
 }
 
@@ -114,9 +116,12 @@ fn for_each_laplacian(buf: &[i32], dims: Dims, mut f: impl FnMut(usize, usize, u
     });
 }
 
-/// The largest `|∇²I|` over the region: the `max L` of eq. 3.
-pub fn laplacian_max(buf: &[i32], dims: Dims) -> u32 {
-    laplacian_max_in(buf, dims, Roi::full(dims))
+/// The largest `|∇²I|` over the region: the `max L` of eq. 3 (e.g. a whole frame's, for
+/// [`SaliencyNorm::Reference`] when its tiles are fused). Fails if `buf` is shorter than
+/// the region.
+pub fn laplacian_max(buf: &[i32], dims: Dims) -> Result<u32, crate::Error> {
+    dims.check_buffer("image", buf.len())?;
+    Ok(laplacian_max_in(buf, dims, Roi::full(dims)))
 }
 
 /// The largest `|∇²I|` over the pixels of `roi`.
@@ -275,9 +280,10 @@ mod tests {
     #[test]
     fn flat_image_has_zero_laplacian() {
         let dims = Dims::new(5, 3).unwrap();
-        assert_eq!(laplacian_max(&[77; 15], dims), 0);
+        assert_eq!(laplacian_max(&[77; 15], dims), Ok(0));
+        assert!(laplacian_max(&[77; 14], dims).is_err());
         let mut impulse = [0i32; 15];
         impulse[7] = 10;
-        assert_eq!(laplacian_max(&impulse, dims), 40);
+        assert_eq!(laplacian_max(&impulse, dims), Ok(40));
     }
 }

@@ -95,13 +95,13 @@ proptest! {
         seed in any::<u64>(), poison in any::<bool>(),
     ) {
         let frame = float::Padded::new(w, h, frame_levels).unwrap();
-        let n = frame.dims.pixels();
+        let n = frame.dims().pixels();
         let mut a: Vec<f32> = (0..n).map(|i| ((seed >> (i % 60)) & 0xfff) as f32).collect();
         let mut b: Vec<f32> = a.iter().rev().copied().collect();
         if poison {
             b[n / 2] = f32::INFINITY;
         }
-        let mut scratch = vec![0f32; float::fuse_scratch_len(frame.dims)];
+        let mut scratch = vec![0f32; float::fuse_scratch_len(frame.dims())];
         if float::fuse_pair(&mut a, &mut b, &frame, &cfg, LlWeight::HALF, &mut scratch).is_ok() {
             prop_assert!(a.iter().all(|v| v.is_finite()));
         }

@@ -94,12 +94,11 @@ impl Arith for f32 {
 /// gives the float path the same kind of border as the integer path.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Padded {
-    /// The padded region (packed).
-    pub dims: Dims,
-    /// Offset of the image inside it, on both axes.
-    pub margin: usize,
+    dims: Dims,
+    margin: usize,
     width: usize,
     height: usize,
+    levels: u8,
 }
 
 impl Padded {
@@ -120,7 +119,23 @@ impl Padded {
             margin,
             width,
             height,
+            levels,
         })
+    }
+
+    /// The padded region (packed): the size of the buffers [`fuse_pair`] takes.
+    pub fn dims(&self) -> Dims {
+        self.dims
+    }
+
+    /// Offset of the image inside the padded region, on both axes.
+    pub fn margin(&self) -> usize {
+        self.margin
+    }
+
+    /// The most levels a fuse step in this frame may use.
+    pub fn levels(&self) -> u8 {
+        self.levels
     }
 
     /// Fills `buf` (the padded region) from the packed image `get(x, y)`, reflecting it
@@ -138,11 +153,15 @@ impl Padded {
         Ok(())
     }
 
-    /// The image's pixel `(x, y)` inside the padded buffer.
-    pub fn at(&self, x: usize, y: usize) -> usize {
-        self.dims.at(x + self.margin, y + self.margin)
+    /// Index of the image's pixel `(x, y)` in the padded buffer, `None` outside the image.
+    pub fn index(&self, x: usize, y: usize) -> Option<usize> {
+        (x < self.width && y < self.height).then(|| self.dims.at(x + self.margin, y + self.margin))
     }
 }
+
+/// The largest sample magnitude the float path accepts: far beyond any image (16-bit data
+/// is 65535), far enough below `f32::MAX` that Laplacians and sums stay finite.
+pub const MAX_SAMPLE_F32: f32 = 1e9;
 
 /// Scratch length (in `f32`) that [`fuse_pair`] needs for the padded region `dims`.
 pub fn fuse_scratch_len(dims: Dims) -> usize {
@@ -152,7 +171,7 @@ pub fn fuse_scratch_len(dims: Dims) -> usize {
 /// One `f32` fuse step in a [`Padded`] frame (`frame.dims` for both buffers; saliency is
 /// normalized over the image, not its margins): the fused image replaces `a`, `b` is used
 /// as work space. `cfg.levels` must not exceed the levels the frame was made for, and
-/// samples must be finite.
+/// samples must be finite with `|x| ≤` [`MAX_SAMPLE_F32`].
 pub fn fuse_pair(
     a: &mut [f32],
     b: &mut [f32],
@@ -165,8 +184,7 @@ pub fn fuse_pair(
     dims.check_buffer("first image", a.len())?;
     dims.check_buffer("second image", b.len())?;
     dims.check_levels(cfg.levels)?;
-    let m = 1usize << cfg.levels;
-    if !dims.width().is_multiple_of(m) || !dims.height().is_multiple_of(m) {
+    if cfg.levels > frame.levels {
         return Err(Error::InvalidParameter {
             name: "frame (made for fewer levels than cfg.levels)",
         });
@@ -175,9 +193,12 @@ pub fn fuse_pair(
         return Err(Error::InvalidParameter { name: "ll_weight" });
     }
     for buf in [&*a, &*b] {
-        if buf[..dims.buffer_len()].iter().any(|v| !v.is_finite()) {
+        if buf[..dims.buffer_len()]
+            .iter()
+            .any(|v| v.is_nan() || v.abs() > MAX_SAMPLE_F32)
+        {
             return Err(Error::InvalidParameter {
-                name: "sample (NaN or infinite)",
+                name: "sample (NaN, infinite or beyond ±1e9)",
             });
         }
     }

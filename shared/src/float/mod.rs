@@ -13,4 +13,4 @@ mod dwt;
 mod fuse;
 
 pub use dwt::{dwt2, idwt2, subband_dims};
-pub use fuse::{Padded, fuse_pair, fuse_scratch_len};
+pub use fuse::{MAX_SAMPLE_F32, Padded, fuse_pair, fuse_scratch_len};

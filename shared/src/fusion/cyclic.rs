@@ -98,7 +98,7 @@ impl<'a> CyclicFuser<'a> {
                 scratch: bufs.scratch,
             },
         )?;
-        for (dst, &v) in bufs.fused.iter_mut().zip(bufs.work_a.iter()) {
+        for (dst, &v) in bufs.fused[..n].iter_mut().zip(bufs.work_a.iter()) {
             *dst = v as u8;
         }
         self.frames = frame_no;

@@ -43,7 +43,8 @@ pub enum LlWeighting {
     #[default]
     Paper,
     /// Frame `n` weighs `1/n` against the running result, so every frame weighs `1/n` in
-    /// the end and the LL band does not depend on the order.
+    /// the end and the LL band does not depend on the order (up to rounding: the weight
+    /// is Q15 and the integer path rounds its running result to 8 bits every cycle).
     Equal,
 }
 

@@ -13,7 +13,9 @@
 //! - db2 (unscaled lifting): interior rows `(0.933, 1.616, 0.433, −0.250)` for the low band
 //!   (ℓ¹ 3.232) and `(0.067, 0.116, −0.433, 0.250)` for the high band (ℓ¹ 0.866); rows at
 //!   the boundaries, where symmetric extension folds taps, are measured by the test
-//!   `gains_cover_every_boundary_row` and stay below the constants used here. Rounding adds
+//!   `gains_cover_every_boundary_row` (every line length to 40; a row reads at most three
+//!   samples past its pair, so longer lines repeat rows already seen) and stay below the
+//!   constants used here. Rounding adds
 //!   at most 1.25 to a low and 0.75 to a high coefficient.
 //!
 //! The intermediate `s¹ = e + R(√3·o)` satisfies `|s¹| ≤ (1 + √3)·M + ½` and the inverse
@@ -159,11 +161,14 @@ mod tests {
     use std::{println, vec};
 
     /// Largest ℓ¹ row norm of one pass, measured by lifting scaled impulses through the
-    /// real integer code for every line length up to 16 (every boundary pattern appears).
+    /// real integer code for every line length up to 40. An output reads at most three
+    /// samples either side of its own pair, and the boundary rules look at most two
+    /// samples past an end, so from length 8 on every row is either the interior row or one
+    /// of the boundary rows already seen at shorter lengths: longer lines add nothing new.
     fn measured_gain(lift: fn(&mut [i32], &mut [i32])) -> (f64, f64) {
         const K: f64 = (1 << 20) as f64;
         let (mut g_low, mut g_high) = (0f64, 0f64);
-        for n in 2..=16usize {
+        for n in 2..=40usize {
             let nl = n.div_ceil(2);
             // rows[i][j]: coefficient of input j in output i.
             let mut rows = vec![vec![0f64; n]; n];
@@ -203,9 +208,9 @@ mod tests {
         ] {
             let (low, high) = measured_gain(lift);
             println!("{name}: measured G_low {low:.4}, G_high {high:.4}");
-            // 1e-5 covers the impulse method's own rounding (16 taps · 2⁻²⁰).
-            assert!(low <= g.low as f64 / q + 1e-5, "{name} low gain {low}");
-            assert!(high <= g.high as f64 / q + 1e-5, "{name} high gain {high}");
+            // 1e-4 covers the impulse method's own rounding (40 taps · 2⁻²⁰).
+            assert!(low <= g.low as f64 / q + 1e-4, "{name} low gain {low}");
+            assert!(high <= g.high as f64 / q + 1e-4, "{name} high gain {high}");
         }
     }
 

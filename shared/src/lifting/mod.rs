@@ -1,6 +1,6 @@
 //! Reversible integer wavelet lifting, 1-D and separable 2-D, 1 to 4 levels.
 //!
-//! Every size ≥ 1 works, odd sizes included; forward then inverse is bit-exact for every
+//! Every size from 1 to [`crate::MAX_DIMENSION`] works, odd sizes included; forward then inverse is bit-exact for every
 //! input in range. Lines are split into their even (→ low) and odd (→ high) samples in a
 //! caller-provided scratch line, lifted there, and written back low band first; the 2-D
 //! layout is described in [`crate::geometry`].
