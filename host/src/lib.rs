@@ -5,10 +5,14 @@
 //! cyclic fuser — is the `no_std` crate [`rollfuse_core`], re-exported here as [`core`].
 //! This crate adds what needs `std`:
 //!
+//! - [`image`]: images as `f32` planes, PNG in and out.
 //! - [`sim`]: the tactile simulator (scenes, effects on demand, ground truth).
+//! - [`eval`]: the paper's metrics.
 //! - [`npy`]: NumPy array files.
 
 pub use rollfuse_core as core;
 
+pub mod eval;
+pub mod image;
 pub mod npy;
 pub mod sim;

@@ -87,20 +87,6 @@ fn contact_sheet(frames: &[Planes]) -> Planes {
     }
 }
 
-/// Saves `planes` as an 8-bit gray or RGB PNG.
-pub fn save_png(planes: &Planes, path: &Path) -> anyhow::Result<()> {
-    let (w, h) = (planes.width as u32, planes.height as u32);
-    let bytes = planes.to_u8();
-    let result = if planes.planes.len() == 3 {
-        image::RgbImage::from_raw(w, h, bytes).map(|img| img.save(path))
-    } else {
-        image::GrayImage::from_raw(w, h, bytes).map(|img| img.save(path))
-    };
-    result
-        .context("image buffer does not match its size")?
-        .with_context(|| format!("cannot write {}", path.display()))
-}
-
 /// Renders every frame of `sim` into `out` with its ground truth and manifest, calling
 /// `progress(done, total)` after each frame.
 pub fn write(
@@ -121,7 +107,7 @@ pub fn write(
             sheet.push(f.image.clone());
         }
         let file = format!("frame_{k:04}.png");
-        save_png(&f.image, &out.join(&file))?;
+        f.image.save_png(&out.join(&file))?;
         frames.push(FrameRecord {
             file,
             offset_mm: f.offset_mm,
@@ -152,8 +138,8 @@ pub fn write(
     .context("height buffer does not match its size")?
     .save(truth_dir.join("height.png"))
     .context("cannot write truth/height.png")?;
-    save_png(&sim.ideal(), &truth_dir.join("ideal.png"))?;
-    save_png(&contact_sheet(&sheet), &out.join("contact_sheet.png"))?;
+    sim.ideal().save_png(&truth_dir.join("ideal.png"))?;
+    contact_sheet(&sheet).save_png(&out.join("contact_sheet.png"))?;
     let mut regions = Vec::new();
     for (name, mask) in &strip.regions {
         let file = format!("truth/region_{name}.png");

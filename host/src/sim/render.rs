@@ -3,38 +3,13 @@
 
 use super::object::{Canvas, layout};
 use super::scene::{Effect, Scene};
+pub use crate::image::Planes;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, Normal};
 use rand_pcg::Pcg64Mcg;
 
 /// Gray level of undisturbed gel under the shading model.
 const FLAT_LEVEL: f32 = 120.0;
-
-/// A rendered image: gray (one plane) or RGB (three planes), `f32` gray levels.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Planes {
-    /// Width in pixels.
-    pub width: usize,
-    /// Height in pixels.
-    pub height: usize,
-    /// One plane (gray) or three (red, green, blue), each row-major.
-    pub planes: Vec<Vec<f32>>,
-}
-
-impl Planes {
-    /// Rounds and clamps to 8-bit: one byte per pixel (gray) or three interleaved (RGB).
-    pub fn to_u8(&self) -> Vec<u8> {
-        let n = self.width * self.height;
-        let c = self.planes.len();
-        let mut out = vec![0u8; n * c];
-        for (ci, plane) in self.planes.iter().enumerate() {
-            for (i, v) in plane.iter().enumerate() {
-                out[i * c + ci] = v.round().clamp(0.0, 255.0) as u8;
-            }
-        }
-        out
-    }
-}
 
 /// One simulated frame.
 #[derive(Debug, Clone)]

@@ -1,0 +1,3 @@
+//! Evaluation: the paper's metrics (IE, MS-SSIM and their regional spread).
+
+pub mod metrics;

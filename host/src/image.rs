@@ -1,0 +1,105 @@
+//! Images on the host: planes of `f32` gray levels, loaded from and saved to PNG.
+
+use anyhow::{Context, bail};
+use std::path::Path;
+
+/// An image as planes of `f32` values on the 8-bit scale (0..=255; 16-bit files are scaled
+/// by 255/65535): one plane (gray) or three (red, green, blue), each row-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Planes {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// One plane (gray) or three (red, green, blue).
+    pub planes: Vec<Vec<f32>>,
+}
+
+impl Planes {
+    /// Rounds and clamps to 8-bit: one byte per pixel (gray) or three interleaved (RGB).
+    pub fn to_u8(&self) -> Vec<u8> {
+        let n = self.width * self.height;
+        let c = self.planes.len();
+        let mut out = vec![0u8; n * c];
+        for (ci, plane) in self.planes.iter().enumerate() {
+            for (i, v) in plane.iter().enumerate() {
+                out[i * c + ci] = v.round().clamp(0.0, 255.0) as u8;
+            }
+        }
+        out
+    }
+
+    /// Whether this is an RGB image.
+    pub fn is_rgb(&self) -> bool {
+        self.planes.len() == 3
+    }
+
+    /// Reads a PNG (or any format the `image` crate was built with): 8- or 16-bit, gray or
+    /// RGB (an alpha channel is dropped; gray+alpha reads as gray).
+    pub fn load(path: &Path) -> anyhow::Result<Self> {
+        let img =
+            image::open(path).with_context(|| format!("cannot read image {}", path.display()))?;
+        let (w, h) = (img.width() as usize, img.height() as usize);
+        let color = img.color();
+        let scale16 = 255.0 / 65535.0;
+        let planes = match (
+            color.has_color(),
+            color.bytes_per_pixel() / color.channel_count(),
+        ) {
+            (false, 1) => vec![
+                img.to_luma8()
+                    .into_raw()
+                    .into_iter()
+                    .map(f32::from)
+                    .collect(),
+            ],
+            (false, _) => vec![
+                img.to_luma16()
+                    .into_raw()
+                    .into_iter()
+                    .map(|v| f32::from(v) * scale16)
+                    .collect(),
+            ],
+            (true, depth) => {
+                let data: Vec<f32> = if depth == 1 {
+                    img.to_rgb8()
+                        .into_raw()
+                        .into_iter()
+                        .map(f32::from)
+                        .collect()
+                } else {
+                    img.to_rgb16()
+                        .into_raw()
+                        .into_iter()
+                        .map(|v| f32::from(v) * scale16)
+                        .collect()
+                };
+                (0..3)
+                    .map(|c| data.iter().skip(c).step_by(3).copied().collect())
+                    .collect()
+            }
+        };
+        if w == 0 || h == 0 {
+            bail!("image {} is empty", path.display());
+        }
+        Ok(Self {
+            width: w,
+            height: h,
+            planes,
+        })
+    }
+
+    /// Saves as an 8-bit gray or RGB PNG.
+    pub fn save_png(&self, path: &Path) -> anyhow::Result<()> {
+        let (w, h) = (self.width as u32, self.height as u32);
+        let bytes = self.to_u8();
+        let result = if self.is_rgb() {
+            image::RgbImage::from_raw(w, h, bytes).map(|img| img.save(path))
+        } else {
+            image::GrayImage::from_raw(w, h, bytes).map(|img| img.save(path))
+        };
+        result
+            .context("image buffer does not match its size")?
+            .with_context(|| format!("cannot write {}", path.display()))
+    }
+}
