@@ -7,12 +7,16 @@
 //!
 //! - [`image`]: images as `f32` planes, PNG in and out.
 //! - [`sim`]: the tactile simulator (scenes, effects on demand, ground truth).
+//! - [`fullres`]: full-resolution fusion of aligned frames into one mosaic.
 //! - [`eval`]: the paper's metrics.
+//! - [`commands`]: the `rollfuse` subcommands.
 //! - [`npy`]: NumPy array files.
 
 pub use rollfuse_core as core;
 
+pub mod commands;
 pub mod eval;
+pub mod fullres;
 pub mod image;
 pub mod npy;
 pub mod sim;

@@ -1,0 +1,138 @@
+//! Frame alignment: where each frame sits on the common (mosaic) canvas.
+//!
+//! - `motion`: from the commanded belt offsets the simulator or the motion system recorded.
+//! - `template`: each frame against the previous one by normalized cross-correlation
+//!   (`imageproc::template_matching`) of their Sobel gradient magnitudes: gradients
+//!   are zero on undisturbed gel, so the correlation measures structure, not brightness. A
+//!   frame whose best score is below the threshold (flat, textureless, or not overlapping)
+//!   is reported and left out, never fused misaligned.
+
+use crate::image::Planes;
+use image::{GrayImage, Luma};
+use imageproc::template_matching::{MatchTemplateMethod, find_extremes, match_template_parallel};
+
+/// Where a frame's pixel (0, 0) lies on the canvas, pixels: rows (along the belt), columns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct Offset {
+    /// Rows.
+    pub dy: i64,
+    /// Columns.
+    pub dx: i64,
+}
+
+/// Template-matching settings.
+#[derive(Debug, Clone, Copy)]
+pub struct TemplateParams {
+    /// The template: rows `[top, bottom)` of the previous frame, as fractions of its height
+    /// (default: the central third, where contact is deepest).
+    pub rows: (f64, f64),
+    /// Largest shift searched along the belt, pixels.
+    pub max_dy: usize,
+    /// Largest shift searched across the belt, pixels.
+    pub max_dx: usize,
+    /// Lowest normalized correlation accepted.
+    pub min_score: f32,
+}
+
+impl Default for TemplateParams {
+    fn default() -> Self {
+        Self {
+            rows: (1.0 / 3.0, 2.0 / 3.0),
+            max_dy: 200,
+            max_dx: 8,
+            min_score: 0.5,
+        }
+    }
+}
+
+/// The result of matching one frame against the previous one.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct Match {
+    /// Shift of this frame relative to the previous one.
+    pub shift: Offset,
+    /// Best normalized correlation.
+    pub score: f32,
+    /// Best score outside a small neighbourhood of the peak: close to `score` means the
+    /// match is ambiguous (periodic texture).
+    pub runner_up: f32,
+}
+
+/// Gradient magnitude of the gray version of `img`, scaled to 8 bits.
+fn gradient_image(img: &Planes) -> GrayImage {
+    let (w, h) = (img.width, img.height);
+    let n = img.planes.len() as f32;
+    let gray: Vec<u8> = (0..w * h)
+        .map(|i| {
+            (img.planes.iter().map(|p| p[i]).sum::<f32>() / n)
+                .round()
+                .clamp(0.0, 255.0) as u8
+        })
+        .collect();
+    let gray = GrayImage::from_raw(w as u32, h as u32, gray).expect("size matches");
+    let grad = imageproc::gradients::sobel_gradients(&gray);
+    GrayImage::from_fn(w as u32, h as u32, |x, y| {
+        Luma([(grad.get_pixel(x, y)[0] / 4).min(255) as u8])
+    })
+}
+
+/// Matches the template band of `prev` inside `next`; `None` if either has no texture or the
+/// frames are too small for the band and search window.
+pub fn match_frames(prev: &Planes, next: &Planes, p: &TemplateParams) -> Option<Match> {
+    let (w, h) = (prev.width, prev.height);
+    let (gp, gn) = (gradient_image(prev), gradient_image(next));
+    let top = ((p.rows.0 * h as f64) as usize).min(h.saturating_sub(1));
+    let bottom = ((p.rows.1 * h as f64) as usize).clamp(top + 1, h);
+    let left = p.max_dx.min(w / 4);
+    let tw = w.checked_sub(2 * left)?;
+    if tw == 0 {
+        return None;
+    }
+    let template = image::imageops::crop_imm(
+        &gp,
+        left as u32,
+        top as u32,
+        tw as u32,
+        (bottom - top) as u32,
+    )
+    .to_image();
+    if template.pixels().all(|p| p[0] == 0) {
+        return None;
+    }
+    // The search window: the template's own place ± the largest shifts, inside `next`.
+    let y0 = top.saturating_sub(p.max_dy);
+    let y1 = (bottom + p.max_dy).min(h);
+    let search =
+        image::imageops::crop_imm(&gn, 0, y0 as u32, w as u32, (y1 - y0) as u32).to_image();
+    if search.height() < template.height() || search.pixels().all(|p| p[0] == 0) {
+        return None;
+    }
+    let scores = match_template_parallel(
+        &search,
+        &template,
+        MatchTemplateMethod::CrossCorrelationNormalized,
+    );
+    let best = find_extremes(&scores);
+    let (bx, by) = best.max_value_location;
+    let score = best.max_value;
+    if !score.is_finite() {
+        return None;
+    }
+    // Runner-up: the best score at least 3 px from the peak.
+    let runner_up = scores
+        .enumerate_pixels()
+        .filter(|(x, y, _)| x.abs_diff(bx) > 3 || y.abs_diff(by) > 3)
+        .map(|(_, _, v)| v[0])
+        .filter(|v| v.is_finite())
+        .fold(0.0f32, f32::max);
+    // The template's top-left found at (bx, y0 + by) in `next`, taken from (left, top) in
+    // `prev`: a belt point at prev row r is at next row r − (top − (y0 + by)).
+    let shift = Offset {
+        dy: top as i64 - (y0 as i64 + by as i64),
+        dx: left as i64 - bx as i64,
+    };
+    Some(Match {
+        shift,
+        score,
+        runner_up,
+    })
+}

@@ -1,0 +1,211 @@
+//! Full-resolution fusion on the host: frames placed on a common canvas (the mosaic) and
+//! fused cyclically where they overlap, per colour channel, on the `f32` path of
+//! `rollfuse-core` (or its integer MCU path, for comparison).
+//!
+//! Frame `k` is fused into the running mosaic over its own footprint: pixels of the
+//! footprint the mosaic has not seen yet take the frame's own values first (fusing an
+//! image with itself returns it), so the first frame over any region passes through and
+//! later frames fuse with what is there.
+
+pub mod align;
+
+use crate::image::Planes;
+use align::Offset;
+use anyhow::{bail, ensure};
+use rayon::prelude::*;
+use rollfuse_core::fusion::{LlWeight, U8Work, fuse_scratch_len, fuse_u8};
+use rollfuse_core::{Dims, FuseConfig, float};
+
+/// Which arithmetic fuses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+pub enum Precision {
+    /// `f32` (the host's full-resolution path).
+    F32,
+    /// The MCU's integer path on 8-bit data (16-bit input is rounded to 8 bits).
+    Fixed,
+}
+
+/// A frame and where it lies on the canvas.
+#[derive(Debug, Clone, Copy)]
+pub struct Placed<'a> {
+    /// The frame.
+    pub image: &'a Planes,
+    /// Its pixel (0, 0) on the canvas.
+    pub at: Offset,
+}
+
+/// Fuses `frames`, in order, into one mosaic covering all of them. All frames must have
+/// the same size and the same number of channels.
+pub fn fuse_mosaic(
+    frames: &[Placed],
+    cfg: &FuseConfig,
+    precision: Precision,
+) -> anyhow::Result<Planes> {
+    ensure!(!frames.is_empty(), "no frames to fuse");
+    let first = frames[0].image;
+    let (w, h, channels) = (first.width, first.height, first.planes.len());
+    for (k, f) in frames.iter().enumerate() {
+        if (f.image.width, f.image.height) != (w, h) {
+            bail!(
+                "frame {k} is {}×{}, frame 0 is {w}×{h}: all frames must have one size",
+                f.image.width,
+                f.image.height
+            );
+        }
+        if f.image.planes.len() != channels {
+            bail!(
+                "frame {k} has {} channels, frame 0 has {channels}: mix of gray and RGB",
+                f.image.planes.len()
+            );
+        }
+    }
+    Dims::new(w, h)?.check_levels(cfg.levels)?;
+    let min_y = frames.iter().map(|f| f.at.dy).min().unwrap_or(0);
+    let min_x = frames.iter().map(|f| f.at.dx).min().unwrap_or(0);
+    let cw = (frames.iter().map(|f| f.at.dx).max().unwrap_or(0) - min_x) as usize + w;
+    let ch = (frames.iter().map(|f| f.at.dy).max().unwrap_or(0) - min_y) as usize + h;
+    ensure!(
+        cw <= 4 * rollfuse_core::MAX_DIMENSION && ch <= 4 * rollfuse_core::MAX_DIMENSION,
+        "mosaic of {cw}×{ch} is too large"
+    );
+    // Channels are independent: fuse them in parallel (results do not depend on threads).
+    let planes: Vec<Vec<f32>> = (0..channels)
+        .into_par_iter()
+        .map(|c| fuse_channel(frames, c, (min_x, min_y), (cw, ch), cfg, precision))
+        .collect::<anyhow::Result<_>>()?;
+    Ok(Planes {
+        width: cw,
+        height: ch,
+        planes,
+    })
+}
+
+fn fuse_channel(
+    frames: &[Placed],
+    c: usize,
+    (min_x, min_y): (i64, i64),
+    (cw, ch): (usize, usize),
+    cfg: &FuseConfig,
+    precision: Precision,
+) -> anyhow::Result<Vec<f32>> {
+    let (w, h) = (frames[0].image.width, frames[0].image.height);
+    let mut mosaic = vec![0f32; cw * ch];
+    let mut seen = vec![false; cw * ch];
+    let mut fuser = Fuser::new(w, h, cfg, precision)?;
+    for (k, f) in frames.iter().enumerate() {
+        let (ox, oy) = ((f.at.dx - min_x) as usize, (f.at.dy - min_y) as usize);
+        let frame = &f.image.planes[c];
+        // The mosaic under this footprint, holes filled from the frame.
+        let mut under = vec![0f32; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let i = (oy + y) * cw + ox + x;
+                under[y * w + x] = if seen[i] { mosaic[i] } else { frame[y * w + x] };
+            }
+        }
+        let ll = LlWeight::for_frame(cfg.ll_weighting, k as u32 + 1);
+        let fused = if k == 0 {
+            under
+        } else {
+            fuser.fuse(&under, frame, ll)?
+        };
+        for y in 0..h {
+            for x in 0..w {
+                let i = (oy + y) * cw + ox + x;
+                mosaic[i] = fused[y * w + x];
+                seen[i] = true;
+            }
+        }
+    }
+    Ok(mosaic)
+}
+
+/// One fuse step's buffers, allocated once per channel.
+struct Fuser {
+    w: usize,
+    h: usize,
+    cfg: FuseConfig,
+    precision: Precision,
+    frame: float::Padded,
+    a: Vec<f32>,
+    b: Vec<f32>,
+    scratch: Vec<f32>,
+    ia: Vec<i32>,
+    ib: Vec<i32>,
+    iscratch: Vec<i32>,
+}
+
+impl Fuser {
+    fn new(w: usize, h: usize, cfg: &FuseConfig, precision: Precision) -> anyhow::Result<Self> {
+        let frame = float::Padded::new(w, h, cfg.levels)?;
+        let (fa, fi) = match precision {
+            Precision::F32 => (frame.dims().pixels(), 0),
+            Precision::Fixed => (0, w * h),
+        };
+        Ok(Self {
+            w,
+            h,
+            cfg: *cfg,
+            precision,
+            frame,
+            a: vec![0.0; fa],
+            b: vec![0.0; fa],
+            scratch: vec![
+                0.0;
+                if fa > 0 {
+                    float::fuse_scratch_len(frame.dims())
+                } else {
+                    0
+                }
+            ],
+            ia: vec![0; fi],
+            ib: vec![0; fi],
+            iscratch: vec![
+                0;
+                if fi > 0 {
+                    fuse_scratch_len(Dims::new(w, h)?)
+                } else {
+                    0
+                }
+            ],
+        })
+    }
+
+    fn fuse(&mut self, a: &[f32], b: &[f32], ll: LlWeight) -> anyhow::Result<Vec<f32>> {
+        let (w, h) = (self.w, self.h);
+        match self.precision {
+            Precision::F32 => {
+                self.frame.fill(&mut self.a, |x, y| a[y * w + x])?;
+                self.frame.fill(&mut self.b, |x, y| b[y * w + x])?;
+                float::fuse_pair(
+                    &mut self.a,
+                    &mut self.b,
+                    &self.frame,
+                    &self.cfg,
+                    ll,
+                    &mut self.scratch,
+                )?;
+                let frame = &self.frame;
+                Ok((0..w * h)
+                    .map(|i| self.a[frame.index(i % w, i / w).unwrap_or(0)])
+                    .collect())
+            }
+            Precision::Fixed => {
+                let to8 = |v: &[f32]| {
+                    v.iter()
+                        .map(|x| x.round().clamp(0.0, 255.0) as u8)
+                        .collect::<Vec<u8>>()
+                };
+                let (a8, b8) = (to8(a), to8(b));
+                let dims = Dims::new(w, h)?;
+                let work = U8Work {
+                    a: &mut self.ia,
+                    b: &mut self.ib,
+                    scratch: &mut self.iscratch,
+                };
+                fuse_u8((&a8, dims), (&b8, dims), &self.cfg, ll, work)?;
+                Ok(self.ia.iter().map(|&v| v as f32).collect())
+            }
+        }
+    }
+}

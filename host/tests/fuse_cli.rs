@@ -1,0 +1,209 @@
+//! `rollfuse fuse` and `rollfuse metrics` from the command line: alignment, outputs, and a
+//! clear one-line error with a non-zero exit for every kind of bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn rollfuse(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rollfuse"))
+        .args(args)
+        .output()
+        .expect("run rollfuse")
+}
+
+fn simulate(dir: &Path, scene: &str, frames: usize) -> Vec<PathBuf> {
+    let scene = format!("{}/scenes/{scene}.toml", env!("CARGO_MANIFEST_DIR"));
+    let n = frames.to_string();
+    let out = rollfuse(&[
+        "simulate",
+        &scene,
+        "--out",
+        dir.to_str().unwrap(),
+        "--frames",
+        &n,
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (0..frames)
+        .map(|k| dir.join(format!("frame_{k:04}.png")))
+        .collect()
+}
+
+fn args<'a>(frames: &'a [PathBuf], rest: &[&'a str]) -> Vec<&'a str> {
+    frames
+        .iter()
+        .map(|p| p.to_str().unwrap())
+        .chain(rest.iter().copied())
+        .collect()
+}
+
+/// Runs `rollfuse fuse …` expecting failure; returns stderr.
+fn fails(a: &[&str]) -> String {
+    let out = rollfuse(&[&["fuse"], a].concat());
+    assert!(!out.status.success(), "should fail: {a:?}");
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(err.trim().lines().count() <= 2, "one clear line: {err}");
+    err
+}
+
+#[test]
+fn template_alignment_recovers_the_belt_shift_through_noise() {
+    let tmp = tempfile::tempdir().unwrap();
+    // The letters scene has noise, defocus and uneven light; frames are 1 mm = 20 px apart.
+    let frames = simulate(tmp.path(), "letters", 8);
+    let out = tmp.path().join("fused.png");
+    let run = rollfuse(
+        &[
+            &["fuse"],
+            &args(&frames[2..7], &["--out", out.to_str().unwrap()])[..],
+        ]
+        .concat(),
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let rec: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(tmp.path().join("fused.offsets.json")).unwrap(),
+    )
+    .unwrap();
+    let dys: Vec<i64> = rec["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["at"]["dy"].as_i64().unwrap())
+        .collect();
+    assert_eq!(dys, [0, 20, 40, 60, 80]);
+    let img = image::open(&out).unwrap();
+    assert_eq!((img.width(), img.height()), (320, 240 + 80));
+}
+
+#[test]
+fn motion_alignment_reads_the_manifest() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = simulate(tmp.path(), "dots", 4);
+    let out = tmp.path().join("fused.png");
+    let run = rollfuse(
+        &[
+            &["fuse"],
+            &args(
+                &frames,
+                &[
+                    "--out",
+                    out.to_str().unwrap(),
+                    "--align",
+                    "motion",
+                    "--precision",
+                    "fixed",
+                    "--levels",
+                    "2",
+                ],
+            )[..],
+        ]
+        .concat(),
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let img = image::open(&out).unwrap();
+    assert_eq!((img.width(), img.height()), (320, 240 + 3 * 20));
+}
+
+#[test]
+fn bad_input_gets_one_clear_line_and_a_nonzero_exit() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = simulate(tmp.path(), "dots", 2);
+    let out = tmp.path().join("o.png");
+    let o = out.to_str().unwrap();
+    // Missing file.
+    assert!(
+        fails(&args(
+            &[frames[0].clone(), tmp.path().join("nope.png")],
+            &["--out", o]
+        ))
+        .contains("nope.png")
+    );
+    // Not an image.
+    let junk = tmp.path().join("junk.png");
+    std::fs::write(&junk, b"not a png").unwrap();
+    assert!(fails(&args(&[frames[0].clone(), junk.clone()], &["--out", o])).contains("junk.png"));
+    // Mixed sizes.
+    let small = tmp.path().join("small.png");
+    image::GrayImage::new(32, 32).save(&small).unwrap();
+    assert!(fails(&args(&[frames[0].clone(), small], &["--out", o])).contains("one size"));
+    // Mixed gray and RGB.
+    let rgb = tmp.path().join("rgb.png");
+    image::RgbImage::new(320, 240).save(&rgb).unwrap();
+    assert!(fails(&args(&[frames[0].clone(), rgb], &["--out", o])).contains("gray and RGB"));
+    // One frame only.
+    assert!(fails(&args(&frames[..1], &["--out", o])).contains("at least two frames"));
+    // Zero frames: clap's own message.
+    let zero = rollfuse(&["fuse", "--out", o]);
+    assert!(!zero.status.success());
+    // An output that cannot be written, refused before any work.
+    let bad_out = tmp.path().join("no/such/dir/f.png");
+    assert!(fails(&args(&frames, &["--out", bad_out.to_str().unwrap()])).contains("cannot write"));
+    // Out-of-range parameters.
+    assert!(fails(&args(&frames, &["--out", o, "--levels", "7"])).contains("--levels"));
+    assert!(fails(&args(&frames, &["--out", o, "--min-score", "2"])).contains("--min-score"));
+    // Nothing was written by the failed runs.
+    assert!(!out.exists());
+}
+
+#[test]
+fn flat_frames_are_reported_and_not_fused_misaligned() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = simulate(tmp.path(), "dots", 2);
+    let flat = tmp.path().join("flat.png");
+    image::GrayImage::from_pixel(320, 240, image::Luma([120]))
+        .save(&flat)
+        .unwrap();
+    let out = tmp.path().join("f.png");
+    let run = rollfuse(
+        &[
+            &["fuse"],
+            &args(
+                &[frames[0].clone(), flat.clone(), frames[1].clone()],
+                &["--out", out.to_str().unwrap()],
+            )[..],
+        ]
+        .concat(),
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(err.contains("skipped") && err.contains("flat.png"), "{err}");
+    let rec = std::fs::read_to_string(tmp.path().join("f.offsets.json")).unwrap();
+    assert!(rec.contains("\"skipped\"") && rec.contains("flat.png"));
+}
+
+#[test]
+fn metrics_prints_ie_and_ms_ssim_and_refuses_mismatched_references() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = simulate(tmp.path(), "dots", 1);
+    let f = frames[0].to_str().unwrap();
+    let run = rollfuse(&["metrics", f, "--reference", f, "--json"]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert!((v["ms_ssim"].as_f64().unwrap() - 1.0).abs() < 1e-9);
+    assert!(v["ie"].as_f64().unwrap() > 3.0);
+    assert_eq!(v["strip_ie"].as_array().unwrap().len(), 10);
+    let ideal = tmp.path().join("truth/ideal.png");
+    let bad = rollfuse(&["metrics", f, "--reference", ideal.to_str().unwrap()]);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("reference is"));
+}
