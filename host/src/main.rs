@@ -1,7 +1,7 @@
 //! `rollfuse`: the command-line tool of the rollfuse tactile sensor module.
 
 use clap::{Parser, Subcommand};
-use rollfuse::commands::{fuse, metrics, simulate};
+use rollfuse::commands::{eval, fuse, metrics, simulate, splice};
 use std::process::ExitCode;
 
 /// Cyclic wavelet fusion of tactile images from a rolling, curved elastomer sensor.
@@ -20,8 +20,12 @@ enum Command {
     Simulate(simulate::Args),
     /// Fuse frames at full resolution into one image (see docs/fusion.md).
     Fuse(fuse::Args),
+    /// The time-splicing baseline: central strips by motion offsets, seams blended.
+    Splice(splice::Args),
     /// IE, MS-SSIM and their regional std (eqs. 8–9) of an image.
     Metrics(metrics::Args),
+    /// Tables II and III (ablations; single, fused, spliced) on simulated samples.
+    Eval(eval::Args),
 }
 
 fn main() -> ExitCode {
@@ -33,7 +37,9 @@ fn main() -> ExitCode {
         }
         Command::Simulate(args) => simulate::run(args),
         Command::Fuse(args) => fuse::run(args),
+        Command::Splice(args) => splice::run(args),
         Command::Metrics(args) => metrics::run(args),
+        Command::Eval(args) => eval::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -113,7 +113,8 @@ fn motion_alignment_reads_the_manifest() {
         String::from_utf8_lossy(&run.stderr)
     );
     let img = image::open(&out).unwrap();
-    assert_eq!((img.width(), img.height()), (320, 240 + 3 * 20));
+    // The dots scene moves 3 mm = 60 px between frames.
+    assert_eq!((img.width(), img.height()), (320, 240 + 3 * 60));
 }
 
 #[test]

@@ -69,7 +69,7 @@ fn entropy_extremes_and_regional_std() {
         population_std(&[2.0, 4.0, 4.0, 4.0, 5.0, 5.0, 7.0, 9.0]),
         2.0
     );
-    let cols = strip_columns(103, 10);
+    let cols = strip_ranges(103, 10);
     assert_eq!(cols.len(), 10);
     assert_eq!(cols[0].start, 0);
     assert_eq!(cols[9].end, 103);

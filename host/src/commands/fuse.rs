@@ -114,7 +114,7 @@ pub fn load_frames(paths: &[PathBuf]) -> anyhow::Result<Vec<Planes>> {
 }
 
 /// Commanded belt offsets of `paths` from a simulator manifest, as canvas rows.
-fn motion_offsets(manifest: &Path, paths: &[PathBuf]) -> anyhow::Result<Vec<Offset>> {
+pub fn motion_offsets(manifest: &Path, paths: &[PathBuf]) -> anyhow::Result<Vec<Offset>> {
     let text = std::fs::read_to_string(manifest)
         .with_context(|| format!("cannot read manifest {}", manifest.display()))?;
     let doc: serde_json::Value = serde_json::from_str(&text)

@@ -1,7 +1,7 @@
 //! `rollfuse metrics`: IE, MS-SSIM against a reference, and their regional spread.
 
 use crate::eval::metrics::{
-    Gray, columns, entropy, gray_normalize, ms_ssim_raw, population_std, strip_columns,
+    Gray, StripAxis, entropy, gray_normalize, ms_ssim_raw, population_std, strip, strip_ranges,
 };
 use crate::image::Planes;
 use anyhow::{bail, ensure};
@@ -15,9 +15,12 @@ pub struct Args {
     /// Reference for MS-SSIM (e.g. a simulation's truth/ideal.png), same size.
     #[arg(long)]
     pub reference: Option<PathBuf>,
-    /// Number of equal strips across the width for the regional std (eqs. 8–9).
+    /// Number of equal strips for the regional std (eqs. 8–9).
     #[arg(long, default_value_t = 10)]
     pub strips: usize,
+    /// Cut the strips as bands of rows (along the belt, default) or of columns.
+    #[arg(long, value_enum, default_value = "rows")]
+    pub axis: StripAxis,
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -56,23 +59,27 @@ fn to_u8(g: &Gray) -> Vec<u8> {
         .collect()
 }
 
-/// Measures `image` (and against `reference`), over `strips` strips across the width.
+/// Measures `image` (and against `reference`), with `strips` strips along `axis`.
 pub fn measure(
     image: &Planes,
     reference: Option<&Planes>,
     strips: usize,
+    axis: StripAxis,
 ) -> anyhow::Result<Report> {
     ensure!(strips >= 1, "--strips must be at least 1");
+    let len = match axis {
+        StripAxis::Rows => image.height,
+        StripAxis::Columns => image.width,
+    };
     ensure!(
-        strips <= image.width,
-        "--strips {strips} is more than the image's {} columns",
-        image.width
+        strips <= len,
+        "--strips {strips} is more than the image's {len} {axis:?}"
     );
     let g = normalized_gray(image)?;
-    let ranges = strip_columns(g.width, strips);
+    let ranges = strip_ranges(len, strips);
     let strip_ie: Vec<f64> = ranges
         .iter()
-        .map(|r| entropy(&to_u8(&columns(&g, r.clone()))))
+        .map(|r| entropy(&to_u8(&strip(&g, axis, r.clone()))))
         .collect();
     let (mut ms, mut strip_ms) = (None, None);
     if let Some(reference) = reference {
@@ -90,7 +97,7 @@ pub fn measure(
         strip_ms = Some(
             ranges
                 .iter()
-                .map(|c| ms_ssim_raw(&columns(&g, c.clone()), &columns(&r, c.clone())))
+                .map(|c| ms_ssim_raw(&strip(&g, axis, c.clone()), &strip(&r, axis, c.clone())))
                 .collect::<anyhow::Result<Vec<f64>>>()?,
         );
     }
@@ -108,7 +115,7 @@ pub fn measure(
 pub fn run(args: Args) -> anyhow::Result<()> {
     let image = Planes::load(&args.image)?;
     let reference = args.reference.as_deref().map(Planes::load).transpose()?;
-    let report = measure(&image, reference.as_ref(), args.strips)?;
+    let report = measure(&image, reference.as_ref(), args.strips, args.axis)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());

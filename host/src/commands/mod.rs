@@ -1,8 +1,10 @@
 //! The `rollfuse` subcommands: argument parsing (clap) and what each one does.
 
+pub mod eval;
 pub mod fuse;
 pub mod metrics;
 pub mod simulate;
+pub mod splice;
 
 use clap::ValueEnum;
 use rollfuse_core::{Ablation, LlWeighting, Wavelet};

@@ -223,27 +223,45 @@ pub fn population_std(values: &[f64]) -> f64 {
     (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt()
 }
 
-/// Column ranges of `strips` equal strips across a width (the last ones one column wider
-/// when it does not divide).
-pub fn strip_columns(width: usize, strips: usize) -> Vec<std::ops::Range<usize>> {
+/// Which way an image is cut into strips for the regional std.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+pub enum StripAxis {
+    /// Bands of rows: along the belt, the direction contact depth varies in rollfuse's
+    /// frames (the paper's "width", its motion direction).
+    Rows,
+    /// Bands of columns: across the belt.
+    Columns,
+}
+
+/// Index ranges of `strips` equal strips over `len` (the later ones one wider when it does
+/// not divide).
+pub fn strip_ranges(len: usize, strips: usize) -> Vec<std::ops::Range<usize>> {
     (0..strips)
-        .map(|k| k * width / strips..(k + 1) * width / strips)
+        .map(|k| k * len / strips..(k + 1) * len / strips)
         .collect()
 }
 
-/// The columns `range` of a gray image.
-pub fn columns(img: &Gray, range: std::ops::Range<usize>) -> Gray {
-    let w = range.len();
-    let data = (0..img.height)
-        .flat_map(|y| {
-            img.data[y * img.width + range.start..y * img.width + range.end]
-                .iter()
-                .copied()
-        })
-        .collect();
-    Gray {
-        width: w,
-        height: img.height,
-        data,
+/// The strip `range` of a gray image along `axis`.
+pub fn strip(img: &Gray, axis: StripAxis, range: std::ops::Range<usize>) -> Gray {
+    match axis {
+        StripAxis::Rows => Gray {
+            width: img.width,
+            height: range.len(),
+            data: img.data[range.start * img.width..range.end * img.width].to_vec(),
+        },
+        StripAxis::Columns => {
+            let data = (0..img.height)
+                .flat_map(|y| {
+                    img.data[y * img.width + range.start..y * img.width + range.end]
+                        .iter()
+                        .copied()
+                })
+                .collect();
+            Gray {
+                width: range.len(),
+                height: img.height,
+                data,
+            }
+        }
     }
 }

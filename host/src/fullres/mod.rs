@@ -209,3 +209,83 @@ impl Fuser {
         }
     }
 }
+
+/// The time-splicing baseline (paper Tables I and III): every canvas row comes from the
+/// frame whose centre row (the roller's apex) is nearest to it, and neighbouring frames'
+/// strips are blended linearly over `blend` rows either side of each seam. Columns are
+/// not shifted. All frames must agree in size and channels, as for [`fuse_mosaic`].
+pub fn splice(frames: &[Placed], blend: usize) -> anyhow::Result<Planes> {
+    ensure!(!frames.is_empty(), "no frames to splice");
+    let first = frames[0].image;
+    let (w, h, channels) = (first.width, first.height, first.planes.len());
+    for (k, f) in frames.iter().enumerate() {
+        ensure!(
+            (f.image.width, f.image.height, f.image.planes.len()) == (w, h, channels),
+            "frame {k} differs in size or channels from frame 0"
+        );
+    }
+    let min_y = frames.iter().map(|f| f.at.dy).min().unwrap_or(0);
+    let ch = (frames.iter().map(|f| f.at.dy).max().unwrap_or(0) - min_y) as usize + h;
+    // Apex rows on the canvas, in canvas order.
+    let mut apexes: Vec<(f64, usize)> = frames
+        .iter()
+        .enumerate()
+        .map(|(k, f)| ((f.at.dy - min_y) as f64 + h as f64 / 2.0, k))
+        .collect();
+    apexes.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut planes = vec![vec![0f32; w * ch]; channels];
+    let blend = blend as f64;
+    for y in 0..ch {
+        let yc = y as f64 + 0.5;
+        // Weights: each frame that covers the row, by a tent around its strip's seams.
+        let mut weights: Vec<(usize, f64)> = Vec::new();
+        for (i, &(apex, k)) in apexes.iter().enumerate() {
+            let top = (frames[k].at.dy - min_y) as f64;
+            if yc < top || yc >= top + h as f64 {
+                continue;
+            }
+            let lo = if i == 0 {
+                f64::NEG_INFINITY
+            } else {
+                (apexes[i - 1].0 + apex) / 2.0
+            };
+            let hi = if i + 1 == apexes.len() {
+                f64::INFINITY
+            } else {
+                (apex + apexes[i + 1].0) / 2.0
+            };
+            // Signed distance into the strip: the weight is ½ at a seam, 1 from `blend`
+            // rows inside, 0 from `blend` rows outside.
+            let into = (yc - lo).min(hi - yc);
+            let wgt = if blend > 0.0 {
+                (0.5 + into / (2.0 * blend)).clamp(0.0, 1.0)
+            } else {
+                f64::from(into >= 0.0)
+            };
+            if wgt > 0.0 {
+                weights.push((k, wgt));
+            }
+        }
+        let total: f64 = weights.iter().map(|(_, w)| w).sum();
+        if total <= 0.0 {
+            continue;
+        }
+        for (c, plane) in planes.iter_mut().enumerate() {
+            for x in 0..w {
+                let v: f64 = weights
+                    .iter()
+                    .map(|&(k, wgt)| {
+                        let fy = (y as i64 - (frames[k].at.dy - min_y)) as usize;
+                        wgt * f64::from(frames[k].image.planes[c][fy * w + x])
+                    })
+                    .sum();
+                plane[y * w + x] = (v / total) as f32;
+            }
+        }
+    }
+    Ok(Planes {
+        width: w,
+        height: ch,
+        planes,
+    })
+}

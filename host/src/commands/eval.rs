@@ -1,0 +1,53 @@
+//! `rollfuse eval`: Tables II and III on the simulated standardized samples.
+
+use super::simulate::progress;
+use crate::eval::tables::{csv, evaluate_scene, markdown};
+use crate::sim::Scene;
+use anyhow::Context;
+use rollfuse_core::FuseConfig;
+use std::path::PathBuf;
+
+/// Arguments of `rollfuse eval`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Folder for eval.md and eval.csv.
+    #[arg(long, default_value = "out/eval")]
+    pub out: PathBuf,
+    /// Scenes to evaluate (default: the built-in dot, line and curve matrices).
+    #[arg(long)]
+    pub scene: Vec<PathBuf>,
+}
+
+/// The built-in standardized samples.
+pub fn default_scenes() -> Vec<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    ["dots", "lines", "curves"]
+        .iter()
+        .map(|s| dir.join(format!("{s}.toml")))
+        .collect()
+}
+
+/// Runs the command.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let scenes = if args.scene.is_empty() {
+        default_scenes()
+    } else {
+        args.scene.clone()
+    };
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let bar = progress(scenes.len(), "scenes", "evaluating".into());
+    let mut rows = Vec::new();
+    for (k, path) in scenes.iter().enumerate() {
+        let scene = Scene::load(path)?;
+        rows.extend(evaluate_scene(&scene, &FuseConfig::default(), 10)?);
+        bar.set_position(k as u64 + 1);
+    }
+    bar.finish_and_clear();
+    let md = markdown(&rows);
+    std::fs::write(args.out.join("eval.md"), &md).context("cannot write eval.md")?;
+    std::fs::write(args.out.join("eval.csv"), csv(&rows)).context("cannot write eval.csv")?;
+    print!("{md}");
+    println!("\nwritten: {}/eval.md, eval.csv", args.out.display());
+    Ok(())
+}

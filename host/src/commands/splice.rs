@@ -1,0 +1,60 @@
+//! `rollfuse splice`: the time-splicing baseline (central strips placed by motion offsets,
+//! seams blended).
+
+use super::check_writable;
+use super::fuse::{load_frames, motion_offsets};
+use crate::fullres::{Placed, splice};
+use anyhow::bail;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `rollfuse splice`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The frames, in acquisition order.
+    #[arg(required = true)]
+    pub frames: Vec<PathBuf>,
+    /// The spliced image (8-bit PNG).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// The acquisition's manifest (default: manifest.json beside the first frame).
+    #[arg(long)]
+    pub manifest: Option<PathBuf>,
+    /// Rows blended either side of each seam.
+    #[arg(long, default_value_t = 4)]
+    pub blend: usize,
+}
+
+/// Runs the command.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.frames.len() < 2 {
+        bail!(
+            "splicing needs at least two frames, got {}",
+            args.frames.len()
+        );
+    }
+    check_writable(&args.out)?;
+    let frames = load_frames(&args.frames)?;
+    let manifest = match &args.manifest {
+        Some(m) => m.clone(),
+        None => args.frames[0]
+            .parent()
+            .unwrap_or(Path::new("."))
+            .join("manifest.json"),
+    };
+    let offsets = motion_offsets(&manifest, &args.frames)?;
+    let placed: Vec<Placed> = frames
+        .iter()
+        .zip(offsets)
+        .map(|(image, at)| Placed { image, at })
+        .collect();
+    let out = splice(&placed, args.blend)?;
+    out.save_png(&args.out)?;
+    println!(
+        "spliced {} frames ({}×{}) → {}",
+        placed.len(),
+        out.width,
+        out.height,
+        args.out.display()
+    );
+    Ok(())
+}
