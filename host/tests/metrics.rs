@@ -2,7 +2,7 @@
 //! a numpy transcription of Wang 2003), on the vectors of `tests/vectors/gen_metrics.py`.
 
 use rollfuse::eval::metrics::{
-    Gray, entropy, ms_ssim, ms_ssim_scales, population_std, strip_columns,
+    Gray, entropy, ms_ssim, ms_ssim_scales, population_std, strip_ranges,
 };
 use rollfuse::image::Planes;
 use serde_json::Value;
