@@ -208,3 +208,79 @@ fn metrics_prints_ie_and_ms_ssim_and_refuses_mismatched_references() {
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("reference is"));
 }
+
+#[test]
+fn parallel_and_single_threaded_fusion_give_identical_bytes() {
+    use rollfuse::fullres::align::Offset;
+    use rollfuse::fullres::{Placed, Precision, fuse_mosaic};
+    use rollfuse::image::Planes;
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = simulate(tmp.path(), "spheres", 3);
+    let images: Vec<Planes> = frames.iter().map(|p| Planes::load(p).unwrap()).collect();
+    let placed: Vec<Placed> = images
+        .iter()
+        .enumerate()
+        .map(|(k, image)| Placed {
+            image,
+            at: Offset {
+                dy: 20 * k as i64,
+                dx: 0,
+            },
+        })
+        .collect();
+    let cfg = rollfuse_core::FuseConfig {
+        levels: 2,
+        ..Default::default()
+    };
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| fuse_mosaic(&placed, &cfg, Precision::F32).unwrap())
+    };
+    let (one, many) = (run(1), run(3));
+    assert_eq!(one.planes.len(), 3, "RGB is fused per channel");
+    assert_eq!(one, many);
+}
+
+#[test]
+fn sixteen_bit_frames_fuse_like_their_eight_bit_scaling() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = simulate(tmp.path(), "dots", 2);
+    let wide: Vec<PathBuf> = frames
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let img = image::open(p).unwrap().to_luma16();
+            let q = tmp.path().join(format!("wide_{k}.png"));
+            image::ImageBuffer::<image::Luma<u16>, _>::from_fn(
+                img.width(),
+                img.height(),
+                |x, y| image::Luma([img.get_pixel(x, y)[0] / 256 * 257]),
+            )
+            .save(&q)
+            .unwrap();
+            q
+        })
+        .collect();
+    let (a, b) = (tmp.path().join("a.png"), tmp.path().join("b.png"));
+    for (input, out) in [(&frames, &a), (&wide, &b)] {
+        let run = rollfuse(
+            &[
+                &["fuse"],
+                &args(input, &["--out", out.to_str().unwrap(), "--align", "none"])[..],
+            ]
+            .concat(),
+        );
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+    }
+    assert_eq!(
+        image::open(&a).unwrap().to_luma8(),
+        image::open(&b).unwrap().to_luma8()
+    );
+}

@@ -1,6 +1,6 @@
 //! Speed of the core kernels: forward and inverse lifting (Haar, db2; 1 and 3 levels) and
-//! one fuse step (integer and f32), at the device's downsampled tile size (160×120) and at
-//! full camera resolution (1280×960).
+//! one fuse step (integer and f32), at the device's downsampled tile size (160×120), at
+//! 640×480 (fuse step) and at full camera resolution (1280×960).
 //!
 //! `cargo bench -p rollfuse-core --bench kernels`; throughput is reported in pixels/s.
 
@@ -11,6 +11,8 @@ use rollfuse_core::{Dims, FuseConfig, Wavelet, float};
 use std::hint::black_box;
 
 const SIZES: [(usize, usize); 2] = [(160, 120), (1280, 960)];
+/// The fuse step also at the host's common 640×480.
+const FUSE_SIZES: [(usize, usize); 3] = [(160, 120), (640, 480), (1280, 960)];
 
 /// A textured 8-bit test image (smooth ramps plus a fine pattern), deterministic.
 fn image(w: usize, h: usize, phase: usize) -> Vec<u8> {
@@ -60,7 +62,7 @@ fn lifting(c: &mut Criterion) {
 fn fuse_step(c: &mut Criterion) {
     let mut group = c.benchmark_group("fuse_step");
     group.sample_size(20);
-    for (w, h) in SIZES {
+    for (w, h) in FUSE_SIZES {
         let dims = Dims::new(w, h).unwrap();
         group.throughput(Throughput::Elements(dims.pixels() as u64));
         let (a, b) = (image(w, h, 0), image(w, h, 3));

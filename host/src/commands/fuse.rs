@@ -281,7 +281,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
 
+    let started = std::time::Instant::now();
     let fused = fuse_mosaic(&placed, &cfg, args.precision)?;
+    let took = started.elapsed().as_secs_f64();
     fused.save_png(&args.out)?;
     let offsets_path = args.out.with_extension("offsets.json");
     std::fs::write(&offsets_path, serde_json::to_string_pretty(&record)? + "\n")
@@ -291,7 +293,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("  {:>6} {:>4}  {}", f.at.dy, f.at.dx, f.file.display());
     }
     println!(
-        "fused {} of {} frames ({}×{}) → {} (offsets in {})",
+        "fused {} of {} frames ({}×{}) → {} (offsets in {}); fusion took {took:.4} s",
         record.frames.len(),
         args.frames.len(),
         fused.width,

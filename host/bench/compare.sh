@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# rollfuse vs a numpy + PyWavelets implementation of the same fusion, on the same six
+# 1280×960 frames, in one run, single-threaded, best of three each (image loading and
+# saving excluded on both sides). Prints both times and the ratio.
+#
+#   pip install PyWavelets numpy pillow
+#   bash host/bench/compare.sh
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+work="$(mktemp -d)"
+trap 'rm -rf "$work"' EXIT
+
+cargo build --release -q -p rollfuse
+bin=target/release/rollfuse
+# Six frames of the letters scene at 1280×960 (the same field of view, finer pixels).
+sed -e 's/^mm_per_px = .*/mm_per_px = 0.0125/' -e 's/^width_px = .*/width_px = 1280/' \
+    -e 's/^height_px = .*/height_px = 960/' -e 's/^frames = .*/frames = 6/' \
+    host/scenes/letters.toml > "$work/letters_1280.toml"
+"$bin" simulate "$work/letters_1280.toml" --out "$work/frames" > /dev/null
+frames=("$work"/frames/frame_000{0..5}.png)
+
+export RAYON_NUM_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
+best_rust=""
+best_py=""
+for _ in 1 2 3; do
+    # `rollfuse fuse` reports its fusion time (image loading excluded, as for the reference).
+    rust=$("$bin" fuse "${frames[@]}" --out "$work/rust.png" --align none --levels 1 |
+        sed -n 's/.*fusion took \([0-9.]*\) s.*/\1/p')
+    py=$(python3 host/bench/ref_fusion.py "$work/py.png" "${frames[@]}" | tail -n 1)
+    if [ -z "$best_py" ] || (( $(echo "$py < $best_py" | bc -l) )); then best_py=$py; fi
+    if [ -z "$best_rust" ] || (( $(echo "$rust < $best_rust" | bc -l) )); then best_rust=$rust; fi
+done
+printf 'rollfuse (fusion only):           %.3f s\n' "$best_rust"
+printf 'numpy + PyWavelets (fusion only): %.3f s\n' "$best_py"
+printf 'ratio (reference / rollfuse): %.2f×\n' "$(echo "$best_py / $best_rust" | bc -l)"
