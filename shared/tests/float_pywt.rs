@@ -40,7 +40,8 @@ fn dwt2_and_idwt2_match_pywavelets_periodization() {
         let input: Vec<f32> = floats(&case["input"]).iter().map(|&v| v as f32).collect();
         let (bw, bh) = subband_dims(w, h);
         let mut coeffs = vec![0f32; 4 * bw * bh];
-        let mut scratch = vec![0f32; 4 * bw.max(bh)];
+        let mut scratch =
+            vec![0f32; rollfuse_core::float::level_scratch_len(Dims::new(2 * bw, 2 * bh).unwrap())];
         dwt2(wavelet, &input, dims, &mut coeffs, &mut scratch).unwrap();
 
         // Mallat grid: cA | cV over cH | cD (PyWavelets' cV is high along rows).
@@ -68,7 +69,7 @@ fn dwt2_refuses_short_buffers() {
     let dims = Dims::new(5, 3).unwrap();
     let img = [0f32; 15];
     let mut out = [0f32; 23];
-    let mut scratch = [0f32; 12];
+    let mut scratch = [0f32; 48];
     let err = dwt2(Wavelet::Db2, &img, dims, &mut out, &mut scratch).unwrap_err();
     assert_eq!(
         err,

@@ -112,8 +112,74 @@ fn each_line(
     }
 }
 
+/// Scratch (in `f32`) that one 2-D level on `dims` needs: a line pair for the rows and a
+/// region-sized buffer for the columns, which are filtered a whole row at a time (column
+/// by column, every sample would be a cache miss on wide images).
+pub fn level_scratch_len(dims: Dims) -> usize {
+    dims.pixels() + 2 * dims.width().max(dims.height())
+}
+
+/// Vertical analysis: output row `i` of the low band is `Σₖ lo[k]·row[2i + lo_at − k]`, a
+/// whole row at a time; `tmp` (packed `w × h`) receives `cA` rows then `cD` rows, which
+/// then replace the region's rows.
+fn analyze_columns(wavelet: Wavelet, phase: Phase, buf: &mut [f32], dims: Dims, tmp: &mut [f32]) {
+    let (lo, hi) = filters(wavelet);
+    let (w, h) = (dims.width(), dims.height());
+    let half = h / 2;
+    let tmp = &mut tmp[..w * h];
+    tmp.fill(0.0);
+    let (low, high) = tmp.split_at_mut(half * w);
+    for i in 0..half {
+        let (a_row, d_row) = (&mut low[i * w..(i + 1) * w], &mut high[i * w..(i + 1) * w]);
+        for (k, (&l, &g)) in lo.iter().zip(hi).enumerate() {
+            let sa = dims.at(0, tap(i, phase.lo_at, k, h));
+            let sd = dims.at(0, tap(i, phase.hi_at, k, h));
+            for (o, &v) in a_row.iter_mut().zip(&buf[sa..sa + w]) {
+                *o += l * v;
+            }
+            for (o, &v) in d_row.iter_mut().zip(&buf[sd..sd + w]) {
+                *o += g * v;
+            }
+        }
+    }
+    for y in 0..h {
+        buf[dims.at(0, y)..dims.at(0, y) + w].copy_from_slice(&tmp[y * w..(y + 1) * w]);
+    }
+}
+
+/// Vertical synthesis, the adjoint of [`analyze_columns`], a whole row at a time.
+fn synthesize_columns(
+    wavelet: Wavelet,
+    phase: Phase,
+    buf: &mut [f32],
+    dims: Dims,
+    tmp: &mut [f32],
+) {
+    let (lo, hi) = filters(wavelet);
+    let (w, h) = (dims.width(), dims.height());
+    let half = h / 2;
+    let tmp = &mut tmp[..w * h];
+    tmp.fill(0.0);
+    for i in 0..half {
+        let (ra, rd) = (dims.at(0, i), dims.at(0, half + i));
+        for (k, (&l, &g)) in lo.iter().zip(hi).enumerate() {
+            let ta = tap(i, phase.lo_at, k, h) * w;
+            for (o, &v) in tmp[ta..ta + w].iter_mut().zip(&buf[ra..ra + w]) {
+                *o += l * v;
+            }
+            let td = tap(i, phase.hi_at, k, h) * w;
+            for (o, &v) in tmp[td..td + w].iter_mut().zip(&buf[rd..rd + w]) {
+                *o += g * v;
+            }
+        }
+    }
+    for y in 0..h {
+        buf[dims.at(0, y)..dims.at(0, y) + w].copy_from_slice(&tmp[y * w..(y + 1) * w]);
+    }
+}
+
 /// One forward 2-D level on an even-sized region, in place: rows then columns, Mallat
-/// layout as in [`crate::geometry`]. `scratch` holds `2 · max(w, h)`.
+/// layout as in [`crate::geometry`]. `scratch` holds [`level_scratch_len`].
 pub(crate) fn forward_level(
     wavelet: Wavelet,
     phase: Phase,
@@ -122,10 +188,8 @@ pub(crate) fn forward_level(
     scratch: &mut [f32],
 ) {
     let rows = (0..dims.height()).map(|y| Line::row(dims, y));
-    let cols = (0..dims.width()).map(|x| Line::column(dims, x));
-    each_line(buf, rows.chain(cols), scratch, |x, out| {
-        analyze(wavelet, phase, x, out)
-    });
+    each_line(buf, rows, scratch, |x, out| analyze(wavelet, phase, x, out));
+    analyze_columns(wavelet, phase, buf, dims, scratch);
 }
 
 /// One inverse 2-D level on an even-sized region, in place (columns, then rows).
@@ -136,11 +200,9 @@ pub(crate) fn inverse_level(
     dims: Dims,
     scratch: &mut [f32],
 ) {
-    let cols = (0..dims.width()).map(|x| Line::column(dims, x));
+    synthesize_columns(wavelet, phase, buf, dims, scratch);
     let rows = (0..dims.height()).map(|y| Line::row(dims, y));
-    each_line(buf, cols.chain(rows), scratch, |c, x| {
-        synthesize(wavelet, phase, c, x)
-    });
+    each_line(buf, rows, scratch, |c, x| synthesize(wavelet, phase, c, x));
 }
 
 /// Size of each subband of a single-level `dwt2` on a `w × h` image: `⌈w/2⌉ × ⌈h/2⌉`.
@@ -152,7 +214,7 @@ pub fn subband_dims(width: usize, height: usize) -> (usize, usize) {
 /// `dwt2(img, wavelet, mode='periodization')`. `out` receives the subbands in Mallat
 /// layout on a packed `2⌈w/2⌉ × 2⌈h/2⌉` grid: `cA` top-left, `cV` (PyWavelets' vertical
 /// detail = HL here) top-right, `cH` (LH) bottom-left, `cD` (HH) bottom-right. `scratch`
-/// holds `2 · max(2⌈w/2⌉, 2⌈h/2⌉)`.
+/// holds [`level_scratch_len`] of the `2⌈w/2⌉ × 2⌈h/2⌉` grid.
 pub fn dwt2(
     wavelet: Wavelet,
     img: &[f32],
@@ -164,7 +226,7 @@ pub fn dwt2(
     let (bw, bh) = subband_dims(dims.width(), dims.height());
     let padded = Dims::new(2 * bw, 2 * bh)?;
     check_len("output", out.len(), padded.pixels())?;
-    check_len("scratch", scratch.len(), 2 * (2 * bw).max(2 * bh))?;
+    check_len("scratch", scratch.len(), level_scratch_len(padded))?;
     for y in 0..padded.height() {
         let sy = y.min(dims.height() - 1);
         for x in 0..padded.width() {
@@ -189,7 +251,7 @@ pub fn idwt2(
     let padded = Dims::new(2 * bw, 2 * bh)?;
     check_len("coefficients", coeffs.len(), padded.pixels())?;
     check_len("output", out.len(), dims.pixels())?;
-    check_len("scratch", scratch.len(), 2 * (2 * bw).max(2 * bh))?;
+    check_len("scratch", scratch.len(), level_scratch_len(padded))?;
     inverse_level(wavelet, Phase::pywt(wavelet), coeffs, padded, scratch);
     for y in 0..dims.height() {
         for x in 0..dims.width() {

@@ -58,7 +58,7 @@ impl Arith for f32 {
         let inv = 1.0 / max;
         for_each_neighbourhood(buf, dims, |x, y, c, a| {
             // Sal/255 = |∇²I| / max, saturated at 1 for a Reference maximum.
-            f(x, y, libm::expf((lap(c, a) * inv).min(1.0)) - 1.0);
+            f(x, y, expm1_unit((lap(c, a) * inv).min(1.0)));
         });
     }
 
@@ -82,6 +82,28 @@ impl Arith for f32 {
     fn abs_ge(a: f32, b: f32) -> bool {
         a.abs() >= b.abs()
     }
+}
+
+/// `eˣ − 1` for `x` in `0..=1`: its Taylor series to degree 9 in Horner form, exact to
+/// below 1e-6 there (the remainder is at most e/10! ≈ 7.5e-7; test
+/// `expm1_unit_matches_libm`). A per-pixel libm `exp` took a fifth of a fuse step.
+#[inline(always)]
+fn expm1_unit(x: f32) -> f32 {
+    const INV: [f32; 8] = [
+        1.0 / 2.0,
+        1.0 / 3.0,
+        1.0 / 4.0,
+        1.0 / 5.0,
+        1.0 / 6.0,
+        1.0 / 7.0,
+        1.0 / 8.0,
+        1.0 / 9.0,
+    ];
+    let mut acc = 1.0f32;
+    for c in INV.iter().rev() {
+        acc = 1.0 + x * c * acc;
+    }
+    x * acc
 }
 
 /// The frame the float path fuses a `width × height` image in: the image at `(margin,
@@ -165,7 +187,7 @@ pub const MAX_SAMPLE_F32: f32 = 1e9;
 
 /// Scratch length (in `f32`) that [`fuse_pair`] needs for the padded region `dims`.
 pub fn fuse_scratch_len(dims: Dims) -> usize {
-    2 * dims.width().max(dims.height()) + maps_len(dims)
+    dwt::level_scratch_len(dims) + maps_len(dims)
 }
 
 /// One `f32` fuse step in a [`Padded`] frame (`frame.dims` for both buffers; saliency is
@@ -203,7 +225,7 @@ pub fn fuse_pair(
         }
     }
     check_len("scratch", scratch.len(), fuse_scratch_len(dims))?;
-    let line = 2 * dims.width().max(dims.height());
+    let line = dwt::level_scratch_len(dims);
     let work = split_scratch(scratch, line, dims)?;
     let roi = Roi {
         x0: frame.margin,
@@ -213,4 +235,20 @@ pub fn fuse_pair(
     };
     fuse_generic(a, b, dims, roi, cfg, ll_weight, work);
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::expm1_unit;
+
+    #[test]
+    fn expm1_unit_matches_libm() {
+        let worst = (0..=10_000)
+            .map(|i| {
+                let x = i as f32 / 10_000.0;
+                (expm1_unit(x) as f64 - libm::expm1(x as f64)).abs()
+            })
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-6, "max error {worst}");
+    }
 }

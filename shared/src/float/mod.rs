@@ -12,5 +12,5 @@
 mod dwt;
 mod fuse;
 
-pub use dwt::{dwt2, idwt2, subband_dims};
+pub use dwt::{dwt2, idwt2, level_scratch_len, subband_dims};
 pub use fuse::{MAX_SAMPLE_F32, Padded, fuse_pair, fuse_scratch_len};
