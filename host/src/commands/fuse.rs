@@ -113,6 +113,19 @@ pub fn load_frames(paths: &[PathBuf]) -> anyhow::Result<Vec<Planes>> {
     Ok(frames)
 }
 
+/// The manifest to read motion from: the one given, or `manifest.json` beside the first
+/// frame (where `rollfuse simulate` writes it).
+pub fn manifest_path(given: Option<&Path>, frames: &[PathBuf]) -> PathBuf {
+    match given {
+        Some(m) => m.to_path_buf(),
+        None => frames
+            .first()
+            .and_then(|f| f.parent())
+            .unwrap_or(Path::new("."))
+            .join("manifest.json"),
+    }
+}
+
 /// Commanded belt offsets of `paths` from a simulator manifest, as canvas rows.
 pub fn motion_offsets(manifest: &Path, paths: &[PathBuf]) -> anyhow::Result<Vec<Offset>> {
     let text = std::fs::read_to_string(manifest)

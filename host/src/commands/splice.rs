@@ -2,10 +2,10 @@
 //! seams blended).
 
 use super::check_writable;
-use super::fuse::{load_frames, motion_offsets};
+use super::fuse::{load_frames, manifest_path, motion_offsets};
 use crate::fullres::{Placed, splice};
 use anyhow::bail;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Arguments of `rollfuse splice`.
 #[derive(Debug, clap::Args)]
@@ -34,13 +34,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     check_writable(&args.out)?;
     let frames = load_frames(&args.frames)?;
-    let manifest = match &args.manifest {
-        Some(m) => m.clone(),
-        None => args.frames[0]
-            .parent()
-            .unwrap_or(Path::new("."))
-            .join("manifest.json"),
-    };
+    let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
     let offsets = motion_offsets(&manifest, &args.frames)?;
     let placed: Vec<Placed> = frames
         .iter()
