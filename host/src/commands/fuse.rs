@@ -205,13 +205,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         AlignArg::Motion => {
             record.align = "motion";
-            let manifest = match &args.manifest {
-                Some(m) => m.clone(),
-                None => args.frames[0]
-                    .parent()
-                    .unwrap_or(Path::new("."))
-                    .join("manifest.json"),
-            };
+            let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
             let offsets = motion_offsets(&manifest, &args.frames)?;
             for ((p, f), at) in args.frames.iter().zip(&frames).zip(offsets) {
                 placed.push(Placed { image: f, at });
