@@ -44,3 +44,12 @@ fn four_frame_fusion_beats_the_single_frame_as_the_paper_reports() {
         }
     }
 }
+
+#[test]
+fn too_short_a_sequence_is_refused() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/dots.toml");
+    let mut scene = Scene::load(&path).unwrap();
+    scene.sensor.frames = 6;
+    let err = evaluate_scene(&scene, &FuseConfig::default(), 10).unwrap_err();
+    assert!(format!("{err}").contains("at least 7"), "{err}");
+}

@@ -154,6 +154,11 @@ fn bad_input_gets_one_clear_line_and_a_nonzero_exit() {
     // Out-of-range parameters.
     assert!(fails(&args(&frames, &["--out", o, "--levels", "7"])).contains("--levels"));
     assert!(fails(&args(&frames, &["--out", o, "--min-score", "2"])).contains("--min-score"));
+    // An output that is one of the inputs.
+    assert!(
+        fails(&args(&frames, &["--out", frames[1].to_str().unwrap()]))
+            .contains("one of the input frames")
+    );
     // Nothing was written by the failed runs.
     assert!(!out.exists());
 }

@@ -344,6 +344,35 @@ fn bad_scenes_are_refused_with_the_field_named() {
         "lights.red",
     );
     refuse("this is not toml", "");
+    // Limits that keep memory bounded and the layout well defined.
+    refuse(
+        &GOOD
+            .replace("frames = 5", "frames = 10000")
+            .replace("mm_per_px = 0.05", "mm_per_px = 0.01"),
+        "frame_spacing_mm",
+    );
+    refuse(
+        &GOOD.replace(
+            "kind = \"dots\"",
+            "kind = \"dots\"\npitch_mm = 0.01\nsize_mm = 0.005",
+        ),
+        "object.pitch_mm",
+    );
+    refuse(
+        &format!("{GOOD}\n[params]\ndefocus_sigma_px = 1e6"),
+        "params.defocus_sigma_px",
+    );
+    let shapes = r#"kind = "primitives"
+shapes = [{ shape = "box", x_mm = 1.0, y_mm = 1.0, width_mm = 1.0, length_mm = 1.0, height_mm = 1.0, region = "a" },
+          { shape = "box", x_mm = 3.0, y_mm = 1.0, width_mm = 1.0, length_mm = 1.0, height_mm = 1.0, region = "a" }]"#;
+    refuse(&GOOD.replace("kind = \"dots\"", shapes), "used twice");
+    refuse(
+        &GOOD.replace(
+            "kind = \"dots\"",
+            &shapes.replace("region = \"a\" }]", "region = \"../x\" }]"),
+        ),
+        "region must be",
+    );
 }
 
 #[test]

@@ -82,6 +82,20 @@ struct Skipped<'a> {
     reason: String,
 }
 
+/// Refuses an output path that is one of the inputs.
+pub fn refuse_overwriting_inputs(out: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> {
+    let canon = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+    let out_c = canon(out);
+    if let Some(same) = inputs.iter().find(|p| canon(p) == out_c) {
+        bail!(
+            "--out {} is one of the input frames ({})",
+            out.display(),
+            same.display()
+        );
+    }
+    Ok(())
+}
+
 /// Loads every frame, checking they agree in size and colour.
 pub fn load_frames(paths: &[PathBuf]) -> anyhow::Result<Vec<Planes>> {
     let frames: Vec<Planes> = paths
@@ -173,6 +187,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("--template-rows must be two fractions 0 ≤ top < bottom ≤ 1, got {t0},{t1}");
     }
     check_writable(&args.out)?;
+    refuse_overwriting_inputs(&args.out, &args.frames)?;
     let frames = load_frames(&args.frames)?;
     let cfg = FuseConfig {
         wavelet: args.wavelet.into(),

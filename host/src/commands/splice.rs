@@ -2,7 +2,7 @@
 //! seams blended).
 
 use super::check_writable;
-use super::fuse::{load_frames, manifest_path, motion_offsets};
+use super::fuse::{load_frames, manifest_path, motion_offsets, refuse_overwriting_inputs};
 use crate::fullres::{Placed, splice};
 use anyhow::bail;
 use std::path::PathBuf;
@@ -33,6 +33,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     check_writable(&args.out)?;
+    refuse_overwriting_inputs(&args.out, &args.frames)?;
     let frames = load_frames(&args.frames)?;
     let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
     let offsets = motion_offsets(&manifest, &args.frames)?;

@@ -1,5 +1,5 @@
 //! The paper's metrics (§III.B): information entropy, MS-SSIM, and their regional spread
-//! (eqs. 8–9). Definitions are fixed in `docs/metrics.md`; both are checked against
+//! (eqs. 8–9). Definitions are fixed in `docs/fusion.md` (Metrics); both are checked against
 //! independent implementations (scikit-image, and a numpy MS-SSIM after Wang 2003) on
 //! committed vectors.
 
@@ -233,8 +233,8 @@ pub enum StripAxis {
     Columns,
 }
 
-/// Index ranges of `strips` equal strips over `len` (the later ones one wider when it does
-/// not divide).
+/// Index ranges of `strips` nearly equal strips over `len` (`k·len/strips` to
+/// `(k+1)·len/strips`; widths differ by at most one when it does not divide).
 pub fn strip_ranges(len: usize, strips: usize) -> Vec<std::ops::Range<usize>> {
     (0..strips)
         .map(|k| k * len / strips..(k + 1) * len / strips)

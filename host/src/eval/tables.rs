@@ -91,11 +91,12 @@ pub fn evaluate_scene(scene: &Scene, base: &FuseConfig, strips: usize) -> anyhow
     let acq = acquire(scene)?;
     let n = acq.frames.len();
     ensure!(
-        n >= 6,
-        "scene {} has {n} frames; the evaluation needs at least 6",
+        n >= 7,
+        "scene {} has {n} frames; the evaluation needs at least 7",
         scene.name
     );
-    let m = n / 2;
+    // The middle frame, with two frames before it and three after (fusion of 6).
+    let m = (n - 1) / 2;
     let h = acq.frames[m].height;
     let reference = crop_rows(
         &acq.ideal,

@@ -100,7 +100,7 @@ pub fn match_frames(prev: &Planes, next: &Planes, p: &TemplateParams) -> Option<
     }
     // The search window: the template's own place ± the largest shifts, inside `next`.
     let y0 = top.saturating_sub(p.max_dy);
-    let y1 = (bottom + p.max_dy).min(h);
+    let y1 = bottom.saturating_add(p.max_dy).min(h);
     let search =
         image::imageops::crop_imm(&gn, 0, y0 as u32, w as u32, (y1 - y0) as u32).to_image();
     if search.height() < template.height() || search.pixels().all(|p| p[0] == 0) {

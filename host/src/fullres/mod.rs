@@ -34,6 +34,33 @@ pub struct Placed<'a> {
     pub at: Offset,
 }
 
+/// Largest mosaic, in pixels per channel.
+pub const MAX_MOSAIC_PIXELS: usize = 1 << 28;
+
+/// The canvas covering every frame: its origin (smallest offsets) and size, refused when
+/// larger than [`MAX_MOSAIC_PIXELS`].
+fn canvas(frames: &[Placed], w: usize, h: usize) -> anyhow::Result<(i64, i64, usize, usize)> {
+    let span = |f: fn(&Placed) -> i64| {
+        let (lo, hi) = frames
+            .iter()
+            .map(f)
+            .fold((i64::MAX, i64::MIN), |(a, b), v| (a.min(v), b.max(v)));
+        hi.checked_sub(lo)
+            .and_then(|d| usize::try_from(d).ok())
+            .map(|d| (lo, d))
+    };
+    let ((min_x, dx), (min_y, dy)) = match (span(|f| f.at.dx), span(|f| f.at.dy)) {
+        (Some(x), Some(y)) => (x, y),
+        _ => bail!("frame offsets span more than the canvas can hold"),
+    };
+    let (cw, ch) = (dx.saturating_add(w), dy.saturating_add(h));
+    ensure!(
+        cw.checked_mul(ch).is_some_and(|n| n <= MAX_MOSAIC_PIXELS),
+        "a mosaic of {cw}×{ch} pixels is larger than {MAX_MOSAIC_PIXELS}: are the offsets right?"
+    );
+    Ok((min_x, min_y, cw, ch))
+}
+
 /// Fuses `frames`, in order, into one mosaic covering all of them. All frames must have
 /// the same size and the same number of channels.
 pub fn fuse_mosaic(
@@ -122,11 +149,9 @@ fn fuse_channel(
 
 /// One fuse step's buffers, allocated once per channel.
 struct Fuser {
-    w: usize,
-    h: usize,
+    dims: Dims,
     cfg: FuseConfig,
     precision: Precision,
-    frame: float::Padded,
     a: Vec<f32>,
     b: Vec<f32>,
     scratch: Vec<f32>,
@@ -137,58 +162,39 @@ struct Fuser {
 
 impl Fuser {
     fn new(w: usize, h: usize, cfg: &FuseConfig, precision: Precision) -> anyhow::Result<Self> {
-        let frame = float::Padded::new(w, h, cfg.levels)?;
-        let (fa, fi) = match precision {
-            Precision::F32 => (frame.dims().pixels(), 0),
-            Precision::Fixed => (0, w * h),
+        let dims = Dims::new(w, h)?;
+        let (f, i) = match precision {
+            Precision::F32 => (1, 0),
+            Precision::Fixed => (0, 1),
         };
         Ok(Self {
-            w,
-            h,
+            dims,
             cfg: *cfg,
             precision,
-            frame,
-            a: vec![0.0; fa],
-            b: vec![0.0; fa],
-            scratch: vec![
-                0.0;
-                if fa > 0 {
-                    float::fuse_scratch_len(frame.dims())
-                } else {
-                    0
-                }
-            ],
-            ia: vec![0; fi],
-            ib: vec![0; fi],
-            iscratch: vec![
-                0;
-                if fi > 0 {
-                    fuse_scratch_len(Dims::new(w, h)?)
-                } else {
-                    0
-                }
-            ],
+            a: vec![0.0; f * w * h],
+            b: vec![0.0; f * w * h],
+            scratch: vec![0.0; f * float::fuse_scratch_len(dims)],
+            ia: vec![0; i * w * h],
+            ib: vec![0; i * w * h],
+            iscratch: vec![0; i * fuse_scratch_len(dims)],
         })
     }
 
     fn fuse(&mut self, a: &[f32], b: &[f32], ll: LlWeight) -> anyhow::Result<Vec<f32>> {
-        let (w, h) = (self.w, self.h);
+        let dims = self.dims;
         match self.precision {
             Precision::F32 => {
-                self.frame.fill(&mut self.a, |x, y| a[y * w + x])?;
-                self.frame.fill(&mut self.b, |x, y| b[y * w + x])?;
+                self.a.copy_from_slice(a);
+                self.b.copy_from_slice(b);
                 float::fuse_pair(
                     &mut self.a,
                     &mut self.b,
-                    &self.frame,
+                    dims,
                     &self.cfg,
                     ll,
                     &mut self.scratch,
                 )?;
-                let frame = &self.frame;
-                Ok((0..w * h)
-                    .map(|i| self.a[frame.index(i % w, i / w).unwrap_or(0)])
-                    .collect())
+                Ok(self.a.clone())
             }
             Precision::Fixed => {
                 let to8 = |v: &[f32]| {
@@ -197,7 +203,6 @@ impl Fuser {
                         .collect::<Vec<u8>>()
                 };
                 let (a8, b8) = (to8(a), to8(b));
-                let dims = Dims::new(w, h)?;
                 let work = U8Work {
                     a: &mut self.ia,
                     b: &mut self.ib,
@@ -224,8 +229,7 @@ pub fn splice(frames: &[Placed], blend: usize) -> anyhow::Result<Planes> {
             "frame {k} differs in size or channels from frame 0"
         );
     }
-    let min_y = frames.iter().map(|f| f.at.dy).min().unwrap_or(0);
-    let ch = (frames.iter().map(|f| f.at.dy).max().unwrap_or(0) - min_y) as usize + h;
+    let (_, min_y, _, ch) = canvas(frames, w, h)?;
     // Apex rows on the canvas, in canvas order.
     let mut apexes: Vec<(f64, usize)> = frames
         .iter()

@@ -87,6 +87,29 @@ fn contact_sheet(frames: &[Planes]) -> Planes {
     }
 }
 
+/// Removes `frame_NNNN.png` files numbered `count` and above, left by an earlier, longer
+/// run into the same folder: they would otherwise be taken for frames of this one.
+fn remove_stale_frames(out: &Path, count: usize) -> anyhow::Result<()> {
+    for entry in std::fs::read_dir(out).with_context(|| format!("cannot list {}", out.display()))? {
+        let path = entry?.path();
+        let name = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .unwrap_or_default();
+        let index = name
+            .strip_prefix("frame_")
+            .and_then(|r| r.strip_suffix(".png"))
+            .filter(|d| d.len() == 4 && d.bytes().all(|b| b.is_ascii_digit()));
+        if let Some(k) = index.and_then(|d| d.parse::<usize>().ok())
+            && k >= count
+        {
+            std::fs::remove_file(&path)
+                .with_context(|| format!("cannot remove stale {}", path.display()))?;
+        }
+    }
+    Ok(())
+}
+
 /// Renders every frame of `sim` into `out` with its ground truth and manifest, calling
 /// `progress(done, total)` after each frame.
 pub fn write(
@@ -118,6 +141,7 @@ pub fn write(
         });
         progress(k + 1, sim.frames());
     }
+    remove_stale_frames(out, sim.frames())?;
     let strip = sim.strip();
     let truth_dir = out.join("truth");
     std::fs::write(

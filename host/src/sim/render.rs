@@ -72,7 +72,9 @@ impl Simulator {
             0.0
         };
         let centre = s.height_px as f64 / 2.0;
-        let origin_mm = (apex_mm[0] - centre * mmpp - jitter_mm - 2.0 * mmpp).floor();
+        // Whole pixels before the first frame's top row, so commanded frames fall on rows.
+        let margin_px = (centre + jitter_mm / mmpp + 2.0).ceil();
+        let origin_mm = apex_mm[0] - margin_px * mmpp;
         let end_mm =
             apex_mm[s.frames - 1] + (s.height_px as f64 - centre) * mmpp + jitter_mm + 2.0 * mmpp;
         let rows = ((end_mm - origin_mm) / mmpp).ceil() as usize + 1;

@@ -10,6 +10,8 @@ use std::path::Path;
 pub const MAX_IMAGE_SIDE: usize = 4096;
 /// Largest accepted number of frames in one simulation.
 pub const MAX_FRAMES: usize = 10_000;
+/// Largest accepted ground-truth strip (the belt area all frames see), in pixels.
+pub const MAX_STRIP_PIXELS: usize = 1 << 26;
 
 /// A complete scene.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -166,7 +168,8 @@ pub enum Object {
         wire_mm: f64,
     },
     /// Height-map primitives placed by hand, in belt millimetres (x across the belt from
-    /// the image's left edge, y along the belt from the first frame's apex).
+    /// the image's left edge, y along the belt on the object's canvas; see
+    /// `docs/simulator.md`, Coordinates).
     Primitives {
         /// The shapes; heights add where they overlap.
         shapes: Vec<Shape>,
@@ -379,6 +382,16 @@ impl Scene {
                 s.height_px as f64 * s.mm_per_px
             );
         }
+        // The belt strip every frame sees, in pixels: bounded so the ground truth fits in memory.
+        let travel_px = (s.frames - 1) as f64 * s.frame_spacing_mm / s.mm_per_px;
+        let strip_px = (travel_px + s.height_px as f64 * 2.0 + 2.0 * self.params.jitter_px)
+            * s.width_px as f64;
+        if strip_px.is_nan() || strip_px > MAX_STRIP_PIXELS as f64 {
+            bail!(
+                "sensor.frames × sensor.frame_spacing_mm / sensor.mm_per_px: the belt strip would be {:.0} pixels, more than {MAX_STRIP_PIXELS}",
+                strip_px
+            );
+        }
         if self.has(Effect::Gray) && self.has(Effect::Rgb) {
             bail!("effects: list `gray` or `rgb`, not both");
         }
@@ -402,6 +415,18 @@ impl Scene {
         let p = &self.params;
         non_negative("params.gel_sigma_per_thickness", p.gel_sigma_per_thickness)?;
         non_negative("params.defocus_sigma_px", p.defocus_sigma_px)?;
+        let gel_sigma_px = p.gel_sigma_per_thickness * s.gel_thickness_mm / s.mm_per_px;
+        for (field, sigma) in [
+            ("params.gel_sigma_per_thickness", gel_sigma_px),
+            ("params.defocus_sigma_px", p.defocus_sigma_px),
+        ] {
+            if sigma > 256.0 {
+                bail!("{field}: a blur of σ = {sigma:.0} px is more than 256 px");
+            }
+        }
+        if p.jitter_px > 1000.0 {
+            bail!("params.jitter_px must be at most 1000, got {}", p.jitter_px);
+        }
         non_negative("params.read_noise", p.read_noise)?;
         non_negative("params.shot_noise", p.shot_noise)?;
         non_negative("params.jitter_px", p.jitter_px)?;
@@ -441,7 +466,7 @@ impl Scene {
                 size_mm,
             } => {
                 positive("object.height_mm", *height_mm)?;
-                positive("object.pitch_mm", *pitch_mm)?;
+                at_least_a_pixel("object.pitch_mm", *pitch_mm, self.sensor.mm_per_px)?;
                 positive("object.size_mm", *size_mm)?;
                 if size_mm >= pitch_mm {
                     bail!(
@@ -452,19 +477,44 @@ impl Scene {
             Object::Spheres { diameter_mm } => positive("object.diameter_mm", *diameter_mm)?,
             Object::Fabric { yarn_mm, pitch_mm } => {
                 positive("object.yarn_mm", *yarn_mm)?;
-                positive("object.pitch_mm", *pitch_mm)?;
+                at_least_a_pixel("object.pitch_mm", *pitch_mm, self.sensor.mm_per_px)?;
             }
             Object::Screw {
                 diameter_mm,
                 pitch_mm,
             } => {
                 positive("object.diameter_mm", *diameter_mm)?;
-                positive("object.pitch_mm", *pitch_mm)?;
+                at_least_a_pixel("object.pitch_mm", *pitch_mm, self.sensor.mm_per_px)?;
             }
             Object::Paperclip { wire_mm } => positive("object.wire_mm", *wire_mm)?,
             Object::Primitives { shapes } => {
                 if shapes.is_empty() {
                     bail!("object.shapes must list at least one shape");
+                }
+                let mut names: Vec<&str> = Vec::new();
+                for (i, shape) in shapes.iter().enumerate() {
+                    let (Shape::Sphere {
+                        region: Some(name), ..
+                    }
+                    | Shape::Box {
+                        region: Some(name), ..
+                    }) = shape
+                    else {
+                        continue;
+                    };
+                    if name.is_empty()
+                        || !name
+                            .chars()
+                            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+                    {
+                        bail!(
+                            "object.shapes[{i}].region must be letters, digits, '_' or '-', got {name:?}"
+                        );
+                    }
+                    if names.contains(&name.as_str()) {
+                        bail!("object.shapes[{i}].region {name:?} is used twice");
+                    }
+                    names.push(name);
                 }
                 for (i, shape) in shapes.iter().enumerate() {
                     let at = |f: &str| format!("object.shapes[{i}].{f}");
@@ -518,6 +568,13 @@ fn finite(field: &str, v: f64) -> anyhow::Result<()> {
 fn positive(field: &str, v: f64) -> anyhow::Result<()> {
     if !(v.is_finite() && v > 0.0) {
         bail!("{field} must be a positive number, got {v}");
+    }
+    Ok(())
+}
+
+fn at_least_a_pixel(field: &str, v: f64, mm_per_px: f64) -> anyhow::Result<()> {
+    if !(v.is_finite() && v >= mm_per_px) {
+        bail!("{field} must be at least one pixel ({mm_per_px} mm), got {v}");
     }
     Ok(())
 }

@@ -34,18 +34,6 @@ impl Phase {
             hi_at: f / 2,
         }
     }
-
-    /// The placement of the integer lifting of [`crate::lifting`]: as PyWavelets for
-    /// Haar; for db2 the low band one pixel later (`x[2i..=2i+3]`) and the high band one
-    /// pixel earlier (`x[2i−2..=2i+1]`). The fusion uses it so that both paths put their
-    /// coefficients, and so their weights, on the same pixels. It is PyWavelets' transform
-    /// of the signal shifted by one sample, its `cD` shifted by one coefficient.
-    pub(crate) fn lifting(wavelet: Wavelet) -> Self {
-        match wavelet {
-            Wavelet::Haar => Self::pywt(wavelet),
-            Wavelet::Db2 => Self { lo_at: 3, hi_at: 1 },
-        }
-    }
 }
 
 /// Index `2i + at − k` wrapped into `0..n` (`2i < n`, `at ≤ 3`, `k < 4`).
@@ -266,4 +254,37 @@ pub(crate) fn check_len(which: &'static str, got: usize, needed: usize) -> Resul
         return Err(Error::BufferTooSmall { which, needed, got });
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use crate::lifting::forward_level;
+    use std::{vec, vec::Vec};
+
+    #[test]
+    fn lifting_interior_matches_the_pywavelets_filter_bank() {
+        // The lifting's low band is the filter bank's cA one pixel later, scaled by
+        // √2/(√3 − 1); its high band is −cD one pixel earlier, scaled by √2/(√3 + 1).
+        let n = 64;
+        let x: Vec<f32> = (0..n)
+            .map(|i| ((i * 37 % 23) as f32 - 11.0) * 3.5 + (i as f32 * 0.3).sin() * 20.0)
+            .collect();
+        let mut lifted = x.clone();
+        let dims = Dims::new(n, 1).unwrap();
+        forward_level(Wavelet::Db2, &mut lifted, dims, &mut vec![0f32; n]);
+        let mut bank = vec![0f32; n];
+        analyze(Wavelet::Db2, Phase { lo_at: 3, hi_at: 1 }, &x, &mut bank);
+        let s3 = 3f32.sqrt();
+        let (low_scale, high_scale) = (2f32.sqrt() / (s3 - 1.0), -(2f32.sqrt()) / (s3 + 1.0));
+        let half = n / 2;
+        for i in 2..half - 2 {
+            assert!((lifted[i] - low_scale * bank[i]).abs() < 1e-3, "low {i}");
+            assert!(
+                (lifted[half + i] - high_scale * bank[half + i]).abs() < 1e-3,
+                "high {i}"
+            );
+        }
+    }
 }

@@ -1,31 +1,35 @@
-//! The `f32` fusion path: the shared driver with orthonormal periodic transforms, `f32`
-//! saliency (`exp` from libm) and `f32` weights.
+//! The `f32` fusion path: the shared driver with the integer path's lifting steps run in
+//! exact `f32` arithmetic, `f32` saliency and `f32` weights.
 
-use super::dwt::{self, Phase, check_len};
+use super::dwt::check_len;
 use crate::fusion::{
     Arith, BandOffsets, FuseConfig, LlWeight, fuse_generic, maps_len, split_scratch,
 };
-use crate::geometry::{Roi, mirror};
+use crate::geometry::Roi;
+use crate::lifting::{self, LevelBounds};
+use crate::saliency::ll_gain_q16;
 use crate::saliency::{SaliencyNorm, for_each_neighbourhood};
 use crate::{Dims, Error, Wavelet};
 
 impl Arith for f32 {
     fn forward_level(wavelet: Wavelet, buf: &mut [f32], dims: Dims, scratch: &mut [f32]) {
-        dwt::forward_level(wavelet, Phase::lifting(wavelet), buf, dims, scratch);
+        lifting::forward_level(wavelet, buf, dims, scratch);
     }
 
     fn inverse(wavelet: Wavelet, buf: &mut [f32], dims: Dims, levels: u8, scratch: &mut [f32]) {
+        // Floats need no saturation: the bounds are only passed along.
+        let bounds = LevelBounds::default();
         let mut sizes = [dims; 4];
         for k in 1..levels as usize {
             sizes[k] = sizes[k - 1].low_band();
         }
         for d in sizes[..levels as usize].iter().rev() {
-            dwt::inverse_level(wavelet, Phase::lifting(wavelet), buf, *d, scratch);
+            lifting::inverse_level(wavelet, buf, *d, scratch, &bounds);
         }
     }
 
     fn band_offsets(wavelet: Wavelet) -> BandOffsets {
-        // The fusion transform sits where the integer lifting does (Phase::lifting).
+        // The same lifting as the integer path, so the same coefficient placement.
         <i32 as Arith>::band_offsets(wavelet)
     }
 
@@ -34,7 +38,7 @@ impl Arith for f32 {
         dims: Dims,
         roi: Roi,
         norm: SaliencyNorm,
-        _wavelet: Wavelet,
+        wavelet: Wavelet,
         level: u8,
         mut f: impl FnMut(usize, usize, f32),
     ) {
@@ -49,8 +53,11 @@ impl Arith for f32 {
                 });
                 m
             }
-            // Orthonormal 2-D transforms double the LL band's DC level per level.
-            SaliencyNorm::Reference(r) => r as f32 * (1u32 << (level - 1)) as f32,
+            // The LL band's DC gain per level, as on the integer path.
+            SaliencyNorm::Reference(r) => {
+                let gain = ll_gain_q16(wavelet) as f32 / 65536.0;
+                (1..level).fold(r as f32, |m, _| m * gain)
+            }
         };
         if max <= 0.0 || !max.is_finite() {
             return;
@@ -106,134 +113,46 @@ fn expm1_unit(x: f32) -> f32 {
     x * acc
 }
 
-/// The frame the float path fuses a `width × height` image in: the image at `(margin,
-/// margin)` inside a region whose sides are multiples of `2^levels`, the margins filled by
-/// whole-sample symmetric reflection of the image.
-///
-/// Periodization treats a line as a ring; without margins the first and last rows (and
-/// columns) would be filtered together. The reflected margin, `3 · 2^levels` pixels (the
-/// reach of a level-`levels` db2 basis function), puts that seam far from the image, and
-/// gives the float path the same kind of border as the integer path.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Padded {
-    dims: Dims,
-    margin: usize,
-    width: usize,
-    height: usize,
-    levels: u8,
-}
-
-impl Padded {
-    /// The padded frame for a `width × height` image fused `levels` deep.
-    pub fn new(width: usize, height: usize, levels: u8) -> Result<Self, Error> {
-        if levels == 0 || levels > crate::MAX_LEVELS {
-            return Err(Error::LevelsOutOfRange { levels });
-        }
-        Dims::new(width, height)?;
-        let m = 1usize << levels;
-        let margin = 3 * m;
-        let dims = Dims::new(
-            (width + 2 * margin).next_multiple_of(m),
-            (height + 2 * margin).next_multiple_of(m),
-        )?;
-        Ok(Self {
-            dims,
-            margin,
-            width,
-            height,
-            levels,
-        })
-    }
-
-    /// The padded region (packed): the size of the buffers [`fuse_pair`] takes.
-    pub fn dims(&self) -> Dims {
-        self.dims
-    }
-
-    /// Offset of the image inside the padded region, on both axes.
-    pub fn margin(&self) -> usize {
-        self.margin
-    }
-
-    /// The most levels a fuse step in this frame may use.
-    pub fn levels(&self) -> u8 {
-        self.levels
-    }
-
-    /// Fills `buf` (the padded region) from the packed image `get(x, y)`, reflecting it
-    /// into the margins.
-    pub fn fill(&self, buf: &mut [f32], get: impl Fn(usize, usize) -> f32) -> Result<(), Error> {
-        self.dims.check_buffer("padded image", buf.len())?;
-        let m = self.margin as isize;
-        for y in 0..self.dims.height() {
-            let sy = mirror(y as isize - m, self.height);
-            for x in 0..self.dims.width() {
-                let sx = mirror(x as isize - m, self.width);
-                buf[self.dims.at(x, y)] = get(sx, sy);
-            }
-        }
-        Ok(())
-    }
-
-    /// Index of the image's pixel `(x, y)` in the padded buffer, `None` outside the image.
-    pub fn index(&self, x: usize, y: usize) -> Option<usize> {
-        (x < self.width && y < self.height).then(|| self.dims.at(x + self.margin, y + self.margin))
-    }
-}
-
 /// The largest sample magnitude the float path accepts: far beyond any image (16-bit data
 /// is 65535), far enough below `f32::MAX` that Laplacians and sums stay finite.
 pub const MAX_SAMPLE_F32: f32 = 1e9;
 
-/// Scratch length (in `f32`) that [`fuse_pair`] needs for the padded region `dims`.
+/// Scratch length (in `f32`) that [`fuse_pair`] needs for `dims`: a transform line and the
+/// saliency maps, as on the integer path.
 pub fn fuse_scratch_len(dims: Dims) -> usize {
-    dwt::level_scratch_len(dims) + maps_len(dims)
+    lifting::scratch_len(dims) + maps_len(dims)
 }
 
-/// One `f32` fuse step in a [`Padded`] frame (`frame.dims` for both buffers; saliency is
-/// normalized over the image, not its margins): the fused image replaces `a`, `b` is used
-/// as work space. `cfg.levels` must not exceed the levels the frame was made for, and
-/// samples must be finite with `|x| ≤` [`MAX_SAMPLE_F32`].
+/// One `f32` fuse step on the `dims` region of `a` and `b`: the fused image replaces `a`,
+/// `b` is used as work space. Any size from 1 up, as on the integer path; samples must be
+/// finite with `|x| ≤` [`MAX_SAMPLE_F32`].
 pub fn fuse_pair(
     a: &mut [f32],
     b: &mut [f32],
-    frame: &Padded,
+    dims: Dims,
     cfg: &FuseConfig,
     ll_weight: LlWeight,
     scratch: &mut [f32],
 ) -> Result<(), Error> {
-    let dims = frame.dims;
     dims.check_buffer("first image", a.len())?;
     dims.check_buffer("second image", b.len())?;
     dims.check_levels(cfg.levels)?;
-    if cfg.levels > frame.levels {
-        return Err(Error::InvalidParameter {
-            name: "frame (made for fewer levels than cfg.levels)",
-        });
-    }
     if ll_weight.0 > 1 << 15 {
         return Err(Error::InvalidParameter { name: "ll_weight" });
     }
     for buf in [&*a, &*b] {
-        if buf[..dims.buffer_len()]
-            .iter()
-            .any(|v| v.is_nan() || v.abs() > MAX_SAMPLE_F32)
-        {
-            return Err(Error::InvalidParameter {
-                name: "sample (NaN, infinite or beyond ±1e9)",
-            });
+        for y in 0..dims.height() {
+            let row = &buf[dims.at(0, y)..dims.at(dims.width(), y)];
+            if row.iter().any(|v| v.is_nan() || v.abs() > MAX_SAMPLE_F32) {
+                return Err(Error::InvalidParameter {
+                    name: "sample (NaN, infinite or beyond ±1e9)",
+                });
+            }
         }
     }
     check_len("scratch", scratch.len(), fuse_scratch_len(dims))?;
-    let line = dwt::level_scratch_len(dims);
-    let work = split_scratch(scratch, line, dims)?;
-    let roi = Roi {
-        x0: frame.margin,
-        y0: frame.margin,
-        width: frame.width,
-        height: frame.height,
-    };
-    fuse_generic(a, b, dims, roi, cfg, ll_weight, work);
+    let work = split_scratch(scratch, lifting::scratch_len(dims), dims)?;
+    fuse_generic(a, b, dims, Roi::full(dims), cfg, ll_weight, work);
     Ok(())
 }
 

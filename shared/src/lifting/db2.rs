@@ -7,13 +7,15 @@
 //! s²[l] = s¹[l] − d¹[l + 1]
 //! ```
 //!
-//! `R(v)` rounds half up; the constants are Q16. The final scaling by `(√3 ∓ 1)/√2` is left
+//! `R(v)` rounds half up on the integer path (constants in Q16, products in i64) and is the
+//! identity on the `f32` path, which runs the same steps. The final scaling by `(√3 ∓ 1)/√2` is left
 //! out so the transform stays integer and reversible: the low band therefore has DC gain
 //! `1 + √3 ≈ 2.73` per 1-D pass. Indices outside a channel are mapped back by whole-sample
 //! symmetric extension of that channel ([`mirror`]); every step reads only the other
 //! channel, so the inverse applies the same extension to the same values and undoes each
 //! step exactly, for every length ≥ 1.
 
+use super::Lift;
 use crate::geometry::mirror;
 
 /// Fraction bits of the lifting constants.
@@ -27,19 +29,8 @@ pub(crate) const B: i64 = -4_390;
 
 /// Rounds a Q16 product to the nearest integer, halves upward.
 #[inline(always)]
-fn round_q(v: i64) -> i32 {
+pub(crate) fn round_q(v: i64) -> i32 {
     ((v + (1 << (Q - 1))) >> Q) as i32
-}
-
-/// `R(√3/4 · s¹[l] + (√3−2)/4 · s¹[l−1])`, the predict term shared by both directions.
-#[inline(always)]
-fn predict(s_l: i32, s_prev: i32) -> i32 {
-    round_q(A * s_l as i64 + B * s_prev as i64)
-}
-
-#[inline(always)]
-fn update1(o: i32) -> i32 {
-    round_q(SQRT3 * o as i64)
 }
 
 /// Index of `d¹[l + 1]`: the neighbour inside, or its mirror image past the end.
@@ -67,16 +58,16 @@ fn odd_index(l: usize, nh: usize) -> usize {
 
 /// Forward lifting of the split channels, in place. `low.len()` is `high.len()` or
 /// `high.len() + 1`. A length-1 signal (no odd sample) is left as it is.
-pub(crate) fn forward(low: &mut [i32], high: &mut [i32]) {
+pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T]) {
     let (nl, nh) = (low.len(), high.len());
     if nh == 0 {
         return;
     }
     for l in 0..nl {
-        low[l] += update1(high[odd_index(l, nh)]);
+        low[l] += high[odd_index(l, nh)].sqrt3();
     }
     for l in 0..nh {
-        high[l] -= predict(low[l], low[prev_index(l, nl)]);
+        high[l] -= T::predict(low[l], low[prev_index(l, nl)]);
     }
     for l in 0..nl {
         low[l] -= high[next_index(l, nh)];
@@ -84,7 +75,7 @@ pub(crate) fn forward(low: &mut [i32], high: &mut [i32]) {
 }
 
 /// Inverse lifting, exactly undoing [`forward`].
-pub(crate) fn inverse(low: &mut [i32], high: &mut [i32]) {
+pub(crate) fn inverse<T: Lift>(low: &mut [T], high: &mut [T]) {
     let (nl, nh) = (low.len(), high.len());
     if nh == 0 {
         return;
@@ -93,10 +84,10 @@ pub(crate) fn inverse(low: &mut [i32], high: &mut [i32]) {
         low[l] += high[next_index(l, nh)];
     }
     for l in 0..nh {
-        high[l] += predict(low[l], low[prev_index(l, nl)]);
+        high[l] += T::predict(low[l], low[prev_index(l, nl)]);
     }
     for l in 0..nl {
-        low[l] -= update1(high[odd_index(l, nh)]);
+        low[l] -= high[odd_index(l, nh)].sqrt3();
     }
 }
 
@@ -115,8 +106,8 @@ mod tests {
 
     #[test]
     fn constant_signal_has_zero_high_band_and_dc_gain_one_plus_sqrt3() {
-        let mut low = [100; 5];
-        let mut high = [100; 5];
+        let mut low = [100i32; 5];
+        let mut high = [100i32; 5];
         forward(&mut low, &mut high);
         assert_eq!(high, [0; 5]);
         // 100 · (1 + √3) = 273.2

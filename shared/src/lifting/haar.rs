@@ -1,21 +1,24 @@
-//! Integer Haar as the S-transform: `d = o − e`, `s = e + ⌊d/2⌋ = ⌊(e + o)/2⌋`.
+//! Haar as the S-transform: `d = o − e`, `s = e + ⌊d/2⌋ = ⌊(e + o)/2⌋` (in `f32`, without
+//! the floor: `s = (e + o)/2`).
 //!
 //! `low` holds the even samples and `high` the odd ones on entry to the forward step (and
 //! the low and high bands on exit). For an odd length, `low` has one more element than
 //! `high`; the unpaired last sample passes to the low band unchanged.
 
+use super::Lift;
+
 /// Forward S-transform of the split channels, in place.
-pub(crate) fn forward(low: &mut [i32], high: &mut [i32]) {
+pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T]) {
     for (s, d) in low.iter_mut().zip(high.iter_mut()) {
         *d -= *s;
-        *s += *d >> 1;
+        *s += d.half();
     }
 }
 
 /// Inverse S-transform, exactly undoing [`forward`].
-pub(crate) fn inverse(low: &mut [i32], high: &mut [i32]) {
+pub(crate) fn inverse<T: Lift>(low: &mut [T], high: &mut [T]) {
     for (s, d) in low.iter_mut().zip(high.iter_mut()) {
-        *s -= *d >> 1;
+        *s -= d.half();
         *d += *s;
     }
 }

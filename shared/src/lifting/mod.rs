@@ -29,15 +29,78 @@ pub enum Wavelet {
     Db2,
 }
 
+/// The arithmetic of the lifting steps: integers rounded in every step (`i32`, the MCU's
+/// reversible transform) or exact reals (`f32`, the host's float path). Both run the same
+/// steps with the same boundary rule, so their coefficients differ only by rounding.
+pub(crate) trait Lift:
+    Copy
+    + core::ops::Add<Output = Self>
+    + core::ops::Sub<Output = Self>
+    + core::ops::AddAssign
+    + core::ops::SubAssign
+{
+    /// Haar's update term: `⌊d/2⌋`, or `d/2`.
+    fn half(self) -> Self;
+    /// db2's first update term: `R(√3·o)`.
+    fn sqrt3(self) -> Self;
+    /// db2's predict term: `R(√3/4·s + (√3−2)/4·s_prev)`.
+    fn predict(s: Self, s_prev: Self) -> Self;
+    /// Saturates to `±bound` (the integer inverse's guard; floats pass unchanged).
+    fn saturate(self, bound: i32) -> Self;
+}
+
+impl Lift for i32 {
+    #[inline(always)]
+    fn half(self) -> Self {
+        self >> 1
+    }
+    #[inline(always)]
+    fn sqrt3(self) -> Self {
+        db2::round_q(db2::SQRT3 * i64::from(self))
+    }
+    #[inline(always)]
+    fn predict(s: Self, s_prev: Self) -> Self {
+        db2::round_q(db2::A * i64::from(s) + db2::B * i64::from(s_prev))
+    }
+    #[inline(always)]
+    fn saturate(self, bound: i32) -> Self {
+        self.clamp(-bound, bound)
+    }
+}
+
+/// √3 to f32 precision.
+const SQRT_3_F32: f32 = 1.732_050_8;
+
+impl Lift for f32 {
+    #[inline(always)]
+    fn half(self) -> Self {
+        0.5 * self
+    }
+    #[inline(always)]
+    fn sqrt3(self) -> Self {
+        SQRT_3_F32 * self
+    }
+    #[inline(always)]
+    fn predict(s: Self, s_prev: Self) -> Self {
+        const A: f32 = SQRT_3_F32 / 4.0;
+        const B: f32 = (SQRT_3_F32 - 2.0) / 4.0;
+        A * s + B * s_prev
+    }
+    #[inline(always)]
+    fn saturate(self, _bound: i32) -> Self {
+        self
+    }
+}
+
 impl Wavelet {
-    fn forward_split(self, low: &mut [i32], high: &mut [i32]) {
+    fn forward_split<T: Lift>(self, low: &mut [T], high: &mut [T]) {
         match self {
             Wavelet::Haar => haar::forward(low, high),
             Wavelet::Db2 => db2::forward(low, high),
         }
     }
 
-    fn inverse_split(self, low: &mut [i32], high: &mut [i32]) {
+    fn inverse_split<T: Lift>(self, low: &mut [T], high: &mut [T]) {
         match self {
             Wavelet::Haar => haar::inverse(low, high),
             Wavelet::Db2 => db2::inverse(low, high),
@@ -52,7 +115,7 @@ pub fn scratch_len(dims: Dims) -> usize {
 
 /// One forward 1-D pass over `line`: the signal is split into even and odd samples,
 /// lifted, and stored low band first.
-fn forward_line(wavelet: Wavelet, buf: &mut [i32], line: Line, scratch: &mut [i32]) {
+fn forward_line<T: Lift>(wavelet: Wavelet, buf: &mut [T], line: Line, scratch: &mut [T]) {
     let nl = line.len.div_ceil(2);
     let work = &mut scratch[..line.len];
     for (k, p) in line.positions().enumerate() {
@@ -69,24 +132,24 @@ fn forward_line(wavelet: Wavelet, buf: &mut [i32], line: Line, scratch: &mut [i3
 
 /// One inverse 1-D pass: loads low and high bands saturated to their proven bounds,
 /// undoes the lifting, and stores the interleaved signal saturated to `out_bound`.
-fn inverse_line(
+fn inverse_line<T: Lift>(
     wavelet: Wavelet,
-    buf: &mut [i32],
+    buf: &mut [T],
     line: Line,
-    scratch: &mut [i32],
+    scratch: &mut [T],
     (low_bound, high_bound, out_bound): (i32, i32, i32),
 ) {
     let nl = line.len.div_ceil(2);
     let work = &mut scratch[..line.len];
     for (k, p) in line.positions().enumerate() {
         let b = if k < nl { low_bound } else { high_bound };
-        work[k] = buf[p].clamp(-b, b);
+        work[k] = buf[p].saturate(b);
     }
     let (low, high) = work.split_at_mut(nl);
     wavelet.inverse_split(low, high);
     for (k, p) in line.positions().enumerate() {
         let slot = if k % 2 == 0 { k / 2 } else { nl + k / 2 };
-        buf[p] = work[slot].clamp(-out_bound, out_bound);
+        buf[p] = work[slot].saturate(out_bound);
     }
 }
 
@@ -120,7 +183,12 @@ fn check_args(buf: &[i32], dims: Dims, levels: Option<u8>, scratch: &[i32]) -> R
 }
 
 /// One forward 2-D level on the `dims` region (rows, then columns), in place.
-pub(crate) fn forward_level(wavelet: Wavelet, buf: &mut [i32], dims: Dims, scratch: &mut [i32]) {
+pub(crate) fn forward_level<T: Lift>(
+    wavelet: Wavelet,
+    buf: &mut [T],
+    dims: Dims,
+    scratch: &mut [T],
+) {
     let (w, h) = (dims.width(), dims.height());
     if w > 1 {
         for y in 0..h {
@@ -137,11 +205,11 @@ pub(crate) fn forward_level(wavelet: Wavelet, buf: &mut [i32], dims: Dims, scrat
 }
 
 /// One inverse 2-D level (columns, then rows), saturating to `bounds` of that level.
-pub(crate) fn inverse_level(
+pub(crate) fn inverse_level<T: Lift>(
     wavelet: Wavelet,
-    buf: &mut [i32],
+    buf: &mut [T],
     dims: Dims,
-    scratch: &mut [i32],
+    scratch: &mut [T],
     bounds: &LevelBounds,
 ) {
     let (w, h) = (dims.width(), dims.height());
