@@ -1,10 +1,7 @@
 //! The `f32` fusion path: the shared driver with the integer path's lifting steps run in
 //! exact `f32` arithmetic, `f32` saliency and `f32` weights.
 
-use super::dwt::check_len;
-use crate::fusion::{
-    Arith, BandOffsets, FuseConfig, LlWeight, fuse_generic, maps_len, split_scratch,
-};
+use crate::fusion::{Arith, BandOffsets, FuseConfig, LlWeight, fuse_pair_checked};
 use crate::geometry::Roi;
 use crate::lifting::{self, LevelBounds};
 use crate::saliency::ll_gain_q16;
@@ -89,6 +86,18 @@ impl Arith for f32 {
     fn abs_ge(a: f32, b: f32) -> bool {
         a.abs() >= b.abs()
     }
+
+    fn check_samples(buf: &[f32], dims: Dims) -> Result<(), Error> {
+        for y in 0..dims.height() {
+            let row = &buf[dims.at(0, y)..dims.at(dims.width(), y)];
+            if row.iter().any(|v| v.is_nan() || v.abs() > MAX_SAMPLE_F32) {
+                return Err(Error::InvalidParameter {
+                    name: "sample (NaN, infinite or beyond ±1e9)",
+                });
+            }
+        }
+        Ok(())
+    }
 }
 
 /// `eˣ − 1` for `x` in `0..=1`: its Taylor series to degree 9 in Horner form, exact to
@@ -117,10 +126,10 @@ fn expm1_unit(x: f32) -> f32 {
 /// is 65535), far enough below `f32::MAX` that Laplacians and sums stay finite.
 pub const MAX_SAMPLE_F32: f32 = 1e9;
 
-/// Scratch length (in `f32`) that [`fuse_pair`] needs for `dims`: a transform line and the
-/// saliency maps, as on the integer path.
+/// Scratch length (in `f32`) that [`fuse_pair`] needs for `dims`: as on the integer path
+/// ([`crate::fusion::fuse_scratch_len`]), a transform line and the saliency maps.
 pub fn fuse_scratch_len(dims: Dims) -> usize {
-    lifting::scratch_len(dims) + maps_len(dims)
+    crate::fusion::fuse_scratch_len(dims)
 }
 
 /// One `f32` fuse step on the `dims` region of `a` and `b`: the fused image replaces `a`,
@@ -134,26 +143,7 @@ pub fn fuse_pair(
     ll_weight: LlWeight,
     scratch: &mut [f32],
 ) -> Result<(), Error> {
-    dims.check_buffer("first image", a.len())?;
-    dims.check_buffer("second image", b.len())?;
-    dims.check_levels(cfg.levels)?;
-    if ll_weight.0 > 1 << 15 {
-        return Err(Error::InvalidParameter { name: "ll_weight" });
-    }
-    for buf in [&*a, &*b] {
-        for y in 0..dims.height() {
-            let row = &buf[dims.at(0, y)..dims.at(dims.width(), y)];
-            if row.iter().any(|v| v.is_nan() || v.abs() > MAX_SAMPLE_F32) {
-                return Err(Error::InvalidParameter {
-                    name: "sample (NaN, infinite or beyond ±1e9)",
-                });
-            }
-        }
-    }
-    check_len("scratch", scratch.len(), fuse_scratch_len(dims))?;
-    let work = split_scratch(scratch, lifting::scratch_len(dims), dims)?;
-    fuse_generic(a, b, dims, Roi::full(dims), cfg, ll_weight, work);
-    Ok(())
+    fuse_pair_checked(a, b, dims, cfg, ll_weight, scratch)
 }
 
 #[cfg(test)]

@@ -1,7 +1,10 @@
 //! The integer fusion path: i32 coefficients, Q15 weights, the lifting of
 //! [`crate::lifting`]. This is what the MCU runs.
 
-use super::{Arith, BandOffsets, FuseConfig, LlWeight, fuse_generic, maps_len, split_scratch};
+use super::{
+    Arith, BandOffsets, FuseConfig, LlWeight, fuse_generic, fuse_pair_checked, maps_len,
+    split_scratch,
+};
 use crate::geometry::Roi;
 use crate::lifting::{self, bounds::level_bounds};
 use crate::saliency::{self, SaliencyNorm};
@@ -64,6 +67,10 @@ impl Arith for i32 {
     fn abs_ge(a: i32, b: i32) -> bool {
         a.unsigned_abs() >= b.unsigned_abs()
     }
+
+    fn check_samples(buf: &[i32], dims: Dims) -> Result<(), Error> {
+        lifting::check_samples(buf, dims)
+    }
 }
 
 /// Scratch length (in `i32`) that [`fuse_pair`] and [`fuse_u8`] need for `dims`: a
@@ -84,17 +91,7 @@ pub fn fuse_pair(
     ll_weight: LlWeight,
     scratch: &mut [i32],
 ) -> Result<(), Error> {
-    dims.check_buffer("first image", a.len())?;
-    dims.check_buffer("second image", b.len())?;
-    dims.check_levels(cfg.levels)?;
-    if ll_weight.0 > 1 << 15 {
-        return Err(Error::InvalidParameter { name: "ll_weight" });
-    }
-    lifting::check_samples(a, dims)?;
-    lifting::check_samples(b, dims)?;
-    let work = split_scratch(scratch, lifting::scratch_len(dims), dims)?;
-    fuse_generic(a, b, dims, Roi::full(dims), cfg, ll_weight, work);
-    Ok(())
+    fuse_pair_checked(a, b, dims, cfg, ll_weight, scratch)
 }
 
 /// Fraction bits the 8-bit fusion keeps below the pixel's integer part while it works.

@@ -136,6 +136,30 @@ pub(crate) trait Arith: Copy + Default + core::ops::AddAssign {
     fn mix(a: Self, b: Self, w: LlWeight) -> Self;
     /// `|a| ≥ |b|`.
     fn abs_ge(a: Self, b: Self) -> bool;
+    /// Refuses samples this path cannot take (out of the proven range, or not finite).
+    fn check_samples(buf: &[Self], dims: Dims) -> Result<(), Error>;
+}
+
+/// The checks and the call shared by both paths' public `fuse_pair`.
+pub(crate) fn fuse_pair_checked<T: Arith>(
+    a: &mut [T],
+    b: &mut [T],
+    dims: Dims,
+    cfg: &FuseConfig,
+    ll_weight: LlWeight,
+    scratch: &mut [T],
+) -> Result<(), Error> {
+    dims.check_buffer("first image", a.len())?;
+    dims.check_buffer("second image", b.len())?;
+    dims.check_levels(cfg.levels)?;
+    if ll_weight.0 > 1 << 15 {
+        return Err(Error::InvalidParameter { name: "ll_weight" });
+    }
+    T::check_samples(a, dims)?;
+    T::check_samples(b, dims)?;
+    let work = split_scratch(scratch, crate::lifting::scratch_len(dims), dims)?;
+    fuse_generic(a, b, dims, Roi::full(dims), cfg, ll_weight, work);
+    Ok(())
 }
 
 /// Number of weights per band map for `dims`: one per coefficient of a level-1 subband.
