@@ -75,45 +75,66 @@ pub fn ll_gain_q16(wavelet: Wavelet) -> u64 {
     }
 }
 
+/// Calls `f(x, centre, [up, down, left, right])` for every pixel of row `y`, with
+/// whole-sample symmetric extension at the borders (`x = −1` reads `x = 1`). The border
+/// columns are handled apart so the inner loop indexes directly.
+#[inline(always)]
+pub(crate) fn neighbourhood_row<T: Copy>(
+    buf: &[T],
+    dims: Dims,
+    y: usize,
+    mut f: impl FnMut(usize, T, [T; 4]),
+) {
+    let (w, h) = (dims.width(), dims.height());
+    let row = |r: usize| &buf[dims.at(0, r)..dims.at(0, r) + w];
+    let (up, mid, down) = (
+        row(mirror(y as isize - 1, h)),
+        row(y),
+        row(mirror(y as isize + 1, h)),
+    );
+    if w == 1 {
+        f(0, mid[0], [up[0], down[0], mid[0], mid[0]]);
+        return;
+    }
+    f(0, mid[0], [up[0], down[0], mid[1], mid[1]]);
+    for x in 1..w - 1 {
+        f(x, mid[x], [up[x], down[x], mid[x - 1], mid[x + 1]]);
+    }
+    f(
+        w - 1,
+        mid[w - 1],
+        [up[w - 1], down[w - 1], mid[w - 2], mid[w - 2]],
+    );
+}
+
 /// Calls `f(x, y, centre, [up, down, left, right])` for every pixel of the region, in
-/// row-major order, with whole-sample symmetric extension at the borders. Both fusion
-/// paths compute their Laplacian through this walk.
+/// row-major order (see [`neighbourhood_row`]). Both fusion paths compute their Laplacian
+/// through this walk.
 #[inline]
 pub(crate) fn for_each_neighbourhood<T: Copy>(
     buf: &[T],
     dims: Dims,
     mut f: impl FnMut(usize, usize, T, [T; 4]),
 ) {
-    let (w, h) = (dims.width(), dims.height());
-    for y in 0..h {
-        let up = dims.at(0, mirror(y as isize - 1, h));
-        let mid = dims.at(0, y);
-        let down = dims.at(0, mirror(y as isize + 1, h));
-        for x in 0..w {
-            let left = mirror(x as isize - 1, w);
-            let right = mirror(x as isize + 1, w);
-            let around = [
-                buf[up + x],
-                buf[down + x],
-                buf[mid + left],
-                buf[mid + right],
-            ];
-            f(x, y, buf[mid + x], around);
-        }
+    for y in 0..dims.height() {
+        neighbourhood_row(buf, dims, y, |x, c, around| f(x, y, c, around));
     }
+}
+
+/// `|∇²I|` from a centre and its four neighbours, in `u32`.
+#[inline(always)]
+fn laplacian(c: i32, around: [i32; 4]) -> u32 {
+    let sum: i64 = around.iter().map(|&v| i64::from(v)).sum();
+    // |values| ≤ the deepest level bound < 2²⁸, so 8× that fits in u32.
+    (sum - 4 * i64::from(c))
+        .unsigned_abs()
+        .min(u64::from(u32::MAX)) as u32
 }
 
 /// Calls `f(x, y, |∇²I|)` for every pixel of the region.
 #[inline]
 fn for_each_laplacian(buf: &[i32], dims: Dims, mut f: impl FnMut(usize, usize, u32)) {
-    for_each_neighbourhood(buf, dims, |x, y, c, around| {
-        let sum: i64 = around.iter().map(|&v| i64::from(v)).sum();
-        // |values| ≤ the deepest level bound < 2²⁸, so 8× that fits in u32.
-        let lap = (sum - 4 * i64::from(c))
-            .unsigned_abs()
-            .min(u64::from(u32::MAX)) as u32;
-        f(x, y, lap);
-    });
+    for_each_neighbourhood(buf, dims, |x, y, c, around| f(x, y, laplacian(c, around)));
 }
 
 /// The largest `|∇²I|` over the region: the `max L` of eq. 3 (e.g. a whole frame's, for
@@ -200,22 +221,28 @@ pub(crate) fn level_max(
     }
 }
 
-/// Calls `f(x, y, S)` with `S = exp(Sal/255) − 1` (Q24) for every pixel, `max` being the
-/// normalizing maximum. A flat region (`max = 0`) has `S = 0` everywhere and makes no calls.
-pub(crate) fn for_each_saliency(
+/// Calls `f(y, S)` with the row of `S = exp(Sal/255) − 1` (Q24) of every row `y`, built in
+/// `row` (at least the region's width), `max` being the normalizing maximum. A flat region
+/// (`max = 0`) has `S = 0` everywhere and makes no calls.
+pub(crate) fn saliency_rows(
     buf: &[i32],
     dims: Dims,
     max: u32,
-    mut f: impl FnMut(usize, usize, i32),
+    row: &mut [i32],
+    mut f: impl FnMut(usize, &[i32]),
 ) {
     if max == 0 {
         return;
     }
     let norm = Normalizer::new(max);
-    for_each_laplacian(buf, dims, |x, y, l| {
+    let row = &mut row[..dims.width()];
+    for y in 0..dims.height() {
         // S ≤ 1.7183 · 2²⁴ < 2³¹.
-        f(x, y, norm.saliency(l) as i32);
-    });
+        neighbourhood_row(buf, dims, y, |x, c, around| {
+            row[x] = norm.saliency(laplacian(c, around)) as i32
+        });
+        f(y, row);
+    }
 }
 
 /// `W₁ = S₁ / (S₁ + S₂)` as Q15 (`1.0` = 32768), `½` when both are zero.

@@ -5,7 +5,7 @@ use crate::fusion::{Arith, BandOffsets, FuseConfig, LlWeight, fuse_pair_checked}
 use crate::geometry::Roi;
 use crate::lifting::{self, LevelBounds};
 use crate::saliency::ll_gain_q16;
-use crate::saliency::{SaliencyNorm, for_each_neighbourhood};
+use crate::saliency::{SaliencyNorm, for_each_neighbourhood, neighbourhood_row};
 use crate::{Dims, Error, Wavelet};
 
 impl Arith for f32 {
@@ -30,14 +30,15 @@ impl Arith for f32 {
         <i32 as Arith>::band_offsets(wavelet)
     }
 
-    fn for_each_saliency(
+    fn saliency_rows(
         buf: &[f32],
         dims: Dims,
         roi: Roi,
         norm: SaliencyNorm,
         wavelet: Wavelet,
         level: u8,
-        mut f: impl FnMut(usize, usize, f32),
+        row: &mut [f32],
+        mut f: impl FnMut(usize, &[f32]),
     ) {
         let lap = |c: f32, around: [f32; 4]| (around.iter().sum::<f32>() - 4.0 * c).abs();
         let max = match norm {
@@ -60,10 +61,14 @@ impl Arith for f32 {
             return;
         }
         let inv = 1.0 / max;
-        for_each_neighbourhood(buf, dims, |x, y, c, a| {
+        let row = &mut row[..dims.width()];
+        for y in 0..dims.height() {
             // Sal/255 = |∇²I| / max, saturated at 1 for a Reference maximum.
-            f(x, y, expm1_unit((lap(c, a) * inv).min(1.0)));
-        });
+            neighbourhood_row(buf, dims, y, |x, c, a| {
+                row[x] = expm1_unit((lap(c, a) * inv).min(1.0))
+            });
+            f(y, row);
+        }
     }
 
     fn weight(s1: f32, s2: f32) -> f32 {

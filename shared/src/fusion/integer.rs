@@ -34,17 +34,18 @@ impl Arith for i32 {
         }
     }
 
-    fn for_each_saliency(
+    fn saliency_rows(
         buf: &[i32],
         dims: Dims,
         roi: Roi,
         norm: SaliencyNorm,
         wavelet: Wavelet,
         level: u8,
-        f: impl FnMut(usize, usize, i32),
+        row: &mut [i32],
+        f: impl FnMut(usize, &[i32]),
     ) {
         let max = saliency::level_max(buf, dims, roi, norm, wavelet, level);
-        saliency::for_each_saliency(buf, dims, max, f);
+        saliency::saliency_rows(buf, dims, max, row, f);
     }
 
     fn weight(s1: i32, s2: i32) -> i32 {

@@ -116,17 +116,19 @@ pub(crate) trait Arith: Copy + Default + core::ops::AddAssign {
     fn inverse(wavelet: Wavelet, buf: &mut [Self], dims: Dims, levels: u8, scratch: &mut [Self]);
     /// Band offsets of this path's transform for `wavelet`.
     fn band_offsets(wavelet: Wavelet) -> BandOffsets;
-    /// Calls `f(x, y, S)` with the saliency `S = exp(Sal/255) − 1` of every pixel of the
-    /// level input (nothing at all for a flat region, whose `S` is 0 everywhere); a local
-    /// maximum is taken over `roi`.
-    fn for_each_saliency(
+    /// Calls `f(y, S)` with the row of saliencies `S = exp(Sal/255) − 1` of every row `y`
+    /// of the level input, built in `row` (nothing at all for a flat region, whose `S` is 0
+    /// everywhere); a local maximum is taken over `roi`.
+    #[allow(clippy::too_many_arguments)]
+    fn saliency_rows(
         buf: &[Self],
         dims: Dims,
         roi: Roi,
         norm: SaliencyNorm,
         wavelet: Wavelet,
         level: u8,
-        f: impl FnMut(usize, usize, Self),
+        row: &mut [Self],
+        f: impl FnMut(usize, &[Self]),
     );
     /// `W₁` from the two saliency sums.
     fn weight(s1: Self, s2: Self) -> Self;
@@ -203,7 +205,8 @@ pub(crate) fn split_scratch<T>(
     })
 }
 
-/// Sums each pixel's saliency into the 2×2 window of every band map that covers it.
+/// Sums each pixel's saliency into the 2×2 window of every band map that covers it, a row
+/// at a time (`row` is a line of scratch).
 fn band_saliency<T: Arith>(
     buf: &[T],
     dims: Dims,
@@ -211,23 +214,40 @@ fn band_saliency<T: Arith>(
     cfg: &FuseConfig,
     level: u8,
     maps: &mut [T],
+    row: &mut [T],
 ) {
     let (bw, bh) = (dims.width().div_ceil(2), dims.height().div_ceil(2));
     let n = bw * bh;
     maps[..MAPS * n].fill(T::default());
     let offsets = T::band_offsets(cfg.wavelet);
-    T::for_each_saliency(buf, dims, roi, cfg.norm, cfg.wavelet, level, |x, y, s| {
-        for (band, &(ox, oy)) in offsets.iter().enumerate() {
-            let (sx, sy) = (x as isize - ox, y as isize - oy);
-            if sx < 0 || sy < 0 {
-                continue;
+    T::saliency_rows(
+        buf,
+        dims,
+        roi,
+        cfg.norm,
+        cfg.wavelet,
+        level,
+        row,
+        |y, srow| {
+            for (band, &(ox, oy)) in offsets.iter().enumerate() {
+                let sy = y as isize - oy;
+                let by = (sy.max(0) as usize) / 2;
+                if sy < 0 || by >= bh {
+                    continue;
+                }
+                let map_row = &mut maps[band * n + by * bw..band * n + (by + 1) * bw];
+                // Window of coefficient bx: x ∈ {2bx + ox, 2bx + ox + 1}; bx grows with x.
+                let first = ox.max(0) as usize;
+                for (x, &s) in srow.iter().enumerate().skip(first) {
+                    let bx = (x as isize - ox) as usize / 2;
+                    if bx >= bw {
+                        break;
+                    }
+                    map_row[bx] += s;
+                }
             }
-            let (bx, by) = (sx as usize / 2, sy as usize / 2);
-            if bx < bw && by < bh {
-                maps[band * n + by * bw + bx] += s;
-            }
-        }
-    });
+        },
+    );
 }
 
 /// The fuse step, generic over the path. `a` and `b` hold the two images on `dims`
@@ -253,8 +273,8 @@ pub(crate) fn fuse_generic<T: Arith>(
         let n = block_count(d);
         let (maps_a, maps_b) = maps.split_at_mut(MAPS * n);
         if with_weights {
-            band_saliency(a, d, roi, cfg, level, maps_a);
-            band_saliency(b, d, roi, cfg, level, maps_b);
+            band_saliency(a, d, roi, cfg, level, maps_a, line);
+            band_saliency(b, d, roi, cfg, level, maps_b, line);
             // Image A's maps become W₁ per coefficient.
             for (s1, s2) in maps_a.iter_mut().zip(maps_b.iter()) {
                 *s1 = T::weight(*s1, *s2);
