@@ -26,7 +26,8 @@ mod mcu {
         let edge: [u8; N * N] = core::array::from_fn(|i| if i % N < N / 2 { 40 } else { 200 });
         let flat = [120u8; N * N];
         let (mut a, mut b) = ([0i32; N * N], [0i32; N * N]);
-        let mut scratch = [0i32; N + 6 * (N / 2) * (N / 2)];
+        // A 16-column block of N rows for the column pass, and three saliency maps per image.
+        let mut scratch = [0i32; N * N + 6 * (N / 2) * (N / 2)];
         let work = U8Work {
             a: &mut a,
             b: &mut b,

@@ -204,7 +204,11 @@ mod tests {
         let q = (1u64 << GQ) as f64;
         for (name, lift, g) in [
             ("haar", haar::forward as fn(&mut [i32], &mut [i32]), &HAAR),
-            ("db2", db2::forward, &DB2),
+            (
+                "db2",
+                |lo: &mut [i32], hi: &mut [i32]| db2::forward(lo, hi, 1),
+                &DB2,
+            ),
         ] {
             let (low, high) = measured_gain(lift);
             println!("{name}: measured G_low {low:.4}, G_high {high:.4}");

@@ -56,39 +56,102 @@ fn odd_index(l: usize, nh: usize) -> usize {
     if l < nh { l } else { mirror(l as isize, nh) }
 }
 
-/// Forward lifting of the split channels, in place. `low.len()` is `high.len()` or
-/// `high.len() + 1`. A length-1 signal (no odd sample) is left as it is.
-pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T]) {
-    let (nl, nh) = (low.len(), high.len());
-    if nh == 0 {
-        return;
-    }
-    for l in 0..nl {
-        low[l] += high[odd_index(l, nh)].sqrt3();
-    }
-    for l in 0..nh {
-        high[l] -= T::predict(low[l], low[prev_index(l, nl)]);
-    }
-    for l in 0..nl {
-        low[l] -= high[next_index(l, nh)];
+/// `dst[i] += f(a[i], b[i])` (or `-=`) over equal-length runs: each step's rows as one
+/// flat loop the compiler can vectorize.
+#[inline(always)]
+fn apply<T: Lift>(dst: &mut [T], a: &[T], b: &[T], add: bool, f: impl Fn(T, T) -> T) {
+    for ((d, &x), &y) in dst.iter_mut().zip(a).zip(b) {
+        if add {
+            *d += f(x, y);
+        } else {
+            *d -= f(x, y);
+        }
     }
 }
 
-/// Inverse lifting, exactly undoing [`forward`].
-pub(crate) fn inverse<T: Lift>(low: &mut [T], high: &mut [T]) {
-    let (nl, nh) = (low.len(), high.len());
-    if nh == 0 {
+/// Rows `r0..r1` of a channel made of rows of `w` samples.
+#[inline(always)]
+fn rows<T>(c: &[T], r0: usize, r1: usize, w: usize) -> &[T] {
+    &c[r0 * w..r1 * w]
+}
+
+/// Rows `r0..r1`, mutable.
+#[inline(always)]
+fn rows_mut<T>(c: &mut [T], r0: usize, r1: usize, w: usize) -> &mut [T] {
+    &mut c[r0 * w..r1 * w]
+}
+
+/// Step 1, `s¹[l] = e[l] ± R(√3·o[l])`: rows below `nh` read their own odd row, the last
+/// even row of an odd length reads a mirrored one.
+fn update1<T: Lift>(low: &mut [T], high: &[T], w: usize, (nl, nh): (usize, usize), add: bool) {
+    let o = rows(high, 0, nh, w);
+    apply(rows_mut(low, 0, nh, w), o, o, add, |v, _| v.sqrt3());
+    for l in nh..nl {
+        let m = odd_index(l, nh);
+        let o = rows(high, m, m + 1, w);
+        apply(rows_mut(low, l, l + 1, w), o, o, add, |v, _| v.sqrt3());
+    }
+}
+
+/// Step 2, `d¹[l] = o[l] ∓ R(√3/4·s¹[l] + (√3−2)/4·s¹[l−1])`: row 0 reads a mirrored
+/// `s¹[−1]`.
+fn predict<T: Lift>(high: &mut [T], low: &[T], w: usize, (nl, nh): (usize, usize), add: bool) {
+    let p = prev_index(0, nl);
+    apply(
+        rows_mut(high, 0, 1, w),
+        rows(low, 0, 1, w),
+        rows(low, p, p + 1, w),
+        add,
+        T::predict,
+    );
+    if nh > 1 {
+        apply(
+            rows_mut(high, 1, nh, w),
+            rows(low, 1, nh, w),
+            rows(low, 0, nh - 1, w),
+            add,
+            T::predict,
+        );
+    }
+}
+
+/// Step 3, `s²[l] = s¹[l] ∓ d¹[l + 1]`: the last rows read mirrored `d¹` rows.
+fn update2<T: Lift>(low: &mut [T], high: &[T], w: usize, (nl, nh): (usize, usize), add: bool) {
+    let inner = nh - 1;
+    let d = rows(high, 1, nh, w);
+    apply(rows_mut(low, 0, inner, w), d, d, add, |v, _| v);
+    for l in inner..nl {
+        let n = next_index(l, nh);
+        let d = rows(high, n, n + 1, w);
+        apply(rows_mut(low, l, l + 1, w), d, d, add, |v, _| v);
+    }
+}
+
+/// Forward lifting of the split channels, in place, on rows of `width` samples lifted side
+/// by side (`width` 1 for a single line; a block of columns on the column pass). `low` has
+/// `nl` rows, `high` `nh` rows, `nl` = `nh` or `nh + 1`. A length-1 signal (no odd
+/// sample) is left as it is.
+pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T], width: usize) {
+    let w = width.max(1);
+    let n = (low.len() / w, high.len() / w);
+    if n.1 == 0 {
         return;
     }
-    for l in 0..nl {
-        low[l] += high[next_index(l, nh)];
+    update1(low, high, w, n, true);
+    predict(high, low, w, n, false);
+    update2(low, high, w, n, false);
+}
+
+/// Inverse lifting, exactly undoing [`forward`].
+pub(crate) fn inverse<T: Lift>(low: &mut [T], high: &mut [T], width: usize) {
+    let w = width.max(1);
+    let n = (low.len() / w, high.len() / w);
+    if n.1 == 0 {
+        return;
     }
-    for l in 0..nh {
-        high[l] += T::predict(low[l], low[prev_index(l, nl)]);
-    }
-    for l in 0..nl {
-        low[l] -= high[odd_index(l, nh)].sqrt3();
-    }
+    update2(low, high, w, n, true);
+    predict(high, low, w, n, true);
+    update1(low, high, w, n, false);
 }
 
 #[cfg(test)]
@@ -108,7 +171,7 @@ mod tests {
     fn constant_signal_has_zero_high_band_and_dc_gain_one_plus_sqrt3() {
         let mut low = [100i32; 5];
         let mut high = [100i32; 5];
-        forward(&mut low, &mut high);
+        forward(&mut low, &mut high, 1);
         assert_eq!(high, [0; 5]);
         // 100 · (1 + √3) = 273.2
         assert!(low.iter().all(|&s| s == 273), "{low:?}");

@@ -7,7 +7,8 @@
 
 use super::Lift;
 
-/// Forward S-transform of the split channels, in place.
+/// Forward S-transform of the split channels, in place. Rows of any width lifted side by
+/// side pair up element by element, so the flattened channels are all it needs.
 pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T]) {
     for (s, d) in low.iter_mut().zip(high.iter_mut()) {
         *d -= *s;

@@ -93,24 +93,33 @@ impl Lift for f32 {
 }
 
 impl Wavelet {
-    fn forward_split<T: Lift>(self, low: &mut [T], high: &mut [T]) {
+    /// Forward lifting of split channels made of rows of `width` samples side by side.
+    fn forward_split<T: Lift>(self, low: &mut [T], high: &mut [T], width: usize) {
         match self {
             Wavelet::Haar => haar::forward(low, high),
-            Wavelet::Db2 => db2::forward(low, high),
+            Wavelet::Db2 => db2::forward(low, high, width),
         }
     }
 
-    fn inverse_split<T: Lift>(self, low: &mut [T], high: &mut [T]) {
+    /// Inverse of [`Self::forward_split`].
+    fn inverse_split<T: Lift>(self, low: &mut [T], high: &mut [T], width: usize) {
         match self {
             Wavelet::Haar => haar::inverse(low, high),
-            Wavelet::Db2 => db2::inverse(low, high),
+            Wavelet::Db2 => db2::inverse(low, high, width),
         }
     }
 }
 
-/// Scratch length (in `i32`) the 2-D transforms need for `dims`: one row or column.
+/// Columns lifted side by side on the column pass: their rows are contiguous in the block,
+/// so each lifting step runs along rows of this many samples (cache-friendly and
+/// vectorizable) instead of one strided column at a time.
+pub const COLUMN_BLOCK: usize = 16;
+
+/// Scratch length the 2-D transforms need for `dims`: one row, or a block of
+/// [`COLUMN_BLOCK`] columns.
 pub fn scratch_len(dims: Dims) -> usize {
-    dims.width().max(dims.height())
+    dims.width()
+        .max(COLUMN_BLOCK.min(dims.width()) * dims.height())
 }
 
 /// One forward 1-D pass over `line`: the signal is split into even and odd samples,
@@ -124,7 +133,7 @@ fn forward_line<T: Lift>(wavelet: Wavelet, buf: &mut [T], line: Line, scratch: &
         work[slot] = buf[p];
     }
     let (low, high) = work.split_at_mut(nl);
-    wavelet.forward_split(low, high);
+    wavelet.forward_split(low, high, 1);
     for (p, &v) in line.positions().zip(work.iter()) {
         buf[p] = v;
     }
@@ -146,7 +155,7 @@ fn inverse_line<T: Lift>(
         work[k] = buf[p].saturate(b);
     }
     let (low, high) = work.split_at_mut(nl);
-    wavelet.inverse_split(low, high);
+    wavelet.inverse_split(low, high, 1);
     for (k, p) in line.positions().enumerate() {
         let slot = if k % 2 == 0 { k / 2 } else { nl + k / 2 };
         buf[p] = work[slot].saturate(out_bound);
@@ -192,14 +201,70 @@ pub(crate) fn forward_level<T: Lift>(
     let (w, h) = (dims.width(), dims.height());
     if w > 1 {
         for y in 0..h {
-            let line = Line::row(dims, y);
-            forward_line(wavelet, buf, line, scratch);
+            forward_line(wavelet, buf, Line::row(dims, y), scratch);
         }
     }
     if h > 1 {
-        for x in 0..w {
-            let line = Line::column(dims, x);
-            forward_line(wavelet, buf, line, scratch);
+        forward_columns(wavelet, buf, dims, scratch);
+    }
+}
+
+/// The forward column pass, [`COLUMN_BLOCK`] columns at a time: each block's rows are
+/// copied into `scratch` (even rows first, then odd), lifted as rows, and copied back low
+/// band first.
+fn forward_columns<T: Lift>(wavelet: Wavelet, buf: &mut [T], dims: Dims, scratch: &mut [T]) {
+    let (w, h) = (dims.width(), dims.height());
+    let nl = h.div_ceil(2);
+    for x0 in (0..w).step_by(COLUMN_BLOCK) {
+        let bw = COLUMN_BLOCK.min(w - x0);
+        let block = &mut scratch[..bw * h];
+        for y in 0..h {
+            let slot = if y % 2 == 0 { y / 2 } else { nl + y / 2 };
+            block[slot * bw..(slot + 1) * bw]
+                .copy_from_slice(&buf[dims.at(x0, y)..dims.at(x0, y) + bw]);
+        }
+        let (low, high) = block.split_at_mut(nl * bw);
+        wavelet.forward_split(low, high, bw);
+        for y in 0..h {
+            buf[dims.at(x0, y)..dims.at(x0, y) + bw].copy_from_slice(&block[y * bw..(y + 1) * bw]);
+        }
+    }
+}
+
+/// The inverse column pass: each block's low rows saturated to `low_of(x)`, high rows to
+/// `high_of(x)`, lifted back, and the interleaved rows saturated to `out_of(x)` (bounds per
+/// column: left of the row pass's split the columns hold row-low coefficients).
+fn inverse_columns<T: Lift>(
+    wavelet: Wavelet,
+    buf: &mut [T],
+    dims: Dims,
+    scratch: &mut [T],
+    bounds_of: impl Fn(usize) -> (i32, i32, i32),
+) {
+    let (w, h) = (dims.width(), dims.height());
+    let nl = h.div_ceil(2);
+    for x0 in (0..w).step_by(COLUMN_BLOCK) {
+        let bw = COLUMN_BLOCK.min(w - x0);
+        let block = &mut scratch[..bw * h];
+        for y in 0..h {
+            let src = &buf[dims.at(x0, y)..dims.at(x0, y) + bw];
+            for (k, (d, &v)) in block[y * bw..(y + 1) * bw].iter_mut().zip(src).enumerate() {
+                let (low, high, _) = bounds_of(x0 + k);
+                *d = v.saturate(if y < nl { low } else { high });
+            }
+        }
+        let (low, high) = block.split_at_mut(nl * bw);
+        wavelet.inverse_split(low, high, bw);
+        for y in 0..h {
+            let slot = if y % 2 == 0 { y / 2 } else { nl + y / 2 };
+            let dst = &mut buf[dims.at(x0, y)..dims.at(x0, y) + bw];
+            for (k, (d, &v)) in dst
+                .iter_mut()
+                .zip(&block[slot * bw..(slot + 1) * bw])
+                .enumerate()
+            {
+                *d = v.saturate(bounds_of(x0 + k).2);
+            }
         }
     }
 }
@@ -215,25 +280,22 @@ pub(crate) fn inverse_level<T: Lift>(
     let (w, h) = (dims.width(), dims.height());
     let nlx = w.div_ceil(2);
     if h > 1 {
-        for x in 0..w {
-            let line = Line::column(dims, x);
-            // Columns left of nlx came from the rows' low band, the rest from the high band;
-            // a one-column region had no row pass, so its columns are the level's input.
-            let clamp = if w == 1 {
+        // Columns left of nlx came from the rows' low band, the rest from the high band;
+        // a one-column region had no row pass, so its columns are the level's input.
+        inverse_columns(wavelet, buf, dims, scratch, |x| {
+            if w == 1 {
                 (bounds.ll, bounds.lh, bounds.input)
             } else if x < nlx {
                 (bounds.ll, bounds.lh, bounds.row_low)
             } else {
                 (bounds.hl, bounds.hh, bounds.row_high)
-            };
-            inverse_line(wavelet, buf, line, scratch, clamp);
-        }
+            }
+        });
     }
     if w > 1 {
         for y in 0..h {
-            let line = Line::row(dims, y);
             let clamp = (bounds.row_low, bounds.row_high, bounds.input);
-            inverse_line(wavelet, buf, line, scratch, clamp);
+            inverse_line(wavelet, buf, Line::row(dims, y), scratch, clamp);
         }
     }
 }
@@ -491,7 +553,9 @@ mod tests {
     fn bad_arguments_are_errors() {
         let dims = Dims::new(8, 8).unwrap();
         let mut buf = vec![0; 64];
-        let mut scratch = vec![0; 8];
+        // 8 rows of an 8-column block.
+        let mut scratch = vec![0; 64];
+        assert_eq!(scratch_len(dims), 64);
         assert_eq!(
             forward_2d(Wavelet::Db2, &mut buf[..63], dims, 1, &mut scratch),
             Err(Error::BufferTooSmall {
@@ -501,11 +565,11 @@ mod tests {
             })
         );
         assert_eq!(
-            forward_2d(Wavelet::Db2, &mut buf, dims, 1, &mut scratch[..7]),
+            forward_2d(Wavelet::Db2, &mut buf, dims, 1, &mut scratch[..63]),
             Err(Error::BufferTooSmall {
                 which: "scratch",
-                needed: 8,
-                got: 7
+                needed: 64,
+                got: 63
             })
         );
         assert_eq!(
