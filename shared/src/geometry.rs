@@ -137,44 +137,6 @@ impl Dims {
     }
 }
 
-/// A rectangle of interest inside a region: where the image proper lies when the region
-/// carries margins. Saliency is normalized by the maximum inside it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct Roi {
-    pub x0: usize,
-    pub y0: usize,
-    pub width: usize,
-    pub height: usize,
-}
-
-impl Roi {
-    /// The whole region.
-    pub fn full(dims: Dims) -> Self {
-        Self {
-            x0: 0,
-            y0: 0,
-            width: dims.width(),
-            height: dims.height(),
-        }
-    }
-
-    /// The same rectangle on the next level's LL grid.
-    pub fn low_band(self) -> Self {
-        Self {
-            x0: self.x0 / 2,
-            y0: self.y0 / 2,
-            width: self.width.div_ceil(2).max(1),
-            height: self.height.div_ceil(2).max(1),
-        }
-    }
-
-    /// Whether `(x, y)` lies inside.
-    pub fn contains(&self, x: usize, y: usize) -> bool {
-        (self.x0..self.x0 + self.width).contains(&x)
-            && (self.y0..self.y0 + self.height).contains(&y)
-    }
-}
-
 /// A strided line inside a buffer: `len` elements, `step` apart, from `start`.
 #[derive(Clone, Copy)]
 pub(crate) struct Line {

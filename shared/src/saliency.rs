@@ -20,7 +20,7 @@
 //!    of 2×2 means).
 //! 5. `W₁ = S₁ / (S₁ + S₂)` in Q15, and `W₁ = ½` where `S₁ + S₂ = 0`.
 
-use crate::geometry::{Roi, mirror};
+use crate::geometry::mirror;
 use crate::{Dims, Wavelet};
 use fixed::types::{U1F15, U8F24};
 
@@ -142,17 +142,13 @@ fn for_each_laplacian(buf: &[i32], dims: Dims, mut f: impl FnMut(usize, usize, u
 /// the region.
 pub fn laplacian_max(buf: &[i32], dims: Dims) -> Result<u32, crate::Error> {
     dims.check_buffer("image", buf.len())?;
-    Ok(laplacian_max_in(buf, dims, Roi::full(dims)))
+    Ok(laplacian_max_in(buf, dims))
 }
 
-/// The largest `|∇²I|` over the pixels of `roi`.
-fn laplacian_max_in(buf: &[i32], dims: Dims, roi: Roi) -> u32 {
+/// The largest `|∇²I|` over the region (its buffer already checked).
+fn laplacian_max_in(buf: &[i32], dims: Dims) -> u32 {
     let mut max = 0;
-    for_each_laplacian(buf, dims, |x, y, l| {
-        if roi.contains(x, y) {
-            max = max.max(l);
-        }
-    });
+    for_each_laplacian(buf, dims, |_, _, l| max = max.max(l));
     max
 }
 
@@ -204,13 +200,12 @@ impl Normalizer {
 pub(crate) fn level_max(
     buf: &[i32],
     dims: Dims,
-    roi: Roi,
     norm: SaliencyNorm,
     wavelet: Wavelet,
     level: u8,
 ) -> u32 {
     match norm {
-        SaliencyNorm::Local => laplacian_max_in(buf, dims, roi),
+        SaliencyNorm::Local => laplacian_max_in(buf, dims),
         SaliencyNorm::Reference(r) => {
             let mut m = u64::from(r);
             for _ in 1..level {

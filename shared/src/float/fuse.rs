@@ -2,7 +2,6 @@
 //! exact `f32` arithmetic, `f32` saliency and `f32` weights.
 
 use crate::fusion::{Arith, BandOffsets, FuseConfig, LlWeight, fuse_pair_checked};
-use crate::geometry::Roi;
 use crate::lifting::{self, LevelBounds};
 use crate::saliency::ll_gain_q16;
 use crate::saliency::{SaliencyNorm, for_each_neighbourhood, neighbourhood_row};
@@ -33,7 +32,6 @@ impl Arith for f32 {
     fn saliency_rows(
         buf: &[f32],
         dims: Dims,
-        roi: Roi,
         norm: SaliencyNorm,
         wavelet: Wavelet,
         level: u8,
@@ -44,11 +42,7 @@ impl Arith for f32 {
         let max = match norm {
             SaliencyNorm::Local => {
                 let mut m = 0f32;
-                for_each_neighbourhood(buf, dims, |x, y, c, a| {
-                    if roi.contains(x, y) {
-                        m = m.max(lap(c, a));
-                    }
-                });
+                for_each_neighbourhood(buf, dims, |_, _, c, a| m = m.max(lap(c, a)));
                 m
             }
             // The LL band's DC gain per level, as on the integer path.

@@ -5,7 +5,6 @@ use super::{
     Arith, BandOffsets, FuseConfig, LlWeight, fuse_generic, fuse_pair_checked, maps_len,
     split_scratch,
 };
-use crate::geometry::Roi;
 use crate::lifting::{self, bounds::level_bounds};
 use crate::saliency::{self, SaliencyNorm};
 use crate::{Dims, Error, Wavelet};
@@ -37,14 +36,13 @@ impl Arith for i32 {
     fn saliency_rows(
         buf: &[i32],
         dims: Dims,
-        roi: Roi,
         norm: SaliencyNorm,
         wavelet: Wavelet,
         level: u8,
         row: &mut [i32],
         f: impl FnMut(usize, &[i32]),
     ) {
-        let max = saliency::level_max(buf, dims, roi, norm, wavelet, level);
+        let max = saliency::level_max(buf, dims, norm, wavelet, level);
         saliency::saliency_rows(buf, dims, max, row, f);
     }
 
@@ -156,15 +154,7 @@ pub fn fuse_u8(
         },
         ..*cfg
     };
-    fuse_generic(
-        work.a,
-        work.b,
-        packed,
-        Roi::full(packed),
-        cfg,
-        ll_weight,
-        parts,
-    );
+    fuse_generic(work.a, work.b, packed, cfg, ll_weight, parts);
     let half = 1 << (GUARD_BITS - 1);
     for v in work.a[..packed.pixels()].iter_mut() {
         *v = ((*v + half) >> GUARD_BITS).clamp(0, 255);

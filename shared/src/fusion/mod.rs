@@ -18,7 +18,6 @@ pub(crate) mod integer;
 pub use cyclic::{CyclicBuffers, CyclicFuser};
 pub use integer::{GUARD_BITS, U8Work, fuse_pair, fuse_scratch_len, fuse_u8};
 
-use crate::geometry::Roi;
 use crate::{Dims, Error, Wavelet, saliency::SaliencyNorm};
 
 /// The ablations of the paper's Table II: each removes one part of the method.
@@ -118,12 +117,10 @@ pub(crate) trait Arith: Copy + Default + core::ops::AddAssign {
     fn band_offsets(wavelet: Wavelet) -> BandOffsets;
     /// Calls `f(y, S)` with the row of saliencies `S = exp(Sal/255) − 1` of every row `y`
     /// of the level input, built in `row` (nothing at all for a flat region, whose `S` is 0
-    /// everywhere); a local maximum is taken over `roi`.
-    #[allow(clippy::too_many_arguments)]
+    /// everywhere).
     fn saliency_rows(
         buf: &[Self],
         dims: Dims,
-        roi: Roi,
         norm: SaliencyNorm,
         wavelet: Wavelet,
         level: u8,
@@ -160,7 +157,7 @@ pub(crate) fn fuse_pair_checked<T: Arith>(
     T::check_samples(a, dims)?;
     T::check_samples(b, dims)?;
     let work = split_scratch(scratch, crate::lifting::scratch_len(dims), dims)?;
-    fuse_generic(a, b, dims, Roi::full(dims), cfg, ll_weight, work);
+    fuse_generic(a, b, dims, cfg, ll_weight, work);
     Ok(())
 }
 
@@ -210,7 +207,6 @@ pub(crate) fn split_scratch<T>(
 fn band_saliency<T: Arith>(
     buf: &[T],
     dims: Dims,
-    roi: Roi,
     cfg: &FuseConfig,
     level: u8,
     maps: &mut [T],
@@ -220,44 +216,33 @@ fn band_saliency<T: Arith>(
     let n = bw * bh;
     maps[..MAPS * n].fill(T::default());
     let offsets = T::band_offsets(cfg.wavelet);
-    T::saliency_rows(
-        buf,
-        dims,
-        roi,
-        cfg.norm,
-        cfg.wavelet,
-        level,
-        row,
-        |y, srow| {
-            for (band, &(ox, oy)) in offsets.iter().enumerate() {
-                let sy = y as isize - oy;
-                let by = (sy.max(0) as usize) / 2;
-                if sy < 0 || by >= bh {
-                    continue;
-                }
-                let map_row = &mut maps[band * n + by * bw..band * n + (by + 1) * bw];
-                // Window of coefficient bx: x ∈ {2bx + ox, 2bx + ox + 1}; bx grows with x.
-                let first = ox.max(0) as usize;
-                for (x, &s) in srow.iter().enumerate().skip(first) {
-                    let bx = (x as isize - ox) as usize / 2;
-                    if bx >= bw {
-                        break;
-                    }
-                    map_row[bx] += s;
-                }
+    T::saliency_rows(buf, dims, cfg.norm, cfg.wavelet, level, row, |y, srow| {
+        for (band, &(ox, oy)) in offsets.iter().enumerate() {
+            let sy = y as isize - oy;
+            let by = (sy.max(0) as usize) / 2;
+            if sy < 0 || by >= bh {
+                continue;
             }
-        },
-    );
+            let map_row = &mut maps[band * n + by * bw..band * n + (by + 1) * bw];
+            // Window of coefficient bx: x ∈ {2bx + ox, 2bx + ox + 1}; bx grows with x.
+            let first = ox.max(0) as usize;
+            for (x, &s) in srow.iter().enumerate().skip(first) {
+                let bx = (x as isize - ox) as usize / 2;
+                if bx >= bw {
+                    break;
+                }
+                map_row[bx] += s;
+            }
+        }
+    });
 }
 
 /// The fuse step, generic over the path. `a` and `b` hold the two images on `dims`
-/// (already validated), the image proper inside `roi`; the fused image replaces `a`, `b`
-/// is consumed.
+/// (already validated); the fused image replaces `a`, `b` is consumed.
 pub(crate) fn fuse_generic<T: Arith>(
     a: &mut [T],
     b: &mut [T],
     dims: Dims,
-    roi: Roi,
     cfg: &FuseConfig,
     ll_weight: LlWeight,
     work: Work<'_, T>,
@@ -268,13 +253,13 @@ pub(crate) fn fuse_generic<T: Arith>(
         return;
     }
     let with_weights = cfg.ablation != Ablation::MaxHigh;
-    let (mut d, mut roi) = (dims, roi);
+    let mut d = dims;
     for level in 1..=cfg.levels {
         let n = block_count(d);
         let (maps_a, maps_b) = maps.split_at_mut(MAPS * n);
         if with_weights {
-            band_saliency(a, d, roi, cfg, level, maps_a, line);
-            band_saliency(b, d, roi, cfg, level, maps_b, line);
+            band_saliency(a, d, cfg, level, maps_a, line);
+            band_saliency(b, d, cfg, level, maps_b, line);
             // Image A's maps become W₁ per coefficient.
             for (s1, s2) in maps_a.iter_mut().zip(maps_b.iter()) {
                 *s1 = T::weight(*s1, *s2);
@@ -305,7 +290,6 @@ pub(crate) fn fuse_generic<T: Arith>(
             }
         }
         d = d.low_band();
-        roi = roi.low_band();
     }
     if cfg.ablation != Ablation::SingleLl {
         for_each_in(d, |i| a[i] = T::mix(a[i], b[i], ll_weight));
