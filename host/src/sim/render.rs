@@ -347,17 +347,30 @@ fn kernel(sigma: f32) -> Vec<f32> {
 /// constant for the gel, growing away from the focal line for defocus). Borders repeat
 /// the edge pixel; σ below 0.05 px leaves a row as it is.
 fn gaussian_blur(img: &mut [f32], w: usize, h: usize, sigma_of_row: impl Fn(usize) -> f32) {
-    let sigmas: Vec<f32> = (0..h).map(&sigma_of_row).collect();
+    // One kernel per distinct σ (the gel's is constant; defocus changes row by row), built
+    // once and used by both passes; `None` leaves the row as it is.
+    let mut kernels: Vec<(f32, Vec<f32>)> = Vec::new();
+    let which: Vec<Option<usize>> = (0..h)
+        .map(|y| {
+            let sigma = sigma_of_row(y);
+            if sigma < 0.05 {
+                return None;
+            }
+            if kernels.last().is_none_or(|(s, _)| *s != sigma) {
+                kernels.push((sigma, kernel(sigma)));
+            }
+            Some(kernels.len() - 1)
+        })
+        .collect();
     let mut tmp = vec![0f32; w * h];
     // Along rows.
     for y in 0..h {
         let row = &img[y * w..(y + 1) * w];
         let out = &mut tmp[y * w..(y + 1) * w];
-        if sigmas[y] < 0.05 {
+        let Some(k) = which[y].map(|i| &kernels[i].1) else {
             out.copy_from_slice(row);
             continue;
-        }
-        let k = kernel(sigmas[y]);
+        };
         let r = k.len() / 2;
         for (x, o) in out.iter_mut().enumerate() {
             *o = k
@@ -369,11 +382,10 @@ fn gaussian_blur(img: &mut [f32], w: usize, h: usize, sigma_of_row: impl Fn(usiz
     }
     // Along columns, with the output row's σ.
     for y in 0..h {
-        if sigmas[y] < 0.05 {
+        let Some(k) = which[y].map(|i| &kernels[i].1) else {
             img[y * w..(y + 1) * w].copy_from_slice(&tmp[y * w..(y + 1) * w]);
             continue;
-        }
-        let k = kernel(sigmas[y]);
+        };
         let r = k.len() / 2;
         let out = &mut img[y * w..(y + 1) * w];
         out.fill(0.0);

@@ -231,9 +231,10 @@ fn forward_columns<T: Lift>(wavelet: Wavelet, buf: &mut [T], dims: Dims, scratch
     }
 }
 
-/// The inverse column pass: each block's low rows saturated to `low_of(x)`, high rows to
-/// `high_of(x)`, lifted back, and the interleaved rows saturated to `out_of(x)` (bounds per
-/// column: left of the row pass's split the columns hold row-low coefficients).
+/// The inverse column pass: `bounds_of(x)` gives column `x`'s (low band, high band,
+/// output) saturation bounds (left of the row pass's split the columns hold row-low
+/// coefficients); each block's rows are saturated on the way in, lifted back, and the
+/// interleaved rows saturated on the way out.
 fn inverse_columns<T: Lift>(
     wavelet: Wavelet,
     buf: &mut [T],
@@ -245,12 +246,13 @@ fn inverse_columns<T: Lift>(
     let nl = h.div_ceil(2);
     for x0 in (0..w).step_by(COLUMN_BLOCK) {
         let bw = COLUMN_BLOCK.min(w - x0);
+        // The block's bounds, looked up once rather than per sample.
+        let bounds: [(i32, i32, i32); COLUMN_BLOCK] = core::array::from_fn(|k| bounds_of(x0 + k));
         let block = &mut scratch[..bw * h];
         for y in 0..h {
             let src = &buf[dims.at(x0, y)..dims.at(x0, y) + bw];
-            for (k, (d, &v)) in block[y * bw..(y + 1) * bw].iter_mut().zip(src).enumerate() {
-                let (low, high, _) = bounds_of(x0 + k);
-                *d = v.saturate(if y < nl { low } else { high });
+            for ((d, &v), b) in block[y * bw..(y + 1) * bw].iter_mut().zip(src).zip(&bounds) {
+                *d = v.saturate(if y < nl { b.0 } else { b.1 });
             }
         }
         let (low, high) = block.split_at_mut(nl * bw);
@@ -258,12 +260,12 @@ fn inverse_columns<T: Lift>(
         for y in 0..h {
             let slot = if y % 2 == 0 { y / 2 } else { nl + y / 2 };
             let dst = &mut buf[dims.at(x0, y)..dims.at(x0, y) + bw];
-            for (k, (d, &v)) in dst
+            for ((d, &v), b) in dst
                 .iter_mut()
                 .zip(&block[slot * bw..(slot + 1) * bw])
-                .enumerate()
+                .zip(&bounds)
             {
-                *d = v.saturate(bounds_of(x0 + k).2);
+                *d = v.saturate(b.2);
             }
         }
     }
