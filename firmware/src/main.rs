@@ -12,7 +12,7 @@ mod mcu {
     use embassy_executor::Spawner;
     use embassy_stm32::gpio::{Level, Output, Speed};
     use embassy_time::{Instant, Timer};
-    use rollfuse_core::fusion::{LlWeight, U8Work, fuse_u8};
+    use rollfuse_core::fusion::{LlWeight, U8Work, fuse_scratch_words, fuse_u8};
     use rollfuse_core::{Dims, FuseConfig};
     use {defmt_rtt as _, panic_probe as _};
 
@@ -26,8 +26,7 @@ mod mcu {
         let edge: [u8; N * N] = core::array::from_fn(|i| if i % N < N / 2 { 40 } else { 200 });
         let flat = [120u8; N * N];
         let (mut a, mut b) = ([0i32; N * N], [0i32; N * N]);
-        // A 16-column block of N rows for the column pass, and three saliency maps per image.
-        let mut scratch = [0i32; N * N + 6 * (N / 2) * (N / 2)];
+        let mut scratch = [0i32; fuse_scratch_words(N, N)];
         let work = U8Work {
             a: &mut a,
             b: &mut b,

@@ -1,6 +1,6 @@
 //! Images on the host: planes of `f32` gray levels, loaded from and saved to PNG.
 
-use anyhow::{Context, bail};
+use anyhow::{Context, bail, ensure};
 use std::path::Path;
 
 /// An image as planes of `f32` values on the 8-bit scale (0..=255; 16-bit files are scaled
@@ -87,6 +87,38 @@ impl Planes {
             height: h,
             planes,
         })
+    }
+
+    /// Rounds and clamps to 16-bit (the 8-bit scale times 65535/255): one sample per pixel
+    /// (gray) or three interleaved (RGB).
+    pub fn to_u16(&self) -> Vec<u16> {
+        let c = self.planes.len();
+        let mut out = vec![0u16; self.width * self.height * c];
+        for (ci, plane) in self.planes.iter().enumerate() {
+            for (o, v) in out.iter_mut().skip(ci).step_by(c).zip(plane) {
+                *o = (v * (65535.0 / 255.0)).round().clamp(0.0, 65535.0) as u16;
+            }
+        }
+        out
+    }
+
+    /// Saves as a gray or RGB PNG of 8 or 16 bits per sample (16 keeps the fractions of
+    /// gray levels that fusion produces).
+    pub fn save_png_bits(&self, path: &Path, bits: u8) -> anyhow::Result<()> {
+        if bits == 8 {
+            return self.save_png(path);
+        }
+        ensure!(bits == 16, "PNG output is 8 or 16 bits, not {bits}");
+        let (w, h) = (self.width as u32, self.height as u32);
+        let samples = self.to_u16();
+        let result = if self.is_rgb() {
+            image::ImageBuffer::<image::Rgb<u16>, _>::from_raw(w, h, samples).map(|i| i.save(path))
+        } else {
+            image::ImageBuffer::<image::Luma<u16>, _>::from_raw(w, h, samples).map(|i| i.save(path))
+        };
+        result
+            .context("image buffer does not match its size")?
+            .with_context(|| format!("cannot write {}", path.display()))
     }
 
     /// Saves as an 8-bit gray or RGB PNG.

@@ -40,9 +40,14 @@ fn args<'a>(frames: &'a [PathBuf], rest: &[&'a str]) -> Vec<&'a str> {
         .collect()
 }
 
+/// Runs `rollfuse fuse …`.
+fn fuse(a: &[&str]) -> Output {
+    rollfuse(&[&["fuse"], a].concat())
+}
+
 /// Runs `rollfuse fuse …` expecting failure; returns stderr.
 fn fails(a: &[&str]) -> String {
-    let out = rollfuse(&[&["fuse"], a].concat());
+    let out = fuse(a);
     assert!(!out.status.success(), "should fail: {a:?}");
     let err = String::from_utf8_lossy(&out.stderr).to_string();
     assert!(!err.contains("panicked"), "{err}");
@@ -56,13 +61,7 @@ fn template_alignment_recovers_the_belt_shift_through_noise() {
     // The letters scene has noise, defocus and uneven light; frames are 1 mm = 20 px apart.
     let frames = simulate(tmp.path(), "letters", 8);
     let out = tmp.path().join("fused.png");
-    let run = rollfuse(
-        &[
-            &["fuse"],
-            &args(&frames[2..7], &["--out", out.to_str().unwrap()])[..],
-        ]
-        .concat(),
-    );
+    let run = fuse(&args(&frames[2..7], &["--out", out.to_str().unwrap()]));
     assert!(
         run.status.success(),
         "{}",
@@ -88,25 +87,19 @@ fn motion_alignment_reads_the_manifest() {
     let tmp = tempfile::tempdir().unwrap();
     let frames = simulate(tmp.path(), "dots", 4);
     let out = tmp.path().join("fused.png");
-    let run = rollfuse(
+    let run = fuse(&args(
+        &frames,
         &[
-            &["fuse"],
-            &args(
-                &frames,
-                &[
-                    "--out",
-                    out.to_str().unwrap(),
-                    "--align",
-                    "motion",
-                    "--precision",
-                    "fixed",
-                    "--levels",
-                    "2",
-                ],
-            )[..],
-        ]
-        .concat(),
-    );
+            "--out",
+            out.to_str().unwrap(),
+            "--align",
+            "motion",
+            "--precision",
+            "fixed",
+            "--levels",
+            "2",
+        ],
+    ));
     assert!(
         run.status.success(),
         "{}",
@@ -151,6 +144,10 @@ fn bad_input_gets_one_clear_line_and_a_nonzero_exit() {
     // An output that cannot be written, refused before any work.
     let bad_out = tmp.path().join("no/such/dir/f.png");
     assert!(fails(&args(&frames, &["--out", bad_out.to_str().unwrap()])).contains("cannot write"));
+    // The offsets file beside the output cannot be written (a folder is in its place).
+    std::fs::create_dir(tmp.path().join("o.offsets.json")).unwrap();
+    assert!(fails(&args(&frames, &["--out", o])).contains("o.offsets.json"));
+    std::fs::remove_dir(tmp.path().join("o.offsets.json")).unwrap();
     // Out-of-range parameters.
     assert!(fails(&args(&frames, &["--out", o, "--levels", "7"])).contains("--levels"));
     assert!(fails(&args(&frames, &["--out", o, "--min-score", "2"])).contains("--min-score"));
@@ -172,16 +169,10 @@ fn flat_frames_are_reported_and_not_fused_misaligned() {
         .save(&flat)
         .unwrap();
     let out = tmp.path().join("f.png");
-    let run = rollfuse(
-        &[
-            &["fuse"],
-            &args(
-                &[frames[0].clone(), flat.clone(), frames[1].clone()],
-                &["--out", out.to_str().unwrap()],
-            )[..],
-        ]
-        .concat(),
-    );
+    let run = fuse(&args(
+        &[frames[0].clone(), flat.clone(), frames[1].clone()],
+        &["--out", out.to_str().unwrap()],
+    ));
     assert!(
         run.status.success(),
         "{}",
@@ -237,16 +228,70 @@ fn parallel_and_single_threaded_fusion_give_identical_bytes() {
         levels: 2,
         ..Default::default()
     };
-    let run = |threads: usize| {
+    let run = |placed: &[Placed], threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap();
-        pool.install(|| fuse_mosaic(&placed, &cfg, Precision::F32).unwrap())
+        pool.install(|| fuse_mosaic(placed, &cfg, Precision::F32).unwrap())
     };
-    let (one, many) = (run(1), run(3));
+    let (one, many) = (run(&placed, 1), run(&placed, 3));
     assert_eq!(one.planes.len(), 3, "RGB is fused per channel");
     assert_eq!(one, many);
+
+    // Gray: one channel, the two images of each step on two threads.
+    let gray: Vec<Planes> = images
+        .iter()
+        .map(|p| Planes {
+            planes: vec![p.planes[1].clone()],
+            ..p.clone()
+        })
+        .collect();
+    let placed: Vec<Placed> = gray
+        .iter()
+        .zip(&placed)
+        .map(|(image, p)| Placed { image, at: p.at })
+        .collect();
+    assert_eq!(run(&placed, 1), run(&placed, 2));
+}
+
+#[test]
+fn sixteen_bit_output_holds_the_eight_bit_result_and_its_fractions() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = simulate(tmp.path(), "dots", 3);
+    let (a, b) = (tmp.path().join("a.png"), tmp.path().join("b.png"));
+    for (out, bits) in [(&a, "8"), (&b, "16")] {
+        let run = fuse(&args(
+            &frames,
+            &["--out", out.to_str().unwrap(), "--out-bits", bits],
+        ));
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+    }
+    let eight = image::open(&a).unwrap();
+    let sixteen = image::open(&b).unwrap();
+    assert_eq!(sixteen.color(), image::ColorType::L16);
+    let (eight, sixteen) = (eight.to_luma8(), sixteen.to_luma16());
+    let mut fractional = 0;
+    for (e, s) in eight.pixels().zip(sixteen.pixels()) {
+        let v = f64::from(s[0]) / 257.0;
+        assert!((v - f64::from(e[0])).abs() <= 0.5 + 1e-3, "{v} vs {}", e[0]);
+        fractional += usize::from(s[0] % 257 != 0);
+    }
+    assert!(
+        fractional > 0,
+        "16-bit output keeps fractions of gray levels"
+    );
+    // clap's own message, which lists the possible values.
+    let bad = fuse(&args(
+        &frames,
+        &["--out", a.to_str().unwrap(), "--out-bits", "12"],
+    ));
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("possible values: 8, 16"));
 }
 
 #[test]
@@ -271,13 +316,10 @@ fn sixteen_bit_frames_fuse_like_their_eight_bit_scaling() {
         .collect();
     let (a, b) = (tmp.path().join("a.png"), tmp.path().join("b.png"));
     for (input, out) in [(&frames, &a), (&wide, &b)] {
-        let run = rollfuse(
-            &[
-                &["fuse"],
-                &args(input, &["--out", out.to_str().unwrap(), "--align", "none"])[..],
-            ]
-            .concat(),
-        );
+        let run = fuse(&args(
+            input,
+            &["--out", out.to_str().unwrap(), "--align", "none"],
+        ));
         assert!(
             run.status.success(),
             "{}",

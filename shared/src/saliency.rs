@@ -85,13 +85,8 @@ pub(crate) fn neighbourhood_row<T: Copy>(
     y: usize,
     mut f: impl FnMut(usize, T, [T; 4]),
 ) {
-    let (w, h) = (dims.width(), dims.height());
-    let row = |r: usize| &buf[dims.at(0, r)..dims.at(0, r) + w];
-    let (up, mid, down) = (
-        row(mirror(y as isize - 1, h)),
-        row(y),
-        row(mirror(y as isize + 1, h)),
-    );
+    let (up, mid, down) = row_and_neighbours(buf, dims, y);
+    let w = mid.len();
     if w == 1 {
         f(0, mid[0], [up[0], down[0], mid[0], mid[0]]);
         return;
@@ -105,6 +100,48 @@ pub(crate) fn neighbourhood_row<T: Copy>(
         mid[w - 1],
         [up[w - 1], down[w - 1], mid[w - 2], mid[w - 2]],
     );
+}
+
+/// Sets `out[x] = f(centre, [up, down, left, right])` for every pixel of row `y`, with the
+/// extension of [`neighbourhood_row`]. The interior runs over zipped slices, with no index
+/// checks, so a simple `f` vectorizes.
+#[inline(always)]
+pub(crate) fn map_neighbourhood_row<T: Copy, U>(
+    buf: &[T],
+    dims: Dims,
+    y: usize,
+    out: &mut [U],
+    f: impl Fn(T, [T; 4]) -> U,
+) {
+    let (up, mid, down) = row_and_neighbours(buf, dims, y);
+    let w = mid.len();
+    let out = &mut out[..w];
+    if w == 1 {
+        out[0] = f(mid[0], [up[0], down[0], mid[0], mid[0]]);
+        return;
+    }
+    out[0] = f(mid[0], [up[0], down[0], mid[1], mid[1]]);
+    out[w - 1] = f(mid[w - 1], [up[w - 1], down[w - 1], mid[w - 2], mid[w - 2]]);
+    let interior = out[1..w - 1]
+        .iter_mut()
+        .zip(&up[1..])
+        .zip(&down[1..])
+        .zip(mid.windows(3));
+    for (((o, &u), &d), m) in interior {
+        *o = f(m[1], [u, d, m[0], m[2]]);
+    }
+}
+
+/// Rows `y − 1`, `y` and `y + 1` of the region, mirrored at its top and bottom.
+#[inline(always)]
+fn row_and_neighbours<T>(buf: &[T], dims: Dims, y: usize) -> (&[T], &[T], &[T]) {
+    let (w, h) = (dims.width(), dims.height());
+    let row = |r: usize| &buf[dims.at(0, r)..dims.at(0, r) + w];
+    (
+        row(mirror(y as isize - 1, h)),
+        row(y),
+        row(mirror(y as isize + 1, h)),
+    )
 }
 
 /// Calls `f(x, y, centre, [up, down, left, right])` for every pixel of the region, in
@@ -233,8 +270,8 @@ pub(crate) fn saliency_rows(
     let row = &mut row[..dims.width()];
     for y in 0..dims.height() {
         // S ≤ 1.7183 · 2²⁴ < 2³¹.
-        neighbourhood_row(buf, dims, y, |x, c, around| {
-            row[x] = norm.saliency(laplacian(c, around)) as i32
+        map_neighbourhood_row(buf, dims, y, row, |c, around| {
+            norm.saliency(laplacian(c, around)) as i32
         });
         f(y, row);
     }

@@ -19,15 +19,29 @@ pub enum AlignArg {
     Motion,
 }
 
+/// `--out-bits`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum OutBits {
+    /// 8-bit PNG.
+    #[value(name = "8")]
+    Eight,
+    /// 16-bit PNG (the 8-bit scale times 257).
+    #[value(name = "16")]
+    Sixteen,
+}
+
 /// Arguments of `rollfuse fuse`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The frames, in acquisition order (PNG, 8- or 16-bit, gray or RGB).
     #[arg(required = true)]
     pub frames: Vec<PathBuf>,
-    /// The fused image (8-bit PNG).
+    /// The fused image (PNG).
     #[arg(long)]
     pub out: PathBuf,
+    /// Bits per sample of the output PNG: 8, or 16 to keep the fused values' fractions.
+    #[arg(long, value_enum, default_value = "8")]
+    pub out_bits: OutBits,
     /// Wavelet.
     #[arg(long, value_enum, default_value = "db2")]
     pub wavelet: WaveletArg,
@@ -186,8 +200,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !(0.0 <= t0 && t0 < t1 && t1 <= 1.0) {
         bail!("--template-rows must be two fractions 0 ≤ top < bottom ≤ 1, got {t0},{t1}");
     }
+    let offsets_path = args.out.with_extension("offsets.json");
     check_writable(&args.out)?;
+    check_writable(&offsets_path)?;
     refuse_overwriting_inputs(&args.out, &args.frames)?;
+    refuse_overwriting_inputs(&offsets_path, &args.frames)?;
     let frames = load_frames(&args.frames)?;
     let cfg = FuseConfig {
         wavelet: args.wavelet.into(),
@@ -306,8 +323,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let started = std::time::Instant::now();
     let fused = fuse_mosaic(&placed, &cfg, args.precision)?;
     let took = started.elapsed().as_secs_f64();
-    fused.save_png(&args.out)?;
-    let offsets_path = args.out.with_extension("offsets.json");
+    let bits = match args.out_bits {
+        OutBits::Eight => 8,
+        OutBits::Sixteen => 16,
+    };
+    fused.save_png_bits(&args.out, bits)?;
     std::fs::write(&offsets_path, serde_json::to_string_pretty(&record)? + "\n")
         .with_context(|| format!("cannot write {}", offsets_path.display()))?;
     println!("offsets (rows, columns) on the canvas:");

@@ -13,7 +13,7 @@ use crate::image::Planes;
 use align::Offset;
 use anyhow::{bail, ensure};
 use rayon::prelude::*;
-use rollfuse_core::fusion::{LlWeight, U8Work, fuse_scratch_len, fuse_u8};
+use rollfuse_core::fusion::{Join, LlWeight, Sequential, U8Work, fuse_scratch_len, fuse_u8};
 use rollfuse_core::{Dims, FuseConfig, float};
 
 /// Which arithmetic fuses.
@@ -87,14 +87,7 @@ pub fn fuse_mosaic(
         }
     }
     Dims::new(w, h)?.check_levels(cfg.levels)?;
-    let min_y = frames.iter().map(|f| f.at.dy).min().unwrap_or(0);
-    let min_x = frames.iter().map(|f| f.at.dx).min().unwrap_or(0);
-    let cw = (frames.iter().map(|f| f.at.dx).max().unwrap_or(0) - min_x) as usize + w;
-    let ch = (frames.iter().map(|f| f.at.dy).max().unwrap_or(0) - min_y) as usize + h;
-    ensure!(
-        cw <= 4 * rollfuse_core::MAX_DIMENSION && ch <= 4 * rollfuse_core::MAX_DIMENSION,
-        "mosaic of {cw}×{ch} is too large"
-    );
+    let (min_x, min_y, cw, ch) = canvas(frames, w, h)?;
     // Channels are independent: fuse them in parallel (results do not depend on threads).
     let planes: Vec<Vec<f32>> = (0..channels)
         .into_par_iter()
@@ -118,100 +111,135 @@ fn fuse_channel(
     let (w, h) = (frames[0].image.width, frames[0].image.height);
     let mut mosaic = vec![0f32; cw * ch];
     let mut seen = vec![false; cw * ch];
-    let mut fuser = Fuser::new(w, h, cfg, precision)?;
+    let mut fuser = Fuser::new(w, h, cw, cfg, precision)?;
     for (k, f) in frames.iter().enumerate() {
         let (ox, oy) = ((f.at.dx - min_x) as usize, (f.at.dy - min_y) as usize);
         let frame = &f.image.planes[c];
-        // The mosaic under this footprint, holes filled from the frame.
-        let mut under = vec![0f32; w * h];
-        for y in 0..h {
-            for x in 0..w {
-                let i = (oy + y) * cw + ox + x;
-                under[y * w + x] = if seen[i] { mosaic[i] } else { frame[y * w + x] };
+        let start = oy * cw + ox;
+        // The footprint's holes take the frame's own values: fusing them with themselves
+        // gives them back, so the first frame over any region passes through.
+        let mut any_seen = false;
+        for (y, frame_row) in frame.chunks_exact(w).enumerate() {
+            let span = start + y * cw..start + y * cw + w;
+            let (m, s) = (&mut mosaic[span.clone()], &mut seen[span]);
+            for ((m, s), &v) in m.iter_mut().zip(s.iter_mut()).zip(frame_row) {
+                if !*s {
+                    *m = v;
+                }
+                any_seen |= *s;
+                *s = true;
             }
         }
-        let ll = LlWeight::for_frame(cfg.ll_weighting, k as u32 + 1);
-        let fused = if k == 0 {
-            under
-        } else {
-            fuser.fuse(&under, frame, ll)?
-        };
-        for y in 0..h {
-            for x in 0..w {
-                let i = (oy + y) * cw + ox + x;
-                mosaic[i] = fused[y * w + x];
-                seen[i] = true;
-            }
+        if any_seen {
+            let ll = LlWeight::for_frame(cfg.ll_weighting, k as u32 + 1);
+            fuser.fuse_into(&mut mosaic[start..], frame, ll)?;
         }
     }
     Ok(mosaic)
 }
 
-/// One fuse step's buffers, allocated once per channel.
+/// `rayon::join` for the core: a fuse step's two images on two threads when the pool has
+/// them (gray frames have no channels to spread over). The result does not depend on it.
+struct RayonJoin;
+
+impl Join for RayonJoin {
+    fn join(&self, a: impl FnOnce() + Send, b: impl FnOnce() + Send) {
+        rayon::join(a, b);
+    }
+}
+
+/// Fuses frames into a region of the mosaic, in place, with buffers allocated once per
+/// channel.
 struct Fuser {
-    dims: Dims,
+    /// The frame's footprint on the mosaic (rows `cw` apart).
+    region: Dims,
     cfg: FuseConfig,
     precision: Precision,
-    a: Vec<f32>,
+    /// The incoming frame, laid out like the region (the fuse step uses it as work space).
     b: Vec<f32>,
     scratch: Vec<f32>,
+    a8: Vec<u8>,
+    b8: Vec<u8>,
     ia: Vec<i32>,
     ib: Vec<i32>,
     iscratch: Vec<i32>,
 }
 
 impl Fuser {
-    fn new(w: usize, h: usize, cfg: &FuseConfig, precision: Precision) -> anyhow::Result<Self> {
-        let dims = Dims::new(w, h)?;
-        let (f, i) = match precision {
-            Precision::F32 => (1, 0),
-            Precision::Fixed => (0, 1),
-        };
+    fn new(
+        w: usize,
+        h: usize,
+        cw: usize,
+        cfg: &FuseConfig,
+        precision: Precision,
+    ) -> anyhow::Result<Self> {
+        let region = Dims::with_stride(w, h, cw)?;
+        let packed = Dims::new(w, h)?;
+        let n = w * h;
+        let fixed = usize::from(precision == Precision::Fixed);
         Ok(Self {
-            dims,
+            region,
             cfg: *cfg,
             precision,
-            a: vec![0.0; f * w * h],
-            b: vec![0.0; f * w * h],
-            scratch: vec![0.0; f * float::fuse_scratch_len(dims)],
-            ia: vec![0; i * w * h],
-            ib: vec![0; i * w * h],
-            iscratch: vec![0; i * fuse_scratch_len(dims)],
+            b: vec![0.0; (1 - fixed) * region.buffer_len()],
+            scratch: vec![0.0; (1 - fixed) * float::fuse_scratch_len(region)],
+            a8: vec![0; fixed * n],
+            b8: vec![0; fixed * n],
+            ia: vec![0; fixed * n],
+            ib: vec![0; fixed * n],
+            iscratch: vec![0; fixed * fuse_scratch_len(packed)],
         })
     }
 
-    fn fuse(&mut self, a: &[f32], b: &[f32], ll: LlWeight) -> anyhow::Result<Vec<f32>> {
-        let dims = self.dims;
+    /// Fuses `frame` (packed) into the region at the start of `mosaic`, in place.
+    fn fuse_into(&mut self, mosaic: &mut [f32], frame: &[f32], ll: LlWeight) -> anyhow::Result<()> {
+        let region = self.region;
+        let (w, stride) = (region.width(), region.stride());
         match self.precision {
             Precision::F32 => {
-                self.a.copy_from_slice(a);
-                self.b.copy_from_slice(b);
-                float::fuse_pair(
-                    &mut self.a,
-                    &mut self.b,
-                    dims,
-                    &self.cfg,
-                    ll,
-                    &mut self.scratch,
-                )?;
-                Ok(self.a.clone())
+                for (dst, src) in self.b.chunks_mut(stride).zip(frame.chunks_exact(w)) {
+                    dst[..w].copy_from_slice(src);
+                }
+                let (cfg, scratch) = (&self.cfg, &mut self.scratch);
+                let b = &mut self.b;
+                // With one thread, rayon's job machinery only costs time.
+                if rayon::current_num_threads() > 1 {
+                    float::fuse_pair_with(&RayonJoin, mosaic, b, region, cfg, ll, scratch)?;
+                } else {
+                    float::fuse_pair_with(&Sequential, mosaic, b, region, cfg, ll, scratch)?;
+                }
             }
             Precision::Fixed => {
-                let to8 = |v: &[f32]| {
-                    v.iter()
-                        .map(|x| x.round().clamp(0.0, 255.0) as u8)
-                        .collect::<Vec<u8>>()
-                };
-                let (a8, b8) = (to8(a), to8(b));
+                let to8 = |v: f32| v.round().clamp(0.0, 255.0) as u8;
+                let rows = mosaic.chunks(stride).zip(frame.chunks_exact(w));
+                for ((a8, b8), (a, b)) in self
+                    .a8
+                    .chunks_exact_mut(w)
+                    .zip(self.b8.chunks_exact_mut(w))
+                    .zip(rows)
+                {
+                    for (d, &v) in a8.iter_mut().zip(a) {
+                        *d = to8(v);
+                    }
+                    for (d, &v) in b8.iter_mut().zip(b) {
+                        *d = to8(v);
+                    }
+                }
+                let packed = Dims::new(w, region.height())?;
                 let work = U8Work {
                     a: &mut self.ia,
                     b: &mut self.ib,
                     scratch: &mut self.iscratch,
                 };
-                fuse_u8((&a8, dims), (&b8, dims), &self.cfg, ll, work)?;
-                Ok(self.ia.iter().map(|&v| v as f32).collect())
+                fuse_u8((&self.a8, packed), (&self.b8, packed), &self.cfg, ll, work)?;
+                for (dst, src) in mosaic.chunks_mut(stride).zip(self.ia.chunks_exact(w)) {
+                    for (d, &v) in dst.iter_mut().zip(src) {
+                        *d = v as f32;
+                    }
+                }
             }
         }
+        Ok(())
     }
 }
 

@@ -1,10 +1,10 @@
 //! The `f32` fusion path: the shared driver with the integer path's lifting steps run in
 //! exact `f32` arithmetic, `f32` saliency and `f32` weights.
 
-use crate::fusion::{Arith, BandOffsets, FuseConfig, LlWeight, fuse_pair_checked};
+use crate::fusion::{Arith, FuseConfig, Join, LlWeight, Sequential, fuse_pair_checked};
 use crate::lifting::{self, LevelBounds};
 use crate::saliency::ll_gain_q16;
-use crate::saliency::{SaliencyNorm, for_each_neighbourhood, neighbourhood_row};
+use crate::saliency::{SaliencyNorm, map_neighbourhood_row};
 use crate::{Dims, Error, Wavelet};
 
 impl Arith for f32 {
@@ -24,11 +24,6 @@ impl Arith for f32 {
         }
     }
 
-    fn band_offsets(wavelet: Wavelet) -> BandOffsets {
-        // The same lifting as the integer path, so the same coefficient placement.
-        <i32 as Arith>::band_offsets(wavelet)
-    }
-
     fn saliency_rows(
         buf: &[f32],
         dims: Dims,
@@ -38,13 +33,14 @@ impl Arith for f32 {
         row: &mut [f32],
         mut f: impl FnMut(usize, &[f32]),
     ) {
-        let lap = |c: f32, around: [f32; 4]| (around.iter().sum::<f32>() - 4.0 * c).abs();
+        let lap =
+            |c: f32, [up, down, left, right]: [f32; 4]| (up + down + left + right - 4.0 * c).abs();
+        let row = &mut row[..dims.width()];
         let max = match norm {
-            SaliencyNorm::Local => {
-                let mut m = 0f32;
-                for_each_neighbourhood(buf, dims, |_, _, c, a| m = m.max(lap(c, a)));
-                m
-            }
+            SaliencyNorm::Local => (0..dims.height()).fold(0f32, |m, y| {
+                map_neighbourhood_row(buf, dims, y, row, lap);
+                max_of(row).max(m)
+            }),
             // The LL band's DC gain per level, as on the integer path.
             SaliencyNorm::Reference(r) => {
                 let gain = ll_gain_q16(wavelet) as f32 / 65536.0;
@@ -55,12 +51,13 @@ impl Arith for f32 {
             return;
         }
         let inv = 1.0 / max;
-        let row = &mut row[..dims.width()];
         for y in 0..dims.height() {
             // Sal/255 = |∇²I| / max, saturated at 1 for a Reference maximum.
-            neighbourhood_row(buf, dims, y, |x, c, a| {
-                row[x] = expm1_unit((lap(c, a) * inv).min(1.0))
-            });
+            map_neighbourhood_row(buf, dims, y, row, lap);
+            // A pass of its own: a plain map over the row, which vectorizes.
+            for v in row.iter_mut() {
+                *v = expm1_unit((*v * inv).min(1.0));
+            }
             f(y, row);
         }
     }
@@ -89,7 +86,11 @@ impl Arith for f32 {
     fn check_samples(buf: &[f32], dims: Dims) -> Result<(), Error> {
         for y in 0..dims.height() {
             let row = &buf[dims.at(0, y)..dims.at(dims.width(), y)];
-            if row.iter().any(|v| v.is_nan() || v.abs() > MAX_SAMPLE_F32) {
+            // No early exit, so the scan vectorizes; NaN fails the comparison.
+            let in_range = row
+                .iter()
+                .fold(true, |ok, v| ok & (v.abs() <= MAX_SAMPLE_F32));
+            if !in_range {
                 return Err(Error::InvalidParameter {
                     name: "sample (NaN, infinite or beyond ±1e9)",
                 });
@@ -97,6 +98,19 @@ impl Arith for f32 {
         }
         Ok(())
     }
+}
+
+/// The largest of `values` (all finite and ≥ 0), over eight lanes so that it vectorizes.
+fn max_of(values: &[f32]) -> f32 {
+    let mut lanes = [0f32; 8];
+    let mut chunks = values.chunks_exact(8);
+    for chunk in &mut chunks {
+        for (m, &v) in lanes.iter_mut().zip(chunk) {
+            *m = if v > *m { v } else { *m };
+        }
+    }
+    let rest = chunks.remainder().iter();
+    lanes.iter().chain(rest).fold(0f32, |m, &v| m.max(v))
 }
 
 /// `eˣ − 1` for `x` in `0..=1`: its Taylor series to degree 9 in Horner form, exact to
@@ -125,10 +139,11 @@ fn expm1_unit(x: f32) -> f32 {
 /// is 65535), far enough below `f32::MAX` that Laplacians and sums stay finite.
 pub const MAX_SAMPLE_F32: f32 = 1e9;
 
-/// Scratch length (in `f32`) that [`fuse_pair`] needs for `dims`: as on the integer path
-/// ([`crate::fusion::fuse_scratch_len`]), a transform line and the saliency maps.
+/// Scratch length (in `f32`) that [`fuse_pair`] and [`fuse_pair_with`] need for `dims`:
+/// as on the integer path ([`crate::fusion::fuse_scratch_len`]), plus a second transform
+/// line so both images can be worked on at once.
 pub fn fuse_scratch_len(dims: Dims) -> usize {
-    crate::fusion::fuse_scratch_len(dims)
+    crate::fusion::fuse_scratch_len(dims) + lifting::scratch_len(dims)
 }
 
 /// One `f32` fuse step on the `dims` region of `a` and `b`: the fused image replaces `a`,
@@ -142,7 +157,21 @@ pub fn fuse_pair(
     ll_weight: LlWeight,
     scratch: &mut [f32],
 ) -> Result<(), Error> {
-    fuse_pair_checked(a, b, dims, cfg, ll_weight, scratch)
+    fuse_pair_with(&Sequential, a, b, dims, cfg, ll_weight, scratch)
+}
+
+/// [`fuse_pair`] with each level's two independent halves (saliency and transform of
+/// each image) run through `join`, e.g. on two threads. The result does not depend on it.
+pub fn fuse_pair_with(
+    join: &impl Join,
+    a: &mut [f32],
+    b: &mut [f32],
+    dims: Dims,
+    cfg: &FuseConfig,
+    ll_weight: LlWeight,
+    scratch: &mut [f32],
+) -> Result<(), Error> {
+    fuse_pair_checked(a, b, dims, cfg, ll_weight, scratch, 2, join)
 }
 
 #[cfg(test)]

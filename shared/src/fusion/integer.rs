@@ -2,7 +2,7 @@
 //! [`crate::lifting`]. This is what the MCU runs.
 
 use super::{
-    Arith, BandOffsets, FuseConfig, LlWeight, fuse_generic, fuse_pair_checked, maps_len,
+    Arith, FuseConfig, LlWeight, Sequential, fuse_generic, fuse_pair_checked, maps_len,
     split_scratch,
 };
 use crate::lifting::{self, bounds::level_bounds};
@@ -22,14 +22,6 @@ impl Arith for i32 {
         }
         for k in (0..levels as usize).rev() {
             lifting::inverse_level(wavelet, buf, sizes[k], scratch, &bounds[k]);
-        }
-    }
-
-    fn band_offsets(wavelet: Wavelet) -> BandOffsets {
-        match wavelet {
-            Wavelet::Haar => [(0, 0); 3],
-            // Low band one pixel later, high band one earlier (see BandOffsets).
-            Wavelet::Db2 => [(-1, 1), (1, -1), (-1, -1)],
         }
     }
 
@@ -73,9 +65,16 @@ impl Arith for i32 {
 }
 
 /// Scratch length (in `i32`) that [`fuse_pair`] and [`fuse_u8`] need for `dims`: a
-/// transform line and the saliency maps.
+/// transform line and the saliency maps ([`fuse_scratch_words`]).
 pub fn fuse_scratch_len(dims: Dims) -> usize {
-    lifting::scratch_len(dims) + maps_len(dims)
+    fuse_scratch_words(dims.width(), dims.height())
+}
+
+/// [`fuse_scratch_len`] for a `width × height` image, usable in constants (array sizes):
+/// `max(w, min(w, 16)·h)` for the transform ([`lifting::scratch_len`]) plus
+/// `2·(⌈w/2⌉ + 1)·(⌈h/2⌉ + 1)` for the two saliency maps.
+pub const fn fuse_scratch_words(width: usize, height: usize) -> usize {
+    lifting::scratch_words(width, height) + maps_len(width, height)
 }
 
 /// One integer fuse step: the fused image of `a` and `b` replaces `a`; `b` is used as work
@@ -90,7 +89,7 @@ pub fn fuse_pair(
     ll_weight: LlWeight,
     scratch: &mut [i32],
 ) -> Result<(), Error> {
-    fuse_pair_checked(a, b, dims, cfg, ll_weight, scratch)
+    fuse_pair_checked(a, b, dims, cfg, ll_weight, scratch, 1, &Sequential)
 }
 
 /// Fraction bits the 8-bit fusion keeps below the pixel's integer part while it works.
@@ -135,7 +134,7 @@ pub fn fuse_u8(
     if ll_weight.0 > 1 << 15 {
         return Err(Error::InvalidParameter { name: "ll_weight" });
     }
-    let parts = split_scratch(work.scratch, lifting::scratch_len(packed), packed)?;
+    let parts = split_scratch(work.scratch, lifting::scratch_len(packed), 1, packed)?;
     for (src, src_dims, dst) in [(a, a_dims, &mut *work.a), (b, b_dims, &mut *work.b)] {
         for y in 0..h {
             let row = &src[src_dims.at(0, y)..src_dims.at(w, y)];
@@ -154,7 +153,7 @@ pub fn fuse_u8(
         },
         ..*cfg
     };
-    fuse_generic(work.a, work.b, packed, cfg, ll_weight, parts);
+    fuse_generic(work.a, work.b, packed, cfg, ll_weight, parts, &Sequential);
     let half = 1 << (GUARD_BITS - 1);
     for v in work.a[..packed.pixels()].iter_mut() {
         *v = ((*v + half) >> GUARD_BITS).clamp(0, 255);

@@ -16,7 +16,7 @@ mod cyclic;
 pub(crate) mod integer;
 
 pub use cyclic::{CyclicBuffers, CyclicFuser};
-pub use integer::{GUARD_BITS, U8Work, fuse_pair, fuse_scratch_len, fuse_u8};
+pub use integer::{GUARD_BITS, U8Work, fuse_pair, fuse_scratch_len, fuse_scratch_words, fuse_u8};
 
 use crate::{Dims, Error, Wavelet, saliency::SaliencyNorm};
 
@@ -97,24 +97,59 @@ impl LlWeight {
     }
 }
 
-/// Where the coefficients of each high band (HL, LH, HH) sit on the level's input grid.
+/// Where each high band's coefficients take their saliency, on one map per image.
 ///
-/// A coefficient `(i, j)` of a band takes its weight from the 2×2 window of input pixels
-/// `x ∈ {2i + ox, 2i + ox + 1}`, `y ∈ {2j + oy, 2j + oy + 1}`: the two middle taps of its
-/// filter along each axis. The filter banks of PyWavelets and the S-transform are centred
-/// on `{2i, 2i + 1}` (offset 0); the db2 lifting's low band sits one pixel later (+1) and
-/// its high band one pixel earlier (−1), and its weights follow it.
-pub(crate) type BandOffsets = [(isize, isize); 3];
+/// A coefficient of a band takes its weight from the 2×2 window of the level's input under
+/// the two middle taps of its filter along each axis. The S-transform centres them on
+/// `{2i, 2i + 1}`; the db2 lifting's low band sits one pixel later and its high band one
+/// pixel earlier, so its HL coefficient `(i, j)` reads `x ∈ {2i − 1, 2i}`,
+/// `y ∈ {2j + 1, 2j + 2}`, and likewise for LH and HH. Every one of those windows starts at
+/// an even (Haar) or an odd (db2) pixel, so one map of 2×2 window sums per image serves all
+/// three bands: map entry `(m, n)` sums `x ∈ {2m − phase, 2m − phase + 1}` by
+/// `y ∈ {2n − phase, 2n − phase + 1}` (pixels outside the image count for nothing, and
+/// both images sum the same pixels), and coefficient `(i, j)` of band `k` reads entry
+/// `(i + shifts[k].0, j + shifts[k].1)`.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct WindowLayout {
+    /// 0: windows start at even pixels; 1: at odd ones.
+    pub phase: usize,
+    /// Map entry of coefficient `(0, 0)` of HL, LH and HH.
+    pub shifts: [(usize, usize); 3],
+}
+
+impl WindowLayout {
+    /// The layout of the lifting of `wavelet` (both fusion paths run the same lifting).
+    pub fn of(wavelet: Wavelet) -> Self {
+        match wavelet {
+            Wavelet::Haar => Self {
+                phase: 0,
+                shifts: [(0, 0); 3],
+            },
+            // HL: x ∈ {2i − 1, 2i}, y ∈ {2j + 1, 2j + 2}; LH the other way round; HH both
+            // one pixel earlier.
+            Wavelet::Db2 => Self {
+                phase: 1,
+                shifts: [(0, 1), (1, 0), (0, 0)],
+            },
+        }
+    }
+
+    /// Map width and height for a level input of `dims`.
+    pub fn map_dims(self, dims: Dims) -> (usize, usize) {
+        (
+            dims.width().div_ceil(2) + self.phase,
+            dims.height().div_ceil(2) + self.phase,
+        )
+    }
+}
 
 /// The numeric operations a fusion path supplies: coefficients, saliency sums and weights
 /// all live in `Self` (i32 on the integer path, f32 on the float path).
-pub(crate) trait Arith: Copy + Default + core::ops::AddAssign {
+pub(crate) trait Arith: Copy + Default + Send + Sync + core::ops::AddAssign {
     /// One forward 2-D level on `dims`.
     fn forward_level(wavelet: Wavelet, buf: &mut [Self], dims: Dims, scratch: &mut [Self]);
     /// All inverse levels, deepest first.
     fn inverse(wavelet: Wavelet, buf: &mut [Self], dims: Dims, levels: u8, scratch: &mut [Self]);
-    /// Band offsets of this path's transform for `wavelet`.
-    fn band_offsets(wavelet: Wavelet) -> BandOffsets;
     /// Calls `f(y, S)` with the row of saliencies `S = exp(Sal/255) − 1` of every row `y`
     /// of the level input, built in `row` (nothing at all for a flat region, whose `S` is 0
     /// everywhere).
@@ -139,7 +174,28 @@ pub(crate) trait Arith: Copy + Default + core::ops::AddAssign {
     fn check_samples(buf: &[Self], dims: Dims) -> Result<(), Error>;
 }
 
-/// The checks and the call shared by both paths' public `fuse_pair`.
+/// Runs the two independent halves of a fuse step level (each image's saliency and
+/// forward transform): one after the other, or at once where there are threads (the host
+/// passes `rayon::join`). Either way the result is the same, to the bit.
+pub trait Join {
+    /// Runs `a` and `b`, in any order or at once, and returns when both are done.
+    fn join(&self, a: impl FnOnce() + Send, b: impl FnOnce() + Send);
+}
+
+/// [`Join`] on one thread: `a`, then `b`.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Sequential;
+
+impl Join for Sequential {
+    fn join(&self, a: impl FnOnce() + Send, b: impl FnOnce() + Send) {
+        a();
+        b();
+    }
+}
+
+/// The checks and the call shared by both paths' public `fuse_pair`. `lines` is how many
+/// transform lines the scratch holds: 1, or 2 to let `join` run both images at once.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn fuse_pair_checked<T: Arith>(
     a: &mut [T],
     b: &mut [T],
@@ -147,6 +203,8 @@ pub(crate) fn fuse_pair_checked<T: Arith>(
     cfg: &FuseConfig,
     ll_weight: LlWeight,
     scratch: &mut [T],
+    lines: usize,
+    join: &impl Join,
 ) -> Result<(), Error> {
     dims.check_buffer("first image", a.len())?;
     dims.check_buffer("second image", b.len())?;
@@ -156,38 +214,37 @@ pub(crate) fn fuse_pair_checked<T: Arith>(
     }
     T::check_samples(a, dims)?;
     T::check_samples(b, dims)?;
-    let work = split_scratch(scratch, crate::lifting::scratch_len(dims), dims)?;
-    fuse_generic(a, b, dims, cfg, ll_weight, work);
+    let work = split_scratch(scratch, crate::lifting::scratch_len(dims), lines, dims)?;
+    fuse_generic(a, b, dims, cfg, ll_weight, work, join);
     Ok(())
 }
 
-/// Number of weights per band map for `dims`: one per coefficient of a level-1 subband.
-pub(crate) fn block_count(dims: Dims) -> usize {
-    dims.width().div_ceil(2) * dims.height().div_ceil(2)
-}
-
-/// Saliency maps per image: one per high band.
-const MAPS: usize = 3;
-
-/// Scratch a fuse step needs besides its transform line: three band maps per image.
-pub(crate) fn maps_len(dims: Dims) -> usize {
-    2 * MAPS * block_count(dims)
+/// Scratch a fuse step needs besides its transform line: one window map per image, each
+/// at most `(⌈w/2⌉ + 1) × (⌈h/2⌉ + 1)` (see [`WindowLayout`]).
+pub(crate) const fn maps_len(width: usize, height: usize) -> usize {
+    2 * (width.div_ceil(2) + 1) * (height.div_ceil(2) + 1)
 }
 
 /// Work areas of one fuse step, split from the caller's scratch.
 pub(crate) struct Work<'s, T> {
+    /// The transform line (image A's, and B's too when there is no second).
     pub line: &'s mut [T],
-    /// `2 · MAPS` maps of `block_count` values: image A's HL, LH, HH, then image B's.
+    /// A second line, so both images can be worked on at once.
+    pub line_b: Option<&'s mut [T]>,
+    /// Two window maps: image A's, then image B's.
     pub maps: &'s mut [T],
 }
 
-/// Splits the caller's scratch into a transform line of `line` elements and the maps.
+/// Splits the caller's scratch into `lines` (1 or 2) transform lines of `line` elements
+/// and the maps.
 pub(crate) fn split_scratch<T>(
     scratch: &mut [T],
     line: usize,
+    lines: usize,
     dims: Dims,
 ) -> Result<Work<'_, T>, Error> {
-    let needed = line + maps_len(dims);
+    let maps = maps_len(dims.width(), dims.height());
+    let needed = lines * line + maps;
     if scratch.len() < needed {
         return Err(Error::BufferTooSmall {
             which: "scratch",
@@ -195,46 +252,71 @@ pub(crate) fn split_scratch<T>(
             got: scratch.len(),
         });
     }
-    let (line, rest) = scratch.split_at_mut(line);
+    let (first, rest) = scratch.split_at_mut(line);
+    let (line_b, rest) = if lines > 1 {
+        let (b, rest) = rest.split_at_mut(line);
+        (Some(b), rest)
+    } else {
+        (None, rest)
+    };
     Ok(Work {
-        line,
-        maps: &mut rest[..maps_len(dims)],
+        line: first,
+        line_b,
+        maps: &mut rest[..maps],
     })
 }
 
-/// Sums each pixel's saliency into the 2×2 window of every band map that covers it, a row
-/// at a time (`row` is a line of scratch).
-fn band_saliency<T: Arith>(
+/// Fills `map` (`layout.map_dims(dims)`, row-major) with the 2×2 window sums of the
+/// level input's saliency, a row at a time (`row` is a line of scratch).
+fn window_saliency<T: Arith>(
     buf: &[T],
     dims: Dims,
     cfg: &FuseConfig,
     level: u8,
-    maps: &mut [T],
+    layout: WindowLayout,
+    map: &mut [T],
     row: &mut [T],
 ) {
-    let (bw, bh) = (dims.width().div_ceil(2), dims.height().div_ceil(2));
-    let n = bw * bh;
-    maps[..MAPS * n].fill(T::default());
-    let offsets = T::band_offsets(cfg.wavelet);
+    let (mw, _) = layout.map_dims(dims);
+    map.fill(T::default());
     T::saliency_rows(buf, dims, cfg.norm, cfg.wavelet, level, row, |y, srow| {
-        for (band, &(ox, oy)) in offsets.iter().enumerate() {
-            let sy = y as isize - oy;
-            let by = (sy.max(0) as usize) / 2;
-            if sy < 0 || by >= bh {
-                continue;
-            }
-            let map_row = &mut maps[band * n + by * bw..band * n + (by + 1) * bw];
-            // Window of coefficient bx: x ∈ {2bx + ox, 2bx + ox + 1}; bx grows with x.
-            let first = ox.max(0) as usize;
-            for (x, &s) in srow.iter().enumerate().skip(first) {
-                let bx = (x as isize - ox) as usize / 2;
-                if bx >= bw {
-                    break;
-                }
-                map_row[bx] += s;
-            }
+        let m = (y + layout.phase) / 2;
+        let map_row = &mut map[m * mw..(m + 1) * mw];
+        // With phase 1, entry 0 holds pixel 0 alone and entry m ≥ 1 pixels 2m − 1, 2m.
+        let (map_row, srow) = if layout.phase == 1 {
+            map_row[0] += srow[0];
+            (&mut map_row[1..], &srow[1..])
+        } else {
+            (map_row, srow)
+        };
+        let pairs = srow.chunks_exact(2);
+        let odd_end = pairs.remainder().first().copied();
+        let full = pairs.len();
+        for (acc, pair) in map_row.iter_mut().zip(pairs) {
+            *acc += pair[0];
+            *acc += pair[1];
+        }
+        if let (Some(v), Some(acc)) = (odd_end, map_row.get_mut(full)) {
+            *acc += v;
         }
     });
+}
+
+/// Fuses one row of a high band: `a = W₁·a + (1 − W₁)·b` with `w` the row of `W₁`, or with
+/// `weights` off (the max-high ablation) the larger magnitude.
+#[inline(always)]
+fn fuse_band_row<T: Arith>(a: &mut [T], b: &[T], w: &[T], weights: bool) {
+    if weights {
+        for ((x, &y), &w1) in a.iter_mut().zip(b).zip(w) {
+            *x = T::blend(*x, y, w1);
+        }
+    } else {
+        for (x, &y) in a.iter_mut().zip(b) {
+            if !T::abs_ge(*x, y) {
+                *x = y;
+            }
+        }
+    }
 }
 
 /// The fuse step, generic over the path. `a` and `b` hold the two images on `dims`
@@ -246,47 +328,68 @@ pub(crate) fn fuse_generic<T: Arith>(
     cfg: &FuseConfig,
     ll_weight: LlWeight,
     work: Work<'_, T>,
+    join: &impl Join,
 ) {
-    let Work { line, maps } = work;
+    let Work {
+        line,
+        mut line_b,
+        maps,
+    } = work;
     if cfg.ablation == Ablation::NoWavelet {
         for_each_in(dims, |i| a[i] = T::mix(a[i], b[i], ll_weight));
         return;
     }
     let with_weights = cfg.ablation != Ablation::MaxHigh;
+    let layout = WindowLayout::of(cfg.wavelet);
     let mut d = dims;
     for level in 1..=cfg.levels {
-        let n = block_count(d);
-        let (maps_a, maps_b) = maps.split_at_mut(MAPS * n);
-        if with_weights {
-            band_saliency(a, d, cfg, level, maps_a, line);
-            band_saliency(b, d, cfg, level, maps_b, line);
-            // Image A's maps become W₁ per coefficient.
-            for (s1, s2) in maps_a.iter_mut().zip(maps_b.iter()) {
-                *s1 = T::weight(*s1, *s2);
+        let (mw, mh) = layout.map_dims(d);
+        let (map_a, rest) = maps.split_at_mut(mw * mh);
+        let map_b = &mut rest[..mw * mh];
+        // Each image's saliency (read before its transform overwrites it), then its
+        // transform: the two images are independent until the weights.
+        let side = |img: &mut [T], map: &mut [T], line: &mut [T]| {
+            if with_weights {
+                window_saliency(img, d, cfg, level, layout, map, line);
+            }
+            T::forward_level(cfg.wavelet, img, d, line);
+        };
+        match line_b.as_deref_mut() {
+            Some(lb) => join.join(|| side(a, map_a, line), || side(b, map_b, lb)),
+            None => {
+                side(a, map_a, line);
+                side(b, map_b, line);
             }
         }
-        T::forward_level(cfg.wavelet, a, d, line);
-        T::forward_level(cfg.wavelet, b, d, line);
-        let (nlx, nly) = (d.width().div_ceil(2), d.height().div_ceil(2));
+        if with_weights {
+            // Image A's map becomes W₁ per window.
+            for (s1, &s2) in map_a.iter_mut().zip(map_b.iter()) {
+                *s1 = T::weight(*s1, s2);
+            }
+        }
+        let (w, nlx, nly) = (d.width(), d.width().div_ceil(2), d.height().div_ceil(2));
+        // Row y of the transformed level: HL right of the low columns for y < nly; LH and
+        // HH below. `weights(band, j, len)` is that band's row j of W₁.
+        let weights = |band: usize, j: usize, len: usize| {
+            let (sx, sy) = layout.shifts[band];
+            let start = (j + sy) * mw + sx;
+            &map_a[start..start + len]
+        };
         for y in 0..d.height() {
-            let (by, y_high) = if y < nly { (y, false) } else { (y - nly, true) };
-            let first_high_x = if y_high { 0 } else { nlx };
-            for x in first_high_x..d.width() {
-                let (bx, x_high) = if x < nlx { (x, false) } else { (x - nlx, true) };
-                // HL = 0, LH = 1, HH = 2.
-                let band = match (x_high, y_high) {
-                    (true, false) => 0,
-                    (false, true) => 1,
-                    _ => 2,
-                };
-                let i = d.at(x, y);
-                a[i] = if with_weights {
-                    T::blend(a[i], b[i], maps_a[band * n + by * nlx + bx])
-                } else if T::abs_ge(a[i], b[i]) {
-                    a[i]
-                } else {
-                    b[i]
-                };
+            let row = d.at(0, y)..d.at(0, y) + w;
+            let (ra, rb) = (&mut a[row.clone()], &b[row]);
+            if y < nly {
+                fuse_band_row(
+                    &mut ra[nlx..],
+                    &rb[nlx..],
+                    weights(0, y, w - nlx),
+                    with_weights,
+                );
+            } else {
+                let j = y - nly;
+                let (low_a, high_a) = ra.split_at_mut(nlx);
+                fuse_band_row(low_a, &rb[..nlx], weights(1, j, nlx), with_weights);
+                fuse_band_row(high_a, &rb[nlx..], weights(2, j, w - nlx), with_weights);
             }
         }
         d = d.low_band();
