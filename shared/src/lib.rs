@@ -18,14 +18,19 @@
 //!   the integer path the MCU runs.
 //! - [`float`]: the same algorithm in `f32` for full-resolution work on the host; its
 //!   transforms match PyWavelets' `periodization` mode.
+//! - [`device`]: the device pipeline (downsampling, belt offsets, the streaming tile
+//!   model) and the device's command handling.
+//! - [`protocol`]: the messages of the USB link, their framing, CRC and limits.
 #![no_std]
 #![forbid(unsafe_code)]
 
+pub mod device;
 pub mod error;
 pub mod float;
 pub mod fusion;
 pub mod geometry;
 pub mod lifting;
+pub mod protocol;
 pub mod saliency;
 
 pub use error::Error;

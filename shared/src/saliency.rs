@@ -182,6 +182,19 @@ pub fn laplacian_max(buf: &[i32], dims: Dims) -> Result<u32, crate::Error> {
     Ok(laplacian_max_in(buf, dims))
 }
 
+/// [`laplacian_max`] of a packed 8-bit image (a downsampled camera frame), for
+/// [`SaliencyNorm::Reference`]; 0 if `buf` is shorter than the region.
+pub fn laplacian_max_u8(buf: &[u8], dims: Dims) -> u32 {
+    if dims.check_buffer("image", buf.len()).is_err() {
+        return 0;
+    }
+    let mut max = 0;
+    for_each_neighbourhood(buf, dims, |_, _, c, around| {
+        max = max.max(laplacian(i32::from(c), around.map(i32::from)));
+    });
+    max
+}
+
 /// The largest `|∇²I|` over the region (its buffer already checked).
 fn laplacian_max_in(buf: &[i32], dims: Dims) -> u32 {
     let mut max = 0;

@@ -1,0 +1,176 @@
+//! The device's command handling: decode, validate, reply, and say what the hardware must
+//! do. The firmware and the host's virtual device both run this, so a command is refused
+//! for the same reason on both.
+
+use super::pipeline::{PipelineConfig, Sensor};
+use crate::protocol::{
+    self, Command, DecodeError, DeviceConfig, DeviceInfo, DeviceMessage, EncodeError, LedDuty,
+    MAX_TILE_BYTES, NakReason, RollerCommand, StatusCounters,
+};
+
+/// The fastest belt speed the motion system is asked for, µm/s.
+pub const MAX_SPEED_UM_S: u32 = 500_000;
+
+/// The most raw frames one capture command may ask for.
+pub const MAX_RAW_FRAMES: u8 = 8;
+
+/// What the hardware must do after a command was accepted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Effect {
+    /// Nothing beyond the reply.
+    None,
+    /// Rebuild the pipeline with this configuration.
+    Configure(PipelineConfig),
+    /// Set the LED duties.
+    Leds(LedDuty),
+    /// Move the roller.
+    Roller(RollerCommand),
+    /// Start streaming tiles.
+    StreamStart,
+    /// Flush the pipeline, stop streaming, send the status.
+    StreamStop,
+    /// Send this many raw frames.
+    CaptureRaw(u8),
+}
+
+/// The device's side of the link: its configuration, counters and sequence numbers.
+pub struct Controller {
+    sensor: Sensor,
+    firmware: [u8; 3],
+    config: DeviceConfig,
+    pipeline: PipelineConfig,
+    counters: StatusCounters,
+    seq: u32,
+}
+
+impl Controller {
+    /// A controller for `sensor` starting with `config` (refused if invalid for it).
+    pub fn new(sensor: Sensor, firmware: [u8; 3], config: DeviceConfig) -> Result<Self, NakReason> {
+        Ok(Self {
+            sensor,
+            firmware,
+            pipeline: PipelineConfig::from_wire(&config, sensor)?,
+            config,
+            counters: StatusCounters::default(),
+            seq: 0,
+        })
+    }
+
+    /// The pipeline configuration in force.
+    pub fn pipeline_config(&self) -> PipelineConfig {
+        self.pipeline
+    }
+
+    /// The counters, for the tasks that count (frames, tiles, drops).
+    pub fn counters_mut(&mut self) -> &mut StatusCounters {
+        &mut self.counters
+    }
+
+    /// The counters.
+    pub fn counters(&self) -> StatusCounters {
+        self.counters
+    }
+
+    /// Handles one received command message: returns the reply and what to do.
+    pub fn handle(&mut self, bytes: &[u8]) -> (DeviceMessage<'static>, Effect) {
+        let (seq, command) = match protocol::decode::<Command>(bytes) {
+            Ok((h, c)) => (h.seq, c),
+            Err(e) => {
+                self.counters.bad_commands = self.counters.bad_commands.wrapping_add(1);
+                // The sequence number of an undecodable command is unknown.
+                let _: DecodeError = e;
+                return (self.nak(u32::MAX, NakReason::BadMessage), Effect::None);
+            }
+        };
+        match self.apply(command) {
+            Ok((reply, effect)) => (
+                reply.unwrap_or(DeviceMessage::Ack { command_seq: seq }),
+                effect,
+            ),
+            Err(reason) => (self.nak(seq, reason), Effect::None),
+        }
+    }
+
+    fn nak(&self, command_seq: u32, reason: NakReason) -> DeviceMessage<'static> {
+        DeviceMessage::Nak {
+            command_seq,
+            reason,
+        }
+    }
+
+    /// Validates and applies a command: `Some(reply)` replaces the plain ack.
+    fn apply(
+        &mut self,
+        command: Command,
+    ) -> Result<(Option<DeviceMessage<'static>>, Effect), NakReason> {
+        let streaming = self.counters.streaming;
+        Ok(match command {
+            Command::Hello => (Some(DeviceMessage::Info(self.info())), Effect::None),
+            Command::Status => (Some(DeviceMessage::Status(self.counters)), Effect::None),
+            Command::Configure(_) if streaming => return Err(NakReason::Busy),
+            Command::Configure(cfg) => {
+                let pipeline = PipelineConfig::from_wire(&cfg, self.sensor)?;
+                self.config = cfg;
+                self.pipeline = pipeline;
+                (None, Effect::Configure(pipeline))
+            }
+            Command::Leds(d) => {
+                if [d.red, d.green, d.blue].iter().any(|&v| v > LedDuty::FULL) {
+                    return Err(NakReason::LedDuty);
+                }
+                (None, Effect::Leds(d))
+            }
+            Command::Roller(r) => {
+                match r {
+                    RollerCommand::Start { speed_um_s } | RollerCommand::Speed { speed_um_s } => {
+                        if speed_um_s == 0 || speed_um_s > MAX_SPEED_UM_S {
+                            return Err(NakReason::Speed);
+                        }
+                        self.counters.roller_running = true;
+                    }
+                    RollerCommand::Stop => self.counters.roller_running = false,
+                }
+                (None, Effect::Roller(r))
+            }
+            Command::StreamStart if streaming => return Err(NakReason::Busy),
+            Command::StreamStart => {
+                self.counters.streaming = true;
+                (None, Effect::StreamStart)
+            }
+            Command::StreamStop => {
+                self.counters.streaming = false;
+                (None, Effect::StreamStop)
+            }
+            Command::CaptureRaw { frames } => {
+                if frames == 0 || frames > MAX_RAW_FRAMES {
+                    return Err(NakReason::RawFrames);
+                }
+                (None, Effect::CaptureRaw(frames))
+            }
+        })
+    }
+
+    /// What [`Command::Hello`] answers.
+    pub fn info(&self) -> DeviceInfo {
+        DeviceInfo {
+            firmware: self.firmware,
+            sensor_width: self.sensor.width as u16,
+            sensor_height: self.sensor.height as u16,
+            pixel_format: self.sensor.format,
+            config: self.config,
+            max_tile_bytes: MAX_TILE_BYTES as u32,
+        }
+    }
+
+    /// Encodes a message to the host with the next sequence number, counting it.
+    pub fn encode(
+        &mut self,
+        msg: &DeviceMessage<'_>,
+        out: &mut [u8],
+    ) -> Result<usize, EncodeError> {
+        let n = protocol::encode(self.seq, msg, out)?;
+        self.seq = self.seq.wrapping_add(1);
+        self.counters.messages_sent = self.counters.messages_sent.wrapping_add(1);
+        Ok(n)
+    }
+}

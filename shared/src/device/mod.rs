@@ -1,0 +1,19 @@
+//! The device pipeline: what the edge module runs on every camera frame, and its command
+//! handling. The firmware calls it on the MCU; the host's virtual device calls the same
+//! code on simulated frames.
+//!
+//! - [`downsample`]: camera frames (8-bit gray, RGB565, YUYV) to downsampled 8-bit luma.
+//! - [`refine`]: the belt shift between frames, refined by a 1-D correlation.
+//! - [`pipeline`]: the streaming tile model — tiles fused from the frames that see them
+//!   near the roller's apex and emitted once complete, in fixed, caller-owned memory.
+//! - [`controller`]: commands decoded, validated and answered.
+
+pub mod controller;
+pub mod downsample;
+pub mod pipeline;
+pub mod refine;
+
+pub use controller::{Controller, Effect};
+pub use pipeline::{
+    FrameError, FrameReport, Memory, Pipeline, PipelineBuffers, PipelineConfig, Sensor,
+};

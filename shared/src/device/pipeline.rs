@@ -1,0 +1,446 @@
+//! The streaming tile model: camera frames in, fused tiles out, in fixed memory.
+//!
+//! Belt space (downsampled rows, 0 = the first frame's top row) is cut into tiles of
+//! `tile_rows` rows across the whole belt width; tile `t` covers belt rows
+//! `t·T .. (t+1)·T`. Frame `k` lies at belt offset `o_k` (its row `y` shows belt row
+//! `o_k + y`), found from the commanded motion and refined ([`super::refine`]).
+//!
+//! Only the middle of each frame is used: the *observation window* of
+//! `n·s + T − 1` rows centred on the roller's apex, `n` being the frames per tile and `s`
+//! the nominal frame spacing in rows. A tile is observed by a frame when it lies wholly
+//! in that window — with exact motion, by exactly `n` consecutive frames, from below the
+//! apex to above it. Each observation is fused into the tile's running result on the
+//! integer path ([`crate::fusion::fuse_u8`], the LL band weighted as configured); the
+//! tile is emitted, with its belt index and observation count, as soon as a frame
+//! arrives in which it has left the window (offsets only grow, so none can see it again),
+//! or when the run ends ([`Pipeline::finish`]).
+//!
+//! Memory is the caller's ([`PipelineBuffers`]), sized by [`PipelineConfig::memory`].
+
+use super::downsample::{downsample, downsampled_dims};
+use super::refine::{refine_shift, row_profile};
+use crate::fusion::{LlWeight, U8Work, fuse_scratch_words, fuse_u8};
+use crate::protocol::{DeviceConfig, NakReason, NormMode, PixelFormat, Tile, WaveletId};
+use crate::saliency::laplacian_max_u8;
+use crate::{Ablation, Dims, Error, FuseConfig, LlWeighting, SaliencyNorm, Wavelet};
+
+/// Tiles in fusion at once, at most.
+pub const MAX_ACTIVE_TILES: usize = 16;
+
+/// The most observations a tile may be configured to fuse.
+pub const MAX_FRAMES_PER_TILE: usize = 16;
+
+/// The largest refinement search, rows either side.
+pub const MAX_REFINE_ROWS: usize = 16;
+
+/// The camera: frame size and pixel format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Sensor {
+    /// Frame width, pixels.
+    pub width: usize,
+    /// Frame height, pixels.
+    pub height: usize,
+    /// Pixel format.
+    pub format: PixelFormat,
+}
+
+impl Sensor {
+    /// Bytes of one camera frame.
+    pub const fn frame_bytes(&self) -> usize {
+        self.width * self.height * self.format.bytes_per_pixel()
+    }
+}
+
+/// A validated pipeline configuration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PipelineConfig {
+    /// The camera.
+    pub sensor: Sensor,
+    /// Wavelet, levels, LL weighting (normalization is set per frame or per tile).
+    pub fuse: FuseConfig,
+    /// Saliency normalized per frame (else per tile).
+    pub per_frame_norm: bool,
+    /// Box downsampling factor: 1, 2 or 4.
+    pub downsample: usize,
+    /// Tile height, downsampled rows.
+    pub tile_rows: usize,
+    /// Observations per tile.
+    pub frames_per_tile: usize,
+    /// Nominal belt travel between frames, camera pixels.
+    pub spacing_px: usize,
+    /// Refinement search, ± downsampled rows.
+    pub refine_rows: usize,
+    /// The downsampled frame.
+    frame: Dims,
+    /// One tile.
+    tile: Dims,
+}
+
+/// The caller-owned memory a pipeline needs, by [`PipelineConfig::memory`]:
+///
+/// - `frame`: the downsampled frame, `W·H` bytes;
+/// - `tiles`: the tiles in fusion, `A·T·W` bytes with `A` = [`PipelineConfig::active_tiles`]
+///   `= ⌈(n·s + T − 1)/T⌉ + 1`;
+/// - `work`: two fusion work images and the fusion scratch, `2·T·W +`
+///   [`fuse_scratch_words`]`(W, T)` words;
+/// - `profiles`: this frame's and the previous frame's row profiles, `2·(H − 1)` words.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Memory {
+    /// Bytes of `frame`.
+    pub frame_bytes: usize,
+    /// Bytes of `tiles`.
+    pub tile_bytes: usize,
+    /// Words (`i32`) of `work`.
+    pub work_words: usize,
+    /// Words (`i32`) of `profiles`.
+    pub profile_words: usize,
+}
+
+impl Memory {
+    /// Everything, in bytes.
+    pub const fn total_bytes(&self) -> usize {
+        self.frame_bytes + self.tile_bytes + 4 * (self.work_words + self.profile_words)
+    }
+}
+
+impl PipelineConfig {
+    /// Validates a configuration from the host for `sensor`; a value out of range is
+    /// refused with the reason the device sends back.
+    pub fn from_wire(cfg: &DeviceConfig, sensor: Sensor) -> Result<Self, NakReason> {
+        let frame = downsampled_dims(sensor.width, sensor.height, usize::from(cfg.downsample))
+            .map_err(|_| NakReason::Downsample)?;
+        let (w, h) = (frame.width(), frame.height());
+        let t = usize::from(cfg.tile_rows);
+        if t == 0 || t > h || w * t > crate::protocol::MAX_TILE_BYTES {
+            return Err(NakReason::TileRows);
+        }
+        let tile = Dims::new(w, t).map_err(|_| NakReason::TileRows)?;
+        tile.check_levels(cfg.levels)
+            .map_err(|_| NakReason::Levels)?;
+        let spacing = usize::from(cfg.frame_spacing_px);
+        if spacing == 0 || spacing > sensor.height {
+            return Err(NakReason::FrameSpacing);
+        }
+        if usize::from(cfg.refine_rows) > MAX_REFINE_ROWS {
+            return Err(NakReason::RefineRows);
+        }
+        let out = Self {
+            sensor,
+            fuse: FuseConfig {
+                wavelet: match cfg.wavelet {
+                    WaveletId::Haar => Wavelet::Haar,
+                    WaveletId::Db2 => Wavelet::Db2,
+                },
+                levels: cfg.levels,
+                ablation: Ablation::None,
+                norm: SaliencyNorm::Local,
+                // The paper's pairwise mean, as `rollfuse fuse` does by default.
+                ll_weighting: LlWeighting::Paper,
+            },
+            per_frame_norm: cfg.norm == NormMode::PerFrame,
+            downsample: usize::from(cfg.downsample),
+            tile_rows: t,
+            frames_per_tile: usize::from(cfg.frames_per_tile),
+            spacing_px: spacing,
+            refine_rows: usize::from(cfg.refine_rows),
+            frame,
+            tile,
+        };
+        let n = out.frames_per_tile;
+        if n == 0 || n > MAX_FRAMES_PER_TILE || out.window_rows() > h {
+            return Err(NakReason::FramesPerTile);
+        }
+        if out.active_tiles() > MAX_ACTIVE_TILES {
+            return Err(NakReason::FramesPerTile);
+        }
+        Ok(out)
+    }
+
+    /// The downsampled frame size.
+    pub fn frame_dims(&self) -> Dims {
+        self.frame
+    }
+
+    /// The size of one tile: the frame's width by `tile_rows`.
+    pub fn tile_dims(&self) -> Dims {
+        self.tile
+    }
+
+    /// Nominal frame spacing in downsampled rows (at least 1).
+    pub fn spacing_rows(&self) -> usize {
+        (self.spacing_px / self.downsample).max(1)
+    }
+
+    /// Height of the observation window, rows: `n·s + T − 1`.
+    pub fn window_rows(&self) -> usize {
+        self.frames_per_tile * self.spacing_rows() + self.tile_rows - 1
+    }
+
+    /// First frame row of the observation window: the window centred on the frame.
+    pub fn window_top(&self) -> usize {
+        (self.frame_dims().height() - self.window_rows().min(self.frame_dims().height())) / 2
+    }
+
+    /// Tiles in fusion at once, at most: `⌈(n·s + T − 1)/T⌉ + 1` (tiles are emitted
+    /// before a frame's observations, so only tiles starting inside the window are held).
+    pub fn active_tiles(&self) -> usize {
+        self.window_rows().div_ceil(self.tile_rows) + 1
+    }
+
+    /// The memory a pipeline of this configuration needs.
+    pub fn memory(&self) -> Memory {
+        let d = self.frame_dims();
+        let (w, h, t) = (d.width(), d.height(), self.tile_rows);
+        Memory {
+            frame_bytes: w * h,
+            tile_bytes: self.active_tiles() * t * w,
+            work_words: 2 * t * w + fuse_scratch_words(w, t),
+            profile_words: 2 * (h - 1),
+        }
+    }
+}
+
+/// The caller's memory for a [`Pipeline`]; see [`Memory`] for the sizes.
+pub struct PipelineBuffers<'a> {
+    /// The downsampled frame.
+    pub frame: &'a mut [u8],
+    /// The tiles in fusion.
+    pub tiles: &'a mut [u8],
+    /// Fusion work images and scratch.
+    pub work: &'a mut [i32],
+    /// Row profiles.
+    pub profiles: &'a mut [i32],
+}
+
+/// A tile in fusion.
+#[derive(Debug, Clone, Copy)]
+struct Slot {
+    index: u64,
+    observations: u8,
+}
+
+/// What one frame did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameReport {
+    /// The frame's belt offset, downsampled rows.
+    pub offset: u64,
+    /// The shift from the previous frame that refinement chose.
+    pub shift: i64,
+    /// Tiles this frame observed.
+    pub observed: usize,
+    /// Tiles it completed.
+    pub emitted: usize,
+}
+
+/// Why a frame was refused (the pipeline's state is unchanged).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FrameError {
+    /// The frame buffer is not one camera frame.
+    Size(Error),
+    /// The belt moved backwards.
+    Backwards,
+}
+
+/// The device pipeline: frames in, fused tiles out.
+pub struct Pipeline<'a> {
+    cfg: PipelineConfig,
+    bufs: PipelineBuffers<'a>,
+    slots: [Option<Slot>; MAX_ACTIVE_TILES],
+    /// Belt offset of the last frame, and the commanded position (camera pixels) then.
+    last: Option<(u64, u64)>,
+    /// Which half of `profiles` holds the previous frame's.
+    previous_profile_first: bool,
+}
+
+impl<'a> Pipeline<'a> {
+    /// A pipeline on the caller's buffers; fails if one is smaller than
+    /// [`PipelineConfig::memory`] says.
+    pub fn new(cfg: PipelineConfig, bufs: PipelineBuffers<'a>) -> Result<Self, Error> {
+        let m = cfg.memory();
+        for (which, needed, got) in [
+            ("frame", m.frame_bytes, bufs.frame.len()),
+            ("tiles", m.tile_bytes, bufs.tiles.len()),
+            ("work", m.work_words, bufs.work.len()),
+            ("profiles", m.profile_words, bufs.profiles.len()),
+        ] {
+            if got < needed {
+                return Err(Error::BufferTooSmall { which, needed, got });
+            }
+        }
+        Ok(Self {
+            cfg,
+            bufs,
+            slots: [None; MAX_ACTIVE_TILES],
+            last: None,
+            previous_profile_first: true,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &PipelineConfig {
+        &self.cfg
+    }
+
+    /// Takes one camera frame, taken when the commanded belt position was `position_px`
+    /// camera pixels from the start of the run, and calls `emit` for every tile it
+    /// completes, in belt order.
+    pub fn push_frame(
+        &mut self,
+        camera: &[u8],
+        position_px: u64,
+        mut emit: impl FnMut(Tile<'_>),
+    ) -> Result<FrameReport, FrameError> {
+        let cfg = self.cfg;
+        let dims = downsample(
+            camera,
+            cfg.sensor.format,
+            (cfg.sensor.width, cfg.sensor.height),
+            cfg.downsample,
+            self.bufs.frame,
+        )
+        .map_err(FrameError::Size)?;
+        let h = dims.height();
+        let f = cfg.downsample as u64;
+        let p = h - 1;
+        let (first, second) = self.bufs.profiles.split_at_mut(p);
+        let (previous, current) = if self.previous_profile_first {
+            (&*first, &mut second[..p])
+        } else {
+            (&*second, &mut first[..p])
+        };
+        row_profile(self.bufs.frame, dims, current);
+        let (offset, shift) = match self.last {
+            None => (0, 0),
+            Some((offset, commanded_at)) => {
+                // Commanded rows since the last frame, rounded on the absolute positions
+                // so rounding does not accumulate.
+                let rows = |px: u64| (px + f / 2) / f;
+                let commanded = rows(position_px) as i64 - rows(commanded_at) as i64;
+                let shift = if cfg.refine_rows > 0 {
+                    refine_shift(previous, current, commanded, cfg.refine_rows as u32)
+                } else {
+                    commanded
+                };
+                if shift < 0 {
+                    return Err(FrameError::Backwards);
+                }
+                (offset + shift as u64, shift)
+            }
+        };
+        self.last = Some((offset, position_px));
+        self.previous_profile_first = !self.previous_profile_first;
+
+        let norm = if cfg.per_frame_norm {
+            SaliencyNorm::Reference(laplacian_max_u8(self.bufs.frame, dims))
+        } else {
+            SaliencyNorm::Local
+        };
+        let fuse_cfg = FuseConfig { norm, ..cfg.fuse };
+        let t = cfg.tile_rows as u64;
+        let top = offset + cfg.window_top() as u64;
+        let bottom = top + cfg.window_rows() as u64; // exclusive
+        // Tiles above the window are done: no later frame can see them. Emitting them
+        // first bounds the tiles held to those starting inside the window.
+        let emitted = self.emit_where(|index| index * t < top, &mut emit);
+        // Tiles wholly inside the window: t·T ≥ top and t·T + T ≤ bottom.
+        let first_tile = top.div_ceil(t);
+        let end_tile = (bottom / t).max(first_tile);
+        for index in first_tile..end_tile {
+            self.observe(index, (index * t - offset) as usize, &fuse_cfg);
+        }
+        Ok(FrameReport {
+            offset,
+            shift,
+            observed: (end_tile - first_tile) as usize,
+            emitted,
+        })
+    }
+
+    /// Emits every tile still in fusion, in belt order (the end of a run).
+    pub fn finish(&mut self, mut emit: impl FnMut(Tile<'_>)) -> usize {
+        let n = self.emit_where(|_| true, &mut emit);
+        self.last = None;
+        n
+    }
+
+    /// Fuses rows `row ..` of the current frame into tile `index`.
+    fn observe(&mut self, index: u64, row: usize, cfg: &FuseConfig) {
+        let (t, dims) = (self.cfg.tile_rows, self.cfg.tile);
+        let w = dims.width();
+        let n = t * w;
+        let slot_no = match self
+            .slots
+            .iter()
+            .position(|s| s.is_some_and(|s| s.index == index))
+        {
+            Some(k) => k,
+            None => match self.slots.iter().position(Option::is_none) {
+                Some(k) => k,
+                // Cannot happen: the window holds at most `active_tiles` tiles, and a
+                // tile leaves before a new frame's tiles arrive. Dropping it is safe.
+                None => return,
+            },
+        };
+        let Some(tile) = self.bufs.tiles.get_mut(slot_no * n..(slot_no + 1) * n) else {
+            return;
+        };
+        let Some(src) = self.bufs.frame.get(row * w..(row + t) * w) else {
+            return;
+        };
+        let observations = self.slots[slot_no].map_or(0, |s| s.observations);
+        if observations == 0 {
+            tile.copy_from_slice(src);
+        } else {
+            let (wa, rest) = self.bufs.work.split_at_mut(n);
+            let (wb, scratch) = rest.split_at_mut(n);
+            let ll = LlWeight::for_frame(cfg.ll_weighting, u32::from(observations) + 1);
+            let work = U8Work {
+                a: &mut *wa,
+                b: wb,
+                scratch,
+            };
+            // Sizes were validated with the configuration; should this fail, the tile
+            // keeps its previous observations.
+            if fuse_u8((tile, dims), (src, dims), cfg, ll, work).is_ok() {
+                for (d, &v) in tile.iter_mut().zip(wa.iter()) {
+                    *d = v as u8;
+                }
+            } else {
+                return;
+            }
+        }
+        self.slots[slot_no] = Some(Slot {
+            index,
+            observations: observations.saturating_add(1),
+        });
+    }
+
+    /// Emits, in belt order, and frees every tile whose index passes `done`.
+    fn emit_where(&mut self, done: impl Fn(u64) -> bool, emit: &mut impl FnMut(Tile<'_>)) -> usize {
+        let w = self.cfg.frame_dims().width();
+        let t = self.cfg.tile_rows;
+        let mut count = 0;
+        loop {
+            let next = self
+                .slots
+                .iter()
+                .enumerate()
+                .filter_map(|(k, s)| s.filter(|s| done(s.index)).map(|s| (k, s)))
+                .min_by_key(|(_, s)| s.index);
+            let Some((k, slot)) = next else {
+                return count;
+            };
+            self.slots[k] = None;
+            if let Some(pixels) = self.bufs.tiles.get(k * t * w..(k + 1) * t * w) {
+                emit(Tile {
+                    index: slot.index as u32,
+                    width: w as u16,
+                    height: t as u16,
+                    observations: slot.observations,
+                    pixels,
+                });
+                count += 1;
+            }
+        }
+    }
+}
