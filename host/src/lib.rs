@@ -9,6 +9,8 @@
 //! - [`sim`]: the tactile simulator (scenes, effects on demand, ground truth).
 //! - [`fullres`]: full-resolution fusion of aligned frames into one mosaic.
 //! - [`eval`]: the paper's metrics.
+//! - [`link`]: the device link — USB, the virtual device, recorded streams.
+//! - [`stream`]: a streaming session — tiles received, checked and stitched into a strip.
 //! - [`commands`]: the `rollfuse` subcommands.
 //! - [`npy`]: NumPy array files.
 
@@ -18,5 +20,7 @@ pub mod commands;
 pub mod eval;
 pub mod fullres;
 pub mod image;
+pub mod link;
 pub mod npy;
 pub mod sim;
+pub mod stream;

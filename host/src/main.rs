@@ -1,7 +1,7 @@
 //! `rollfuse`: the command-line tool of the rollfuse tactile sensor module.
 
 use clap::{Parser, Subcommand};
-use rollfuse::commands::{eval, fuse, metrics, simulate, splice};
+use rollfuse::commands::{eval, fuse, metrics, simulate, splice, stream};
 use std::process::ExitCode;
 
 /// Cyclic wavelet fusion of tactile images from a rolling, curved elastomer sensor.
@@ -26,6 +26,10 @@ enum Command {
     Metrics(metrics::Args),
     /// Tables II and III (ablations; single, fused, spliced) on simulated samples.
     Eval(eval::Args),
+    /// Stream fused tiles from the device (USB, virtual, or a recording) into a strip.
+    Stream(stream::Args),
+    /// List the rollfuse devices on USB.
+    Devices,
 }
 
 fn main() -> ExitCode {
@@ -40,6 +44,8 @@ fn main() -> ExitCode {
         Command::Splice(args) => splice::run(args),
         Command::Metrics(args) => metrics::run(args),
         Command::Eval(args) => eval::run(args),
+        Command::Stream(args) => stream::run(args),
+        Command::Devices => stream::devices(),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

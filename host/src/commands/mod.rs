@@ -5,6 +5,7 @@ pub mod fuse;
 pub mod metrics;
 pub mod simulate;
 pub mod splice;
+pub mod stream;
 
 use clap::ValueEnum;
 use rollfuse_core::{Ablation, LlWeighting, Wavelet};

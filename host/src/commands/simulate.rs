@@ -34,6 +34,16 @@ pub fn progress(len: usize, unit: &str, message: String) -> ProgressBar {
     bar
 }
 
+/// A spinner with a message, for work of unknown length (e.g. a stream).
+pub fn progress_spinner(message: &str) -> ProgressBar {
+    let bar = ProgressBar::new_spinner().with_style(
+        ProgressStyle::with_template("{spinner} {prefix}: {msg} ({elapsed})")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+    );
+    bar.set_prefix(message.to_string());
+    bar
+}
+
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut scene = Scene::load(&args.scene)?;

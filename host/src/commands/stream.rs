@@ -1,0 +1,199 @@
+//! `rollfuse stream` and `rollfuse devices`: fused tiles from the edge module (or the
+//! virtual device, or a recording) into a strip.
+
+use super::WaveletArg;
+use crate::link::replay::Replay;
+use crate::link::sim::{SimDevice, sensor_for};
+use crate::link::usb::{self, Usb};
+use crate::link::Transport;
+use crate::sim::{Scene, Simulator};
+use crate::stream::{self, Options, StopReason};
+use anyhow::{Context, bail};
+use rollfuse_core::protocol::{DeviceConfig, NormMode, WaveletId};
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// `--norm`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum NormArg {
+    /// Saliency normalized by each tile's own maximum.
+    PerTile,
+    /// By the whole frame's maximum.
+    PerFrame,
+}
+
+/// Arguments of `rollfuse stream`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Where tiles come from: `usb`, `sim` (the virtual device, with --scene) or
+    /// `replay:FILE` (a recording made with --record).
+    #[arg(long)]
+    pub device: String,
+    /// With --device sim: the scene the virtual device's camera sees.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Output folder: strip.png and manifest.json.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Record every received message to this file (for --device replay:FILE).
+    #[arg(long)]
+    pub record: Option<PathBuf>,
+    /// Stop after this many tiles (the device's last tiles in fusion still arrive).
+    #[arg(long, conflicts_with = "seconds")]
+    pub tiles: Option<u64>,
+    /// Stop after this many seconds.
+    #[arg(long)]
+    pub seconds: Option<f64>,
+    /// Wavelet the device fuses with.
+    #[arg(long, value_enum, default_value = "db2")]
+    pub wavelet: WaveletArg,
+    /// Decomposition levels, 1..=4.
+    #[arg(long, default_value_t = 2)]
+    pub levels: u8,
+    /// Box downsampling of camera frames: 1, 2 or 4.
+    #[arg(long, default_value_t = 2)]
+    pub downsample: u8,
+    /// Tile height along the belt, downsampled rows.
+    #[arg(long, default_value_t = 16)]
+    pub tile_rows: u16,
+    /// Frames fused into each tile.
+    #[arg(long, default_value_t = 4)]
+    pub frames_per_tile: u8,
+    /// Belt travel between frames, camera pixels (default: the scene's, or 16 on USB).
+    #[arg(long)]
+    pub spacing_px: Option<u16>,
+    /// Offset refinement search, ± downsampled rows (0 trusts the motion).
+    #[arg(long, default_value_t = 2)]
+    pub refine_rows: u8,
+    /// Saliency normalization.
+    #[arg(long, value_enum, default_value = "per-frame")]
+    pub norm: NormArg,
+}
+
+impl Args {
+    fn config(&self, spacing_default: u16) -> DeviceConfig {
+        DeviceConfig {
+            wavelet: match self.wavelet {
+                WaveletArg::Haar => WaveletId::Haar,
+                WaveletArg::Db2 => WaveletId::Db2,
+            },
+            levels: self.levels,
+            downsample: self.downsample,
+            tile_rows: self.tile_rows,
+            frames_per_tile: self.frames_per_tile,
+            frame_spacing_px: self.spacing_px.unwrap_or(spacing_default),
+            refine_rows: self.refine_rows,
+            norm: match self.norm {
+                NormArg::PerTile => NormMode::PerTile,
+                NormArg::PerFrame => NormMode::PerFrame,
+            },
+        }
+    }
+}
+
+/// Runs `rollfuse stream`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(s) = args.seconds
+        && !(s > 0.0 && s.is_finite())
+    {
+        bail!("--seconds must be a positive number, got {s}");
+    }
+    if args.tiles == Some(0) {
+        bail!("--tiles must be at least 1");
+    }
+    super::check_writable(&args.out.join("manifest.json")).or_else(|_| {
+        std::fs::create_dir_all(&args.out)
+            .with_context(|| format!("cannot create output folder {}", args.out.display()))
+    })?;
+    if let Some(r) = &args.record {
+        super::check_writable(r)?;
+    }
+    let (mut link, config): (Box<dyn Transport>, Option<DeviceConfig>) =
+        match args.device.as_str() {
+            "usb" => (Box::new(Usb::open()?), Some(args.config(16))),
+            "sim" => {
+                let path = args
+                    .scene
+                    .as_ref()
+                    .context("--device sim needs --scene SCENE.toml (e.g. host/scenes/letters.toml)")?;
+                let scene = Scene::load(path)?;
+                let (_, default) = sensor_for(&scene, &Simulator::new(&scene)?);
+                let dev = SimDevice::start(&scene)?;
+                (Box::new(dev), Some(args.config(default.frame_spacing_px)))
+            }
+            other => match other.strip_prefix("replay:") {
+                Some(file) if !file.is_empty() => {
+                    (Box::new(Replay::open(std::path::Path::new(file))?), None)
+                }
+                _ => bail!("--device must be usb, sim or replay:FILE, got `{other}`"),
+            },
+        };
+    let opts = Options {
+        out: args.out.clone(),
+        config,
+        max_tiles: args.tiles,
+        max_duration: args.seconds.map(Duration::from_secs_f64),
+        record: args.record.clone(),
+        progress: true,
+    };
+    let outcome = stream::run(link.as_mut(), &opts)?;
+    let m = &outcome.manifest;
+    let secs = outcome.elapsed.as_secs_f64().max(1e-9);
+    println!(
+        "{} tiles in {:.2} s ({:.0} tiles/s, {:.3} MB/s) → {}",
+        m.tiles_received,
+        secs,
+        m.tiles_received as f64 / secs,
+        m.bytes as f64 / secs / 1e6,
+        args.out.join("strip.png").display()
+    );
+    match outcome.stop {
+        StopReason::TileLimit => println!("stopped at --tiles"),
+        StopReason::TimeLimit => println!("stopped at --seconds"),
+        StopReason::DeviceStopped => println!("the device ended the stream"),
+        StopReason::LinkClosed => println!("the link closed before the device ended the stream"),
+        StopReason::Silent => println!(
+            "the device was silent for {} s: stopped",
+            stream::SILENCE_LIMIT.as_secs()
+        ),
+    }
+    if let Some(c) = &m.device_counters {
+        println!(
+            "device: {} frames captured, {} fused, {} rejected, {} camera overruns; {} tiles emitted, {} dropped",
+            c.frames_captured,
+            c.frames_fused,
+            c.frames_rejected,
+            c.camera_overruns,
+            c.tiles_emitted,
+            c.tiles_dropped
+        );
+    }
+    if !m.gaps.is_empty() {
+        println!("missing tiles: {:?}", m.gaps);
+    }
+    if m.faults.total() > 0 {
+        println!("link faults (details in manifest.json): {:?}", m.faults);
+    }
+    Ok(())
+}
+
+/// Runs `rollfuse devices`: fails (non-zero exit) when none can be seen, saying why.
+pub fn devices() -> anyhow::Result<()> {
+    let (found, others) = usb::list()?;
+    if found.is_empty() {
+        bail!(
+            "no rollfuse device ({:04x}:{:04x}) found; {others} other USB device(s) seen",
+            usb::VID,
+            usb::PID
+        );
+    }
+    for d in found {
+        println!(
+            "bus {:03} address {:03}  serial {}",
+            d.bus,
+            d.address,
+            d.serial.as_deref().unwrap_or("(unreadable)")
+        );
+    }
+    Ok(())
+}
