@@ -63,7 +63,10 @@ fn laplacian_max(img: &[u8], w: usize, h: usize) -> u32 {
 
 /// Every tile the device should send for `scene` under `cfg`: index → (observations,
 /// pixels), fused here from the frames whose observation window holds the tile.
-fn reference_tiles(scene: &Scene, cfg: &DeviceConfig) -> std::collections::BTreeMap<u64, (u8, Vec<u8>)> {
+fn reference_tiles(
+    scene: &Scene,
+    cfg: &DeviceConfig,
+) -> std::collections::BTreeMap<u64, (u8, Vec<u8>)> {
     let sim = Simulator::new(scene).unwrap();
     let (w, h) = (scene.sensor.width_px, scene.sensor.height_px);
     let f = usize::from(cfg.downsample);
@@ -113,7 +116,14 @@ fn reference_tiles(scene: &Scene, cfg: &DeviceConfig) -> std::collections::BTree
                     b: &mut b,
                     scratch: &mut scratch,
                 };
-                fuse_u8((&entry.1, tile_dims), (rows, tile_dims), &fuse_cfg, ll, work).unwrap();
+                fuse_u8(
+                    (&entry.1, tile_dims),
+                    (rows, tile_dims),
+                    &fuse_cfg,
+                    ll,
+                    work,
+                )
+                .unwrap();
                 entry.1 = a.iter().map(|&v| v as u8).collect();
             }
             entry.0 += 1;
@@ -139,7 +149,10 @@ fn the_streamed_strip_matches_the_reference_tile_by_tile_and_replays_identically
     let (_, default) = sensor_for(&scene, &Simulator::new(&scene).unwrap());
     let tmp = std::env::temp_dir().join(format!("rollfuse-link-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
-    for (k, norm) in [NormMode::PerFrame, NormMode::PerTile].into_iter().enumerate() {
+    for (k, norm) in [NormMode::PerFrame, NormMode::PerTile]
+        .into_iter()
+        .enumerate()
+    {
         let cfg = DeviceConfig { norm, ..default };
         let (live, replayed) = (tmp.join(format!("live{k}")), tmp.join(format!("replay{k}")));
         let recording = tmp.join(format!("stream{k}.bin"));
@@ -164,7 +177,12 @@ fn the_streamed_strip_matches_the_reference_tile_by_tile_and_replays_identically
         // Interior tiles have all their observations.
         assert_eq!(
             out.manifest.observations.get(&cfg.frames_per_tile).copied(),
-            Some(expected.values().filter(|(o, _)| *o == cfg.frames_per_tile).count() as u64)
+            Some(
+                expected
+                    .values()
+                    .filter(|(o, _)| *o == cfg.frames_per_tile)
+                    .count() as u64
+            )
         );
 
         let mut replay = Replay::open(&recording).unwrap();

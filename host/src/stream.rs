@@ -233,9 +233,15 @@ pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> 
     if live {
         send(link, &mut cmd_seq, &Command::Hello)?;
         if let Some(cfg) = opts.config {
-            essential.push((send(link, &mut cmd_seq, &Command::Configure(cfg))?, "configure"));
+            essential.push((
+                send(link, &mut cmd_seq, &Command::Configure(cfg))?,
+                "configure",
+            ));
         }
-        essential.push((send(link, &mut cmd_seq, &Command::StreamStart)?, "stream start"));
+        essential.push((
+            send(link, &mut cmd_seq, &Command::StreamStart)?,
+            "stream start",
+        ));
     }
 
     let bar = if opts.progress {
@@ -246,7 +252,9 @@ pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> 
     let mut manifest = Manifest::default();
     let mut strip = StripTiles::default();
     let mut seqs = SeqTracker::new();
-    let mut buf = vec![0u8; MAX_MESSAGE];
+    // Room beyond the largest message, so an oversized transfer arrives whole enough to
+    // be counted as too long rather than failing the read.
+    let mut buf = vec![0u8; 2 * MAX_MESSAGE];
     let mut last_message = Instant::now();
     let mut last_write = Instant::now();
     let mut stop_sent = false;

@@ -2,10 +2,10 @@
 //! virtual device, or a recording) into a strip.
 
 use super::WaveletArg;
+use crate::link::Transport;
 use crate::link::replay::Replay;
 use crate::link::sim::{SimDevice, sensor_for};
 use crate::link::usb::{self, Usb};
-use crate::link::Transport;
 use crate::sim::{Scene, Simulator};
 use crate::stream::{self, Options, StopReason};
 use anyhow::{Context, bail};
@@ -112,10 +112,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         match args.device.as_str() {
             "usb" => (Box::new(Usb::open()?), Some(args.config(16))),
             "sim" => {
-                let path = args
-                    .scene
-                    .as_ref()
-                    .context("--device sim needs --scene SCENE.toml (e.g. host/scenes/letters.toml)")?;
+                let path = args.scene.as_ref().context(
+                    "--device sim needs --scene SCENE.toml (e.g. host/scenes/letters.toml)",
+                )?;
                 let scene = Scene::load(path)?;
                 let (_, default) = sensor_for(&scene, &Simulator::new(&scene)?);
                 let dev = SimDevice::start(&scene)?;

@@ -31,7 +31,7 @@ pub trait Transport: Send {
     /// Sends one message (one bulk OUT transfer).
     fn send(&mut self, message: &[u8]) -> anyhow::Result<()>;
     /// Receives one message (one bulk IN transfer) into `buf`, waiting at most `timeout`.
-    /// A message longer than `buf` is an error.
+    /// A transfer longer than `buf` fills it (and is then refused as too long).
     fn receive(&mut self, buf: &mut [u8], timeout: Duration) -> anyhow::Result<Received>;
     /// Whether commands reach a device (false for a replay, which only plays back).
     fn is_live(&self) -> bool {

@@ -165,8 +165,8 @@ pub enum NakReason {
     /// `tile_rows` is 0, larger than the downsampled frame, or the tile is larger than
     /// the largest tile message.
     TileRows,
-    /// `frames_per_tile` is 0, above the device's maximum, or the observation window does
-    /// not fit in the frame.
+    /// `frames_per_tile` is 0, above the device's maximum, the observation window does
+    /// not fit in the frame, or it would hold more tiles than the device keeps in fusion.
     FramesPerTile,
     /// `frame_spacing_px` is 0 or larger than the frame.
     FrameSpacing,

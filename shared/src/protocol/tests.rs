@@ -195,8 +195,17 @@ fn sequence_gaps_repeats_and_wraparound_are_told_apart() {
     assert_eq!(t.observe(4), SeqEvent::InOrder);
 }
 
+/// Cases per property: 2000 in `cargo test`; set `ROLLFUSE_FUZZ_CASES` for a long run
+/// (docs/device.md gives the command and the last result).
+fn cases() -> u32 {
+    std::env::var("ROLLFUSE_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(2000)
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(2000))]
+    #![proptest_config(ProptestConfig::with_cases(cases()))]
 
     /// Flipped bits never pass as a different message: the CRC-32 catches them (any 1–3
     /// flips always; more with probability 1 − 2⁻³²).

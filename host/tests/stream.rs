@@ -1,0 +1,302 @@
+//! A streaming session under link faults: bit flips, truncations, drops, duplicates,
+//! wrong versions and oversized transfers injected into a real stream from the virtual
+//! device. Every fault must be counted, every untouched tile kept exactly, and nothing
+//! may panic. Also: a stream cut off midway keeps what arrived, and the command line
+//! fails clearly when there is no USB device.
+
+use proptest::prelude::*;
+use rollfuse::link::sim::SimDevice;
+use rollfuse::link::{Received, Transport};
+use rollfuse::sim::Scene;
+use rollfuse::stream::{self, Options};
+use rollfuse_core::protocol::{self, DeviceMessage, MAX_MESSAGE};
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::Command;
+use std::sync::OnceLock;
+use std::time::Duration;
+
+/// Plays a list of messages; the end closes the link.
+struct Scripted {
+    messages: std::vec::IntoIter<Vec<u8>>,
+}
+
+impl Transport for Scripted {
+    fn send(&mut self, _: &[u8]) -> anyhow::Result<()> {
+        Ok(())
+    }
+    fn receive(&mut self, buf: &mut [u8], _: Duration) -> anyhow::Result<Received> {
+        Ok(match self.messages.next() {
+            Some(m) => {
+                let n = m.len().min(buf.len());
+                buf[..n].copy_from_slice(&m[..n]);
+                Received::Message(n)
+            }
+            None => Received::Closed,
+        })
+    }
+    fn is_live(&self) -> bool {
+        false
+    }
+}
+
+/// The messages of one clean stream of the letters scene (10 frames), recorded once.
+fn clean_stream() -> &'static Vec<Vec<u8>> {
+    static STREAM: OnceLock<Vec<Vec<u8>>> = OnceLock::new();
+    STREAM.get_or_init(|| {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/letters.toml");
+        let mut scene = Scene::load(&path).unwrap();
+        scene.sensor.frames = 10;
+        let tmp = tempfile::tempdir().unwrap();
+        let rec = tmp.path().join("rec.bin");
+        let mut dev = SimDevice::start(&scene).unwrap();
+        stream::run(&mut dev, &options(tmp.path(), Some(&rec))).unwrap();
+        let bytes = std::fs::read(&rec).unwrap();
+        let mut rest = &bytes[8..];
+        let mut out = Vec::new();
+        while !rest.is_empty() {
+            let n = u32::from_le_bytes(rest[..4].try_into().unwrap()) as usize;
+            out.push(rest[4..4 + n].to_vec());
+            rest = &rest[4 + n..];
+        }
+        out
+    })
+}
+
+fn options(out: &Path, record: Option<&Path>) -> Options {
+    Options {
+        out: out.to_path_buf(),
+        config: None,
+        max_tiles: None,
+        max_duration: None,
+        record: record.map(Path::to_path_buf),
+        progress: false,
+    }
+}
+
+/// Tile index → pixels of the tile messages in `messages` that decode.
+fn tiles_in(messages: &[Vec<u8>]) -> BTreeMap<u32, Vec<u8>> {
+    messages
+        .iter()
+        .filter_map(|m| match protocol::decode::<DeviceMessage>(m) {
+            Ok((_, DeviceMessage::Tile(t))) => Some((t.index, t.pixels.to_vec())),
+            _ => None,
+        })
+        .collect()
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Fault {
+    Flip(usize),
+    Truncate(usize),
+    Drop,
+    Duplicate,
+    WrongVersion,
+    Oversize,
+}
+
+fn fault() -> impl Strategy<Value = Option<Fault>> {
+    prop_oneof![
+        12 => Just(None),
+        1 => any::<usize>().prop_map(|b| Some(Fault::Flip(b))),
+        1 => any::<usize>().prop_map(|n| Some(Fault::Truncate(n))),
+        1 => Just(Some(Fault::Drop)),
+        1 => Just(Some(Fault::Duplicate)),
+        1 => Just(Some(Fault::WrongVersion)),
+        1 => Just(Some(Fault::Oversize)),
+    ]
+}
+
+/// The message with its version byte changed and its CRC made right again.
+fn with_version(msg: &[u8], version: u8) -> Vec<u8> {
+    let mut body = msg[..msg.len() - 4].to_vec();
+    body[0] = version;
+    let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC).checksum(&body);
+    body.extend_from_slice(&crc.to_le_bytes());
+    body
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    #[test]
+    fn faults_are_counted_and_untouched_tiles_kept(plan in proptest::collection::vec(fault(), 64)) {
+        let clean = clean_stream();
+        let mut sent = Vec::new();
+        let mut kept = Vec::new();
+        let (mut lost, mut crc_or_short, mut versions, mut oversized, mut dups) = (0, 0, 0, 0, 0);
+        for (i, msg) in clean.iter().enumerate() {
+            // The first message starts the sequence and the last is the device's final
+            // status: a loss there cannot show as a gap, so they stay intact.
+            let f = if i == 0 || i + 1 == clean.len() { None } else { plan[i % plan.len()] };
+            match f {
+                None => {
+                    sent.push(msg.clone());
+                    kept.push(msg.clone());
+                }
+                Some(Fault::Duplicate) => {
+                    sent.push(msg.clone());
+                    sent.push(msg.clone());
+                    kept.push(msg.clone());
+                    dups += 1;
+                }
+                Some(Fault::Flip(bit)) => {
+                    let mut m = msg.clone();
+                    let bit = bit % (m.len() * 8);
+                    m[bit / 8] ^= 1 << (bit % 8);
+                    sent.push(m);
+                    lost += 1;
+                    crc_or_short += 1;
+                }
+                Some(Fault::Truncate(n)) => {
+                    sent.push(msg[..n % msg.len()].to_vec());
+                    lost += 1;
+                    crc_or_short += 1;
+                }
+                Some(Fault::Drop) => lost += 1,
+                Some(Fault::WrongVersion) => {
+                    sent.push(with_version(msg, 2));
+                    lost += 1;
+                    versions += 1;
+                }
+                Some(Fault::Oversize) => {
+                    let mut m = msg.clone();
+                    m.resize(MAX_MESSAGE + 1, 0);
+                    sent.push(m);
+                    lost += 1;
+                    oversized += 1;
+                }
+            }
+        }
+        let tmp = tempfile::tempdir().unwrap();
+        let mut link = Scripted { messages: sent.into_iter() };
+        let out = stream::run(&mut link, &options(tmp.path(), None)).unwrap();
+        let f = &out.manifest.faults;
+        prop_assert_eq!(f.bad_crc + f.truncated, crc_or_short);
+        prop_assert_eq!(f.wrong_version, versions);
+        prop_assert_eq!(f.too_long, oversized);
+        prop_assert_eq!(f.repeated, dups);
+        prop_assert_eq!(f.messages_missing, lost);
+        prop_assert!(out.manifest.device_stopped);
+
+        // Every tile that arrived intact is in the strip, exactly.
+        let expected = tiles_in(&kept);
+        prop_assert_eq!(out.manifest.tiles_received, expected.len() as u64);
+        let strip = image::open(tmp.path().join("strip.png")).unwrap().to_luma8();
+        let first = *tiles_in(clean).keys().next().unwrap();
+        let first_here = out.manifest.index_range.unwrap()[0];
+        prop_assert!(first_here >= first);
+        let bytes = expected.values().next().unwrap().len();
+        for (index, pixels) in &expected {
+            let at = (index - first_here) as usize * bytes;
+            prop_assert_eq!(&strip.as_raw()[at..at + bytes], &pixels[..]);
+        }
+        // Missing tiles inside the range are listed.
+        let missing: u32 = out.manifest.gaps.iter().map(|[a, b]| b - a + 1).sum();
+        let [lo, hi] = out.manifest.index_range.unwrap();
+        prop_assert_eq!(u64::from(hi - lo + 1 - missing), out.manifest.tiles_received);
+    }
+}
+
+#[test]
+fn a_stream_cut_off_midway_keeps_every_tile_received() {
+    let clean = clean_stream();
+    let cut = clean.len() / 2;
+    let tmp = tempfile::tempdir().unwrap();
+    let kept: Vec<Vec<u8>> = clean[..cut].to_vec();
+    let mut link = Scripted {
+        messages: kept.into_iter(),
+    };
+    let out = stream::run(&mut link, &options(tmp.path(), None)).unwrap();
+    let expected = tiles_in(&clean[..cut]);
+    assert!(!expected.is_empty());
+    assert_eq!(out.manifest.tiles_received, expected.len() as u64);
+    assert!(
+        !out.manifest.device_stopped,
+        "the device never said it stopped"
+    );
+    let strip = image::open(tmp.path().join("strip.png"))
+        .unwrap()
+        .to_luma8();
+    let bytes = expected.values().next().unwrap().len();
+    assert_eq!(strip.as_raw().len(), expected.len() * bytes);
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("manifest.json")).unwrap())
+            .unwrap();
+    assert_eq!(manifest["tiles_received"], expected.len() as u64);
+}
+
+fn rollfuse(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_rollfuse"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn without_a_device_usb_commands_fail_with_one_clear_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("s");
+    for args in [
+        vec!["devices"],
+        vec!["stream", "--device", "usb", "--out", out.to_str().unwrap()],
+    ] {
+        let run = rollfuse(&args);
+        assert!(
+            !run.status.success(),
+            "{args:?} should fail here: no USB devices"
+        );
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(!err.contains("panicked"), "{err}");
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+        assert!(
+            err.contains("rollfuse device") || err.contains("USB"),
+            "says why: {err}"
+        );
+    }
+}
+
+#[test]
+fn bad_stream_arguments_are_refused_clearly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("s");
+    let o = out.to_str().unwrap();
+    let scene = format!("{}/scenes/letters.toml", env!("CARGO_MANIFEST_DIR"));
+    let junk = tmp.path().join("junk.bin");
+    std::fs::write(&junk, b"not a recording").unwrap();
+    let replay = format!("replay:{}", junk.display());
+    let cases: [(&[&str], &str); 5] = [
+        (&["--device", "sim", "--out", o], "--scene"),
+        (&["--device", "tcp", "--out", o], "usb, sim or replay"),
+        (
+            &["--device", &replay, "--out", o],
+            "not a rollfuse stream recording",
+        ),
+        (
+            &[
+                "--device", "sim", "--scene", &scene, "--out", o, "--levels", "9",
+            ],
+            "Levels",
+        ),
+        (
+            &[
+                "--device",
+                "sim",
+                "--scene",
+                &scene,
+                "--out",
+                o,
+                "--frames-per-tile",
+                "40",
+            ],
+            "FramesPerTile",
+        ),
+    ];
+    for (args, says) in cases {
+        let run = rollfuse(&[&["stream"], args].concat());
+        assert!(!run.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(err.contains(says), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+}

@@ -1,0 +1,85 @@
+//! Speed of the device link and the device pipeline on the host: encoding and decoding
+//! tile messages (bytes/s), and one camera frame through the device pipeline at the
+//! default configuration (QVGA YUYV in, 2× downsampled to 160×120, db2, 2 levels,
+//! 16-row tiles, 4 frames per tile).
+//!
+//! `cargo bench -p rollfuse-core --bench link`.
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use rollfuse_core::device::{Pipeline, PipelineBuffers, PipelineConfig, Sensor};
+use rollfuse_core::protocol::{self, DeviceConfig, DeviceMessage, MAX_MESSAGE, PixelFormat, Tile};
+use std::hint::black_box;
+
+fn messages(c: &mut Criterion) {
+    let pixels: Vec<u8> = (0..160 * 16).map(|i| (i * 7) as u8).collect();
+    let tile = DeviceMessage::Tile(Tile {
+        index: 1234,
+        width: 160,
+        height: 16,
+        observations: 4,
+        pixels: &pixels,
+    });
+    let mut buf = vec![0u8; MAX_MESSAGE];
+    let n = protocol::encode(0, &tile, &mut buf).unwrap();
+    let mut group = c.benchmark_group("link");
+    group.throughput(Throughput::Bytes(n as u64));
+    group.bench_function("encode tile 160x16", |b| {
+        b.iter(|| protocol::encode(black_box(7), black_box(&tile), &mut buf).unwrap())
+    });
+    let encoded = buf[..n].to_vec();
+    group.bench_function("decode tile 160x16", |b| {
+        b.iter(|| protocol::decode::<DeviceMessage>(black_box(&encoded)).unwrap())
+    });
+    group.finish();
+}
+
+fn pipeline(c: &mut Criterion) {
+    let sensor = Sensor {
+        width: 320,
+        height: 240,
+        format: PixelFormat::Yuyv,
+    };
+    let cfg = PipelineConfig::from_wire(&DeviceConfig::default(), sensor).unwrap();
+    let m = cfg.memory();
+    let (mut frame, mut tiles) = (vec![0u8; m.frame_bytes], vec![0u8; m.tile_bytes]);
+    let (mut work, mut profiles) = (vec![0i32; m.work_words], vec![0i32; m.profile_words]);
+    let mut p = Pipeline::new(
+        cfg,
+        PipelineBuffers {
+            frame: &mut frame,
+            tiles: &mut tiles,
+            work: &mut work,
+            profiles: &mut profiles,
+        },
+    )
+    .unwrap();
+    // Textured YUYV frames of a belt moving 16 camera rows per frame.
+    let camera = |k: usize| -> Vec<u8> {
+        (0..320 * 240)
+            .flat_map(|i| {
+                let (x, y) = (i % 320, i / 320 + 16 * k);
+                let luma = (60 + ((x * 7) ^ (y * 13)) % 90 + (y * 31 % 50)) as u8;
+                [luma, 128]
+            })
+            .collect()
+    };
+    let frames: Vec<Vec<u8>> = (0..16).map(camera).collect();
+    let mut k = 0u64;
+    let mut group = c.benchmark_group("device pipeline");
+    group.throughput(Throughput::Elements(160 * 120));
+    group.bench_function("frame 320x240 -> 160x120", |b| {
+        b.iter(|| {
+            let f = &frames[(k % 16) as usize];
+            // Positions keep growing so the belt never runs backwards.
+            let r = p.push_frame(f, 16 * k, |t| {
+                black_box(t);
+            });
+            k += 1;
+            r
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, messages, pipeline);
+criterion_main!(benches);

@@ -1,0 +1,270 @@
+//! The device pipeline and command handling on the host: memory by the formula, the
+//! tile model's observation counts, refused frames, and every command's validation.
+
+use rollfuse_core::device::{
+    Controller, Effect, FrameError, Pipeline, PipelineBuffers, PipelineConfig, Sensor,
+};
+use rollfuse_core::protocol::{
+    self, Command, DeviceConfig, DeviceMessage, LedDuty, NakReason, PixelFormat, RollerCommand,
+};
+
+const QVGA: Sensor = Sensor {
+    width: 320,
+    height: 240,
+    format: PixelFormat::Yuyv,
+};
+
+struct Storage {
+    frame: Vec<u8>,
+    tiles: Vec<u8>,
+    work: Vec<i32>,
+    profiles: Vec<i32>,
+}
+
+impl Storage {
+    fn new(cfg: &PipelineConfig) -> Self {
+        let m = cfg.memory();
+        Self {
+            frame: vec![0; m.frame_bytes],
+            tiles: vec![0; m.tile_bytes],
+            work: vec![0; m.work_words],
+            profiles: vec![0; m.profile_words],
+        }
+    }
+    fn buffers(&mut self) -> PipelineBuffers<'_> {
+        PipelineBuffers {
+            frame: &mut self.frame,
+            tiles: &mut self.tiles,
+            work: &mut self.work,
+            profiles: &mut self.profiles,
+        }
+    }
+}
+
+/// The numbers docs/device.md states for the default configuration on a QVGA camera.
+#[test]
+fn the_default_configuration_needs_what_the_formula_says() {
+    let cfg = PipelineConfig::from_wire(&DeviceConfig::default(), QVGA).unwrap();
+    let (w, h, t) = (160, 120, 16);
+    // 16 camera px per frame, 2× downsampled: 8 rows; window 4·8 + 16 − 1 = 47 rows.
+    assert_eq!(cfg.window_rows(), 47);
+    assert_eq!(cfg.active_tiles(), 47usize.div_ceil(t) + 1);
+    let m = cfg.memory();
+    assert_eq!(m.frame_bytes, w * h);
+    assert_eq!(m.tile_bytes, 4 * t * w);
+    // Two work images, the transform's column block (32 columns × 16 rows), two maps.
+    assert_eq!(
+        m.work_words,
+        2 * t * w + 32 * t + 2 * (w / 2 + 1) * (t / 2 + 1)
+    );
+    assert_eq!(m.profile_words, 2 * (h - 1));
+    assert_eq!(m.total_bytes(), 58_752);
+
+    // One element short anywhere is refused.
+    let mut s = Storage::new(&cfg);
+    assert!(Pipeline::new(cfg, s.buffers()).is_ok());
+    for which in 0..4 {
+        let mut s = Storage::new(&cfg);
+        match which {
+            0 => s.frame.pop().map(drop),
+            1 => s.tiles.pop().map(drop),
+            2 => s.work.pop().map(drop),
+            _ => s.profiles.pop().map(drop),
+        };
+        assert!(Pipeline::new(cfg, s.buffers()).is_err(), "buffer {which}");
+    }
+}
+
+/// A gray belt with texture everywhere, as the camera sees it at belt row `offset`.
+fn belt_frame(offset: usize, w: usize, h: usize) -> Vec<u8> {
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as u32, (i / w + offset) as u32);
+            ((x * 7 + y * 13) ^ (y.wrapping_mul(2_654_435_761) >> 27)) as u8
+        })
+        .collect()
+}
+
+#[test]
+fn interior_tiles_get_exactly_their_observations_in_belt_order() {
+    let sensor = Sensor {
+        width: 64,
+        height: 96,
+        format: PixelFormat::Gray8,
+    };
+    let wire = DeviceConfig {
+        downsample: 1,
+        tile_rows: 8,
+        frames_per_tile: 3,
+        frame_spacing_px: 6,
+        refine_rows: 2,
+        ..DeviceConfig::default()
+    };
+    let cfg = PipelineConfig::from_wire(&wire, sensor).unwrap();
+    let mut s = Storage::new(&cfg);
+    let mut p = Pipeline::new(cfg, s.buffers()).unwrap();
+    let mut seen = Vec::new();
+    for k in 0..30 {
+        let frame = belt_frame(6 * k, 64, 96);
+        let report = p
+            .push_frame(&frame, 6 * k as u64, |t| {
+                seen.push((t.index, t.observations))
+            })
+            .unwrap();
+        assert_eq!(
+            report.offset,
+            6 * k as u64,
+            "refinement keeps the true shift"
+        );
+    }
+    // A frame of the wrong size, or one from behind, is refused and changes nothing.
+    assert!(matches!(
+        p.push_frame(&[0; 10], 180, |_| {}),
+        Err(FrameError::Size(_))
+    ));
+    let back = belt_frame(100, 64, 96);
+    assert_eq!(
+        p.push_frame(&back, 100, |_| panic!("no tile from a refused frame")),
+        Err(FrameError::Backwards)
+    );
+    p.finish(|t| seen.push((t.index, t.observations)));
+    let indices: Vec<u32> = seen.iter().map(|s| s.0).collect();
+    assert!(indices.windows(2).all(|w| w[1] == w[0] + 1), "{indices:?}");
+    // 3 frames × 6 rows = 18 consecutive window positions: each tile is seen 3 times,
+    // except where the run starts and ends.
+    let full = seen.iter().filter(|s| s.1 == 3).count();
+    assert!(full >= seen.len() - 6, "{seen:?}");
+    assert!(seen.iter().all(|s| (1..=3).contains(&s.1)));
+}
+
+fn command(seq: u32, c: &Command) -> Vec<u8> {
+    let mut buf = [0u8; 128];
+    let n = protocol::encode(seq, c, &mut buf).unwrap();
+    buf[..n].to_vec()
+}
+
+#[test]
+fn every_command_is_validated_with_a_reason() {
+    let mut ctl = Controller::new(QVGA, [1, 2, 3], DeviceConfig::default()).unwrap();
+    let nak = |ctl: &mut Controller, c: Command| match ctl.handle(&command(5, &c)) {
+        (
+            DeviceMessage::Nak {
+                reason,
+                command_seq,
+            },
+            Effect::None,
+        ) => {
+            assert_eq!(command_seq, 5);
+            reason
+        }
+        other => panic!("{c:?} accepted: {other:?}"),
+    };
+    let d = DeviceConfig::default();
+    let bad_configs = [
+        (DeviceConfig { levels: 0, ..d }, NakReason::Levels),
+        (DeviceConfig { levels: 5, ..d }, NakReason::Levels),
+        // Tiles so thin that more than the device holds would be in fusion at once.
+        (DeviceConfig { tile_rows: 2, ..d }, NakReason::FramesPerTile),
+        (DeviceConfig { downsample: 3, ..d }, NakReason::Downsample),
+        (DeviceConfig { tile_rows: 0, ..d }, NakReason::TileRows),
+        (
+            DeviceConfig {
+                tile_rows: 121,
+                ..d
+            },
+            NakReason::TileRows,
+        ),
+        (
+            DeviceConfig {
+                frames_per_tile: 0,
+                ..d
+            },
+            NakReason::FramesPerTile,
+        ),
+        (
+            DeviceConfig {
+                frames_per_tile: 14,
+                ..d
+            },
+            NakReason::FramesPerTile,
+        ),
+        (
+            DeviceConfig {
+                frame_spacing_px: 0,
+                ..d
+            },
+            NakReason::FrameSpacing,
+        ),
+        (
+            DeviceConfig {
+                frame_spacing_px: 241,
+                ..d
+            },
+            NakReason::FrameSpacing,
+        ),
+        (
+            DeviceConfig {
+                refine_rows: 17,
+                ..d
+            },
+            NakReason::RefineRows,
+        ),
+    ];
+    for (cfg, reason) in bad_configs {
+        assert_eq!(nak(&mut ctl, Command::Configure(cfg)), reason, "{cfg:?}");
+    }
+    let too_bright = LedDuty {
+        red: 1001,
+        ..LedDuty::default()
+    };
+    assert_eq!(nak(&mut ctl, Command::Leds(too_bright)), NakReason::LedDuty);
+    for speed in [0, 500_001] {
+        let c = Command::Roller(RollerCommand::Start { speed_um_s: speed });
+        assert_eq!(nak(&mut ctl, c), NakReason::Speed);
+    }
+    for frames in [0, 9] {
+        assert_eq!(
+            nak(&mut ctl, Command::CaptureRaw { frames }),
+            NakReason::RawFrames
+        );
+    }
+    // Garbage is refused and counted.
+    assert!(matches!(
+        ctl.handle(&[1, 2, 3, 4, 5, 6, 7]).0,
+        DeviceMessage::Nak {
+            reason: NakReason::BadMessage,
+            ..
+        }
+    ));
+    assert_eq!(ctl.counters().bad_commands, 1);
+
+    // Good commands: acked, with their effect.
+    let ok = |ctl: &mut Controller, c: Command| {
+        let (reply, effect) = ctl.handle(&command(9, &c));
+        assert_eq!(reply, DeviceMessage::Ack { command_seq: 9 }, "{c:?}");
+        effect
+    };
+    let smaller = DeviceConfig {
+        levels: 1,
+        downsample: 4,
+        ..d
+    };
+    assert!(
+        matches!(ok(&mut ctl, Command::Configure(smaller)), Effect::Configure(p) if p.downsample == 4)
+    );
+    assert_eq!(
+        ok(&mut ctl, Command::Leds(LedDuty::ALL_ON)),
+        Effect::Leds(LedDuty::ALL_ON)
+    );
+    assert_eq!(ok(&mut ctl, Command::StreamStart), Effect::StreamStart);
+    assert_eq!(nak(&mut ctl, Command::Configure(d)), NakReason::Busy);
+    assert_eq!(nak(&mut ctl, Command::StreamStart), NakReason::Busy);
+    assert_eq!(ok(&mut ctl, Command::StreamStop), Effect::StreamStop);
+    match ctl.handle(&command(10, &Command::Hello)).0 {
+        DeviceMessage::Info(info) => {
+            assert_eq!(info.firmware, [1, 2, 3]);
+            assert_eq!(info.config, smaller);
+        }
+        other => panic!("{other:?}"),
+    }
+}
