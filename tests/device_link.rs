@@ -5,7 +5,7 @@
 //! bit. A recording of the stream, played back, must give byte-identical files.
 
 use rollfuse::link::replay::Replay;
-use rollfuse::link::sim::{SimDevice, camera_bytes, sensor_for};
+use rollfuse::link::sim::{SimDevice, camera_bytes};
 use rollfuse::sim::{Scene, Simulator};
 use rollfuse::stream::{self, Options};
 use rollfuse_core::fusion::{LlWeight, U8Work, fuse_scratch_len, fuse_u8};
@@ -146,17 +146,19 @@ fn options(out: &Path, config: Option<DeviceConfig>, record: Option<&Path>) -> O
 #[test]
 fn the_streamed_strip_matches_the_reference_tile_by_tile_and_replays_identically() {
     let scene = letters(14);
-    let (_, default) = sensor_for(&scene, &Simulator::new(&scene).unwrap());
     let tmp = std::env::temp_dir().join(format!("rollfuse-link-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
     for (k, norm) in [NormMode::PerFrame, NormMode::PerTile]
         .into_iter()
         .enumerate()
     {
-        let cfg = DeviceConfig { norm, ..default };
         let (live, replayed) = (tmp.join(format!("live{k}")), tmp.join(format!("replay{k}")));
         let recording = tmp.join(format!("stream{k}.bin"));
         let mut dev = SimDevice::start(&scene).unwrap();
+        let cfg = DeviceConfig {
+            norm,
+            ..dev.default_config()
+        };
         let out = stream::run(&mut dev, &options(&live, Some(cfg), Some(&recording))).unwrap();
         assert!(out.manifest.device_stopped);
         assert_eq!(out.manifest.faults.total(), 0);

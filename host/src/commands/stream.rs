@@ -4,9 +4,9 @@
 use super::WaveletArg;
 use crate::link::Transport;
 use crate::link::replay::Replay;
-use crate::link::sim::{SimDevice, sensor_for};
+use crate::link::sim::SimDevice;
 use crate::link::usb::{self, Usb};
-use crate::sim::{Scene, Simulator};
+use crate::sim::Scene;
 use crate::stream::{self, Options, StopReason};
 use anyhow::{Context, bail};
 use rollfuse_core::protocol::{DeviceConfig, NormMode, WaveletId};
@@ -115,10 +115,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 let path = args.scene.as_ref().context(
                     "--device sim needs --scene SCENE.toml (e.g. host/scenes/letters.toml)",
                 )?;
-                let scene = Scene::load(path)?;
-                let (_, default) = sensor_for(&scene, &Simulator::new(&scene)?);
-                let dev = SimDevice::start(&scene)?;
-                (Box::new(dev), Some(args.config(default.frame_spacing_px)))
+                let dev = SimDevice::start(&Scene::load(path)?)?;
+                let spacing = dev.default_config().frame_spacing_px;
+                (Box::new(dev), Some(args.config(spacing)))
             }
             other => match other.strip_prefix("replay:") {
                 Some(file) if !file.is_empty() => {

@@ -29,6 +29,7 @@ const FIRMWARE: [u8; 3] = [0, 1, 0];
 
 /// A virtual device running in a thread.
 pub struct SimDevice {
+    default_config: DeviceConfig,
     to_device: Option<SyncSender<Vec<u8>>>,
     from_device: Receiver<Vec<u8>>,
     thread: Option<JoinHandle<()>>,
@@ -85,10 +86,19 @@ impl SimDevice {
             })
             .context("cannot start the virtual device's thread")?;
         Ok(Self {
+            default_config: config,
             to_device: Some(to_device),
             from_device,
             thread: Some(thread),
         })
+    }
+}
+
+impl SimDevice {
+    /// The configuration the device starts with: the product defaults with the scene's
+    /// frame spacing.
+    pub fn default_config(&self) -> DeviceConfig {
+        self.default_config
     }
 }
 
