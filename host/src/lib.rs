@@ -8,6 +8,7 @@
 //! - [`image`]: images as `f32` planes, PNG in and out.
 //! - [`sim`]: the tactile simulator (scenes, effects on demand, ground truth).
 //! - [`fullres`]: full-resolution fusion of aligned frames into one mosaic.
+//! - [`depth`]: photometric stereo, Poisson integration, light calibration.
 //! - [`eval`]: the paper's metrics.
 //! - [`link`]: the device link — USB, the virtual device, recorded streams.
 //! - [`stream`]: a streaming session — tiles received, checked and stitched into a strip.
@@ -17,6 +18,7 @@
 pub use rollfuse_core as core;
 
 pub mod commands;
+pub mod depth;
 pub mod eval;
 pub mod fullres;
 pub mod image;

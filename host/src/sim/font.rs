@@ -1,4 +1,5 @@
-//! A 5×7 stroke font for the `letters` scene: each glyph is 7 rows of 5 cells, `#` raised.
+//! A 5×7 stroke font for the `letters` scene (and the labels of depth pictures): each
+//! glyph is 7 rows of 5 cells, `#` raised.
 
 /// Glyph rows for `c`, or `None` if the font has no glyph for it.
 pub fn glyph(c: char) -> Option<[&'static str; 7]> {
@@ -112,6 +113,12 @@ pub fn glyph(c: char) -> Option<[&'static str; 7]> {
             ".###.", "#...#", "#...#", ".####", "....#", "...#.", ".##..",
         ],
         ' ' => ["....."; 7],
+        '.' => [
+            ".....", ".....", ".....", ".....", ".....", ".##..", ".##..",
+        ],
+        '-' => [
+            ".....", ".....", ".....", "#####", ".....", ".....", ".....",
+        ],
         _ => return None,
     };
     Some(g)
