@@ -1,7 +1,7 @@
 //! `rollfuse`: the command-line tool of the rollfuse tactile sensor module.
 
 use clap::{Parser, Subcommand};
-use rollfuse::commands::{eval, fuse, metrics, simulate, splice, stream};
+use rollfuse::commands::{depth, eval, fuse, metrics, simulate, splice, stream};
 use std::process::ExitCode;
 
 /// Cyclic wavelet fusion of tactile images from a rolling, curved elastomer sensor.
@@ -26,6 +26,10 @@ enum Command {
     Metrics(metrics::Args),
     /// Tables II and III (ablations; single, fused, spliced) on simulated samples.
     Eval(eval::Args),
+    /// Height map (mm) of an RGB tactile image by photometric stereo (see docs/depth.md).
+    Depth(depth::Args),
+    /// Fit the light file from an image of a ball of known radius.
+    Calibrate(depth::CalibrateArgs),
     /// Stream fused tiles from the device (USB, virtual, or a recording) into a strip.
     Stream(stream::Args),
     /// List the rollfuse devices on USB.
@@ -44,6 +48,8 @@ fn main() -> ExitCode {
         Command::Splice(args) => splice::run(args),
         Command::Metrics(args) => metrics::run(args),
         Command::Eval(args) => eval::run(args),
+        Command::Depth(args) => depth::run(args),
+        Command::Calibrate(args) => depth::calibrate_run(args),
         Command::Stream(args) => stream::run(args),
         Command::Devices => stream::devices(),
     };

@@ -5,6 +5,7 @@
 use rollfuse::depth::calibrate::{Circle, calibrate};
 use rollfuse::depth::lights::Lights;
 use rollfuse::depth::reconstruct;
+use rollfuse::depth::synthetic::ball;
 use rollfuse::image::Planes;
 
 const K: f64 = 0.02; // mm per pixel
@@ -23,35 +24,8 @@ fn product_lights() -> Lights {
 }
 
 /// The cap's true height (mm) and an RGB image of it, `w × h`, centred at `(cx, cy)`.
-fn render(w: usize, h: usize, (cx, cy): (f64, f64), lights: &Lights) -> (Vec<f64>, Planes) {
-    let mut height = vec![0f64; w * h];
-    let mut planes = vec![vec![0f32; w * h]; 3];
-    for y in 0..h {
-        for x in 0..w {
-            let (rx, ry) = ((x as f64 - cx) * K, (y as f64 - cy) * K);
-            let rho2 = rx * rx + ry * ry;
-            let z = (R * R - rho2).max(0.0).sqrt() - (R - PRESS);
-            let n = if z > 0.0 {
-                height[y * w + x] = z;
-                let s = (R * R - rho2).sqrt();
-                [rx / R, ry / R, s / R]
-            } else {
-                [0.0, 0.0, 1.0]
-            };
-            for (c, l) in lights.directions().iter().enumerate() {
-                let ndotl = (n[0] * l[0] + n[1] * l[1] + n[2] * l[2]).max(0.0);
-                planes[c][y * w + x] = (FLAT * ndotl / l[2]) as f32;
-            }
-        }
-    }
-    (
-        height,
-        Planes {
-            width: w,
-            height: h,
-            planes,
-        },
-    )
+fn render(w: usize, h: usize, centre: (f64, f64), lights: &Lights) -> (Vec<f64>, Planes) {
+    ball((w, h), centre, R, PRESS, lights, FLAT)
 }
 
 fn flat_background(w: usize, h: usize) -> Planes {

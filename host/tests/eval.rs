@@ -53,3 +53,33 @@ fn too_short_a_sequence_is_refused() {
     let err = evaluate_scene(&scene, &FuseConfig::default(), 10).unwrap_err();
     assert!(format!("{err}").contains("at least 7"), "{err}");
 }
+
+/// Table IV: fusion evens out the depth the curved gel gives three equal spheres — the
+/// spread of their contact areas by at least half, and (unlike the paper's 3-frame
+/// fusion) the spread of their heights too.
+#[test]
+fn fusion_evens_out_the_three_spheres_depth() {
+    use rollfuse::eval::depth::evaluate_depth;
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/spheres.toml");
+    let rows = evaluate_depth(&Scene::load(&path).unwrap()).unwrap();
+    let (single, three, two) = (&rows[0], &rows[1], &rows[2]);
+    for r in &rows {
+        println!(
+            "{}: area std {:.4}, peak std {:.4} mm",
+            r.method, r.overlap_std, r.peak_std_mm
+        );
+        assert!(r.overlap.iter().all(|o| (0.0..=1.0).contains(o)));
+        assert!(
+            r.peak_mm
+                .iter()
+                .all(|p| p.is_finite() && *p > 0.0 && *p < 1.5)
+        );
+    }
+    assert!(three.overlap_std <= 0.5 * single.overlap_std);
+    assert!(three.peak_std_mm < single.peak_std_mm);
+    assert!(two.overlap_std < single.overlap_std);
+    // Not a scene for depth: refused.
+    let gray =
+        Scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/dots.toml")).unwrap();
+    assert!(format!("{}", evaluate_depth(&gray).unwrap_err()).contains("not RGB"));
+}

@@ -1,6 +1,7 @@
 //! `rollfuse eval`: Tables II and III on the simulated standardized samples.
 
 use super::simulate::progress;
+use crate::eval::depth;
 use crate::eval::tables::{csv, evaluate_scene, markdown};
 use crate::sim::Scene;
 use anyhow::Context;
@@ -13,9 +14,13 @@ pub struct Args {
     /// Folder for eval.md and eval.csv.
     #[arg(long, default_value = "out/eval")]
     pub out: PathBuf,
-    /// Scenes to evaluate (default: the built-in dot, line and curve matrices).
+    /// Scenes to evaluate (default: the built-in dot, line and curve matrices; with
+    /// --depth, the three-sphere scene).
     #[arg(long)]
     pub scene: Vec<PathBuf>,
+    /// Table IV instead: depth from single and fused frames of the three-sphere scene.
+    #[arg(long)]
+    pub depth: bool,
 }
 
 /// The built-in standardized samples.
@@ -27,8 +32,37 @@ pub fn default_scenes() -> Vec<PathBuf> {
         .collect()
 }
 
+/// Runs `rollfuse eval --depth`.
+fn run_depth(args: &Args) -> anyhow::Result<()> {
+    let path = match args.scene.as_slice() {
+        [] => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/spheres.toml"),
+        [one] => one.clone(),
+        _ => anyhow::bail!("--depth takes one scene"),
+    };
+    let scene = Scene::load(&path)?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let rows = depth::evaluate_depth(&scene)?;
+    for (r, name) in rows.iter().zip(["single", "fused3", "fused2"]) {
+        crate::depth::output::write_png(&r.depth, &args.out.join(format!("depth_{name}.png")))?;
+    }
+    let md = depth::markdown(&rows);
+    std::fs::write(args.out.join("depth.md"), &md).context("cannot write depth.md")?;
+    std::fs::write(args.out.join("depth.csv"), depth::csv(&rows))
+        .context("cannot write depth.csv")?;
+    print!("{md}");
+    println!(
+        "\nwritten: {}/depth.md, depth.csv, depth_{{single,fused3,fused2}}.png",
+        args.out.display()
+    );
+    Ok(())
+}
+
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.depth {
+        return run_depth(&args);
+    }
     let scenes = if args.scene.is_empty() {
         default_scenes()
     } else {

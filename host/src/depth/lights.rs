@@ -92,7 +92,7 @@ impl Lights {
             );
         }
         let c = self.condition();
-        if !(c <= MAX_CONDITION) {
+        if c.is_nan() || c > MAX_CONDITION {
             bail!(
                 "the light directions are too close to each other or to one plane: condition \
                  number {c:.1} (at most {MAX_CONDITION} is accepted)"

@@ -51,10 +51,17 @@ pub fn integrate(gx: &[f64], gy: &[f64], w: usize, h: usize) -> anyhow::Result<V
 
     let mut planner = DctPlanner::new();
     let (dct_w, dct_h) = (planner.plan_dct2(w), planner.plan_dct2(h));
+    // Each worker keeps one scratch buffer for all its rows (rustdct's plain `process_*`
+    // would allocate one per row).
+    let scratch_len = dct_w.get_scratch_len().max(dct_h.get_scratch_len());
+    let rows = |data: &mut [f64], len: usize, f: &(dyn Fn(&mut [f64], &mut [f64]) + Sync)| {
+        data.par_chunks_mut(len)
+            .for_each_init(|| vec![0f64; scratch_len], |scratch, r| f(r, scratch));
+    };
     // Forward: rows, transpose, rows (now along y), spectrum laid out [kx][ky].
-    f.par_chunks_mut(w).for_each(|r| dct_w.process_dct2(r));
+    rows(&mut f, w, &|r, s| dct_w.process_dct2_with_scratch(r, s));
     let mut t = transpose(&f, w, h);
-    t.par_chunks_mut(h).for_each(|r| dct_h.process_dct2(r));
+    rows(&mut t, h, &|r, s| dct_h.process_dct2_with_scratch(r, s));
     let mu = |k: usize, n: usize| 2.0 - 2.0 * (std::f64::consts::PI * k as f64 / n as f64).cos();
     let mu_y: Vec<f64> = (0..h).map(|k| mu(k, h)).collect();
     t.par_chunks_mut(h).enumerate().for_each(|(kx, row)| {
@@ -66,9 +73,9 @@ pub fn integrate(gx: &[f64], gy: &[f64], w: usize, h: usize) -> anyhow::Result<V
     });
     // Inverse: DCT-III along y, transpose back, DCT-III along x. rustdct's DCT-III of a
     // DCT-II gives the signal times N/2.
-    t.par_chunks_mut(h).for_each(|r| dct_h.process_dct3(r));
+    rows(&mut t, h, &|r, s| dct_h.process_dct3_with_scratch(r, s));
     let mut out = transpose(&t, h, w);
-    out.par_chunks_mut(w).for_each(|r| dct_w.process_dct3(r));
+    rows(&mut out, w, &|r, s| dct_w.process_dct3_with_scratch(r, s));
     let scale = 4.0 / (w as f64 * h as f64);
     out.iter_mut().for_each(|v| *v *= scale);
     Ok(out)

@@ -26,15 +26,18 @@ pub struct Row {
     pub report: Report,
 }
 
-/// The frames of a scene as the camera delivers them (8-bit), their canvas rows, and the
-/// ideal image.
-struct Acquisition {
-    frames: Vec<Planes>,
-    rows: Vec<i64>,
-    ideal: Planes,
+/// The frames of a scene as the camera delivers them (8-bit), their canvas rows (strip
+/// row of each frame's top row), the ideal image and the strip's regions.
+pub(crate) struct Acquisition {
+    pub frames: Vec<Planes>,
+    pub rows: Vec<i64>,
+    pub ideal: Planes,
+    /// Region name and mask (strip rows × width, 255 inside).
+    pub regions: Vec<(String, Vec<u8>)>,
 }
 
-fn acquire(scene: &Scene) -> anyhow::Result<Acquisition> {
+/// Renders every frame of `scene`, rounded to 8 bits as a camera would.
+pub(crate) fn acquire(scene: &Scene) -> anyhow::Result<Acquisition> {
     let sim = Simulator::new(scene)?;
     let mut frames = Vec::new();
     let mut rows = Vec::new();
@@ -63,11 +66,12 @@ fn acquire(scene: &Scene) -> anyhow::Result<Acquisition> {
         frames,
         rows,
         ideal: sim.ideal(),
+        regions: sim.strip().regions.clone(),
     })
 }
 
 /// Rows `top..top + h` of an image (all columns).
-fn crop_rows(img: &Planes, top: usize, h: usize) -> anyhow::Result<Planes> {
+pub(crate) fn crop_rows(img: &Planes, top: usize, h: usize) -> anyhow::Result<Planes> {
     ensure!(
         top + h <= img.height,
         "crop rows {top}..{} outside a {}-row image",

@@ -1,4 +1,5 @@
-//! Writing a simulation to disk: `frame_0000.png …`, `truth/`, `contact_sheet.png` and
+//! Writing a simulation to disk: `frame_0000.png …`, `truth/`, `contact_sheet.png`,
+//! `lights.toml` (RGB scenes: the true light file for `rollfuse depth`) and
 //! `manifest.json`.
 
 use super::render::{Planes, Simulator};
@@ -172,6 +173,17 @@ pub fn write(
             .save(out.join(&file))
             .with_context(|| format!("cannot write {file}"))?;
         regions.push((name.clone(), file));
+    }
+    if scene.has(super::Effect::Rgb) {
+        // The lights the frames were rendered with: what `rollfuse depth` needs.
+        let lights = crate::depth::lights::Lights {
+            mm_per_px: mmpp,
+            red: scene.lights.red,
+            green: scene.lights.green,
+            blue: scene.lights.blue,
+            gains: [1.0; 3],
+        };
+        lights.save(&out.join("lights.toml"))?;
     }
     let manifest = Manifest {
         scene: scene.name.clone(),

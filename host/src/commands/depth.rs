@@ -1,0 +1,146 @@
+//! `rollfuse depth` and `rollfuse calibrate`: height maps from RGB tactile images, and the
+//! light file they need.
+
+use super::check_writable;
+use crate::depth::calibrate::{Circle, calibrate};
+use crate::depth::lights::Lights;
+use crate::depth::{output, reconstruct};
+use crate::image::Planes;
+use anyhow::{Context, bail};
+use std::path::{Path, PathBuf};
+
+/// Arguments of `rollfuse depth`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The RGB tactile image (a single frame or a fused one).
+    pub image: PathBuf,
+    /// The light file (scale, LED directions, gains); `rollfuse calibrate` writes one.
+    #[arg(long)]
+    pub lights: PathBuf,
+    /// The no-contact frame (else a smooth estimate from the image).
+    #[arg(long)]
+    pub background: Option<PathBuf>,
+    /// Output stem: writes STEM.npy (float32 mm) and STEM.png (colour map with scale bar).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also write STEM.ply, a point cloud in mm.
+    #[arg(long)]
+    pub ply: bool,
+}
+
+/// `STEM` + `.ext`, keeping any dots in the stem.
+fn with_ext(stem: &Path, ext: &str) -> PathBuf {
+    let mut s = stem.as_os_str().to_owned();
+    s.push(".");
+    s.push(ext);
+    PathBuf::from(s)
+}
+
+/// Runs `rollfuse depth`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let outputs: Vec<PathBuf> = ["npy", "png"]
+        .iter()
+        .chain(args.ply.then_some(&"ply"))
+        .map(|e| with_ext(&args.out, e))
+        .collect();
+    for o in &outputs {
+        check_writable(o)?;
+        if let (Ok(a), Ok(b)) = (std::fs::canonicalize(o), std::fs::canonicalize(&args.image))
+            && a == b
+        {
+            bail!("{} would overwrite the input image", o.display());
+        }
+    }
+    let lights = Lights::load(&args.lights)?;
+    let image = Planes::load(&args.image)?;
+    let background = args.background.as_deref().map(Planes::load).transpose()?;
+    let started = std::time::Instant::now();
+    let depth = reconstruct(&image, background.as_ref(), &lights)
+        .with_context(|| format!("depth of {}", args.image.display()))?;
+    let took = started.elapsed().as_secs_f64();
+    output::write_npy(&depth, &outputs[0])?;
+    output::write_png(&depth, &outputs[1])?;
+    if args.ply {
+        output::write_ply(&depth, &outputs[2])?;
+    }
+    let peak = depth.height_mm.iter().copied().fold(0f32, f32::max);
+    let contact = depth.contact.iter().filter(|&&c| c).count();
+    println!(
+        "{}×{}: peak height {peak:.3} mm, contact {:.1} mm² ({contact} px); took {took:.4} s → {}",
+        depth.width,
+        depth.height,
+        contact as f64 * lights.mm_per_px * lights.mm_per_px,
+        outputs
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    Ok(())
+}
+
+/// Arguments of `rollfuse calibrate`.
+#[derive(Debug, clap::Args)]
+pub struct CalibrateArgs {
+    /// RGB image of a ball pressed into the gel.
+    pub image: PathBuf,
+    /// The ball's radius, mm.
+    #[arg(long)]
+    pub radius_mm: f64,
+    /// The image scale, mm per pixel.
+    #[arg(long)]
+    pub mm_per_px: f64,
+    /// The no-contact frame (else a smooth estimate from the image).
+    #[arg(long)]
+    pub background: Option<PathBuf>,
+    /// The contact disc, pixels, instead of finding it: `x,y,r`.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub circle: Option<Vec<f64>>,
+    /// The light file to write.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// Runs `rollfuse calibrate`.
+pub fn calibrate_run(args: CalibrateArgs) -> anyhow::Result<()> {
+    check_writable(&args.out)?;
+    let circle = match args.circle.as_deref() {
+        None => None,
+        Some(&[x, y, r]) if x.is_finite() && y.is_finite() && r.is_finite() && r > 0.0 => {
+            Some(Circle { x, y, r })
+        }
+        Some(c) => bail!("--circle must be x,y,r with r > 0, got {c:?}"),
+    };
+    let image = Planes::load(&args.image)?;
+    let background = args.background.as_deref().map(Planes::load).transpose()?;
+    let (lights, disc) = calibrate(
+        &image,
+        background.as_ref(),
+        args.radius_mm,
+        args.mm_per_px,
+        circle,
+    )
+    .with_context(|| format!("calibrating from {}", args.image.display()))?;
+    lights.save(&args.out)?;
+    println!(
+        "contact disc at ({:.1}, {:.1}), radius {:.1} px; light matrix condition number {:.2} → {}",
+        disc.x,
+        disc.y,
+        disc.r,
+        lights.condition(),
+        args.out.display()
+    );
+    for (name, d, g) in [
+        ("red", lights.red, lights.gains[0]),
+        ("green", lights.green, lights.gains[1]),
+        ("blue", lights.blue, lights.gains[2]),
+    ] {
+        let elevation = d[2].asin().to_degrees();
+        let azimuth = d[1].atan2(d[0]).to_degrees();
+        println!(
+            "  {name:<5} [{:+.4}, {:+.4}, {:+.4}]  elevation {elevation:.1}°, azimuth {azimuth:.1}°, gain {g:.3}",
+            d[0], d[1], d[2]
+        );
+    }
+    Ok(())
+}
