@@ -43,8 +43,12 @@ fn depth(c: &mut Criterion) {
         b.iter(|| stereo::slopes(black_box(&image), &background, &lights).unwrap())
     });
     let s = stereo::slopes(&image, &background, &lights).unwrap();
-    group.bench_function("Poisson only, 1 thread", |b| {
+    group.bench_function("Poisson f64 (gradients in), 1 thread", |b| {
         one.install(|| b.iter(|| poisson::integrate(black_box(&s.p), &s.q, w, h).unwrap()))
+    });
+    let rhs: Vec<f32> = s.p.iter().map(|&v| v as f32 * 1e-3).collect();
+    group.bench_function("Poisson f32 solve (as depth runs it), 1 thread", |b| {
+        one.install(|| b.iter(|| poisson::solve_neumann(black_box(rhs.clone()), w, h).unwrap()))
     });
     group.finish();
 }

@@ -63,43 +63,53 @@ pub fn reconstruct(
     let (w, h) = (s.width, s.height);
     let contact = contact_mask(&s.p, &s.q, w, h);
     // Slopes between pixel centres: the mean of the two pixels' slopes, in mm per pixel;
-    // zero on the flat gel so its noise does not integrate into a tilt.
+    // zero on the flat gel so its noise does not integrate into a tilt. The Poisson
+    // right-hand side (their divergence, as `poisson::integrate` forms it) is built
+    // directly, without gradient arrays.
     let k = lights.mm_per_px;
-    let slope = |v: &[f64], i: usize, j: usize| {
+    let between = |v: &[f64], i: usize, j: usize| {
         if contact[i] || contact[j] {
-            0.5 * (v[i] + v[j]) * k
+            (0.5 * (v[i] + v[j]) * k) as f32
         } else {
             0.0
         }
     };
-    let mut gx = vec![0f64; w * h];
-    let mut gy = vec![0f64; w * h];
+    let mut rhs = vec![0f32; w * h];
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
             if x + 1 < w {
-                gx[i] = slope(&s.p, i, i + 1);
+                let g = between(&s.p, i, i + 1);
+                rhs[i] -= g;
+                rhs[i + 1] += g;
             }
             if y + 1 < h {
-                gy[i] = slope(&s.q, i, i + w);
+                let g = between(&s.q, i, i + w);
+                rhs[i] -= g;
+                rhs[i + w] += g;
             }
         }
     }
-    let heights = poisson::integrate(&gx, &gy, w, h)?;
+    let heights = poisson::solve_neumann(rhs, w, h)?;
+    if heights.iter().any(|v| !v.is_finite()) {
+        anyhow::bail!("the slopes did not integrate to finite heights");
+    }
     // Zero at the undisturbed gel: the median height off contact (or the lowest point when
     // contact covers almost everything).
     let off_contact = contact.iter().filter(|c| !**c).count();
     let base = if off_contact * 10 >= w * h {
         let flat = heights.iter().zip(&contact).filter(|(_, c)| !**c);
-        median(flat.map(|(v, _)| *v)).unwrap_or(0.0)
+        median(flat.map(|(v, _)| f64::from(*v))).unwrap_or(0.0) as f32
     } else {
-        heights.iter().copied().fold(f64::INFINITY, f64::min)
+        heights.iter().copied().fold(f32::INFINITY, f32::min)
     };
+    let mut height_mm = heights;
+    height_mm.iter_mut().for_each(|v| *v -= base);
     Ok(DepthMap {
         width: w,
         height: h,
         mm_per_px: k,
-        height_mm: heights.iter().map(|v| (v - base) as f32).collect(),
+        height_mm,
         contact,
     })
 }
@@ -108,37 +118,51 @@ pub fn reconstruct(
 /// noise does not speckle it, above [`CONTACT_SLOPE`] or three times its median (the noise
 /// floor, when contact covers less than half the image), grown by a few pixels.
 fn contact_mask(p: &[f64], q: &[f64], w: usize, h: usize) -> Vec<bool> {
-    let magnitude: Vec<f64> = p
+    // f32 and bytes keep the working arrays small: fresh pages cost more than arithmetic.
+    let magnitude: Vec<f32> = p
         .iter()
         .zip(q)
-        .map(|(a, b)| (a * a + b * b).sqrt())
+        .map(|(a, b)| (a * a + b * b).sqrt() as f32)
         .collect();
-    let smooth = box_mean(&magnitude, w, h, 2);
-    let floor = median(smooth.iter().copied()).unwrap_or(0.0);
-    let threshold = CONTACT_SLOPE.max(3.0 * floor);
-    let steep: Vec<bool> = smooth.iter().map(|&m| m > threshold).collect();
-    grow(&steep, w, h, CONTACT_MARGIN)
+    let smooth = box_sum(&magnitude, w, h, 2);
+    let area = 25.0;
+    let floor = median(smooth.iter().map(|&v| f64::from(v) / area)).unwrap_or(0.0);
+    let threshold = (CONTACT_SLOPE.max(3.0 * floor) * area) as f32;
+    let steep: Vec<f32> = smooth
+        .iter()
+        .map(|&m| f32::from(u8::from(m > threshold)))
+        .collect();
+    // Grown: any steep pixel in the (2r+1)² square.
+    box_sum(&steep, w, h, CONTACT_MARGIN)
+        .iter()
+        .map(|&n| n > 0.5)
+        .collect()
 }
 
-/// The mean over a `(2r+1)²` square, shrunk at the borders: running sums along rows,
-/// then along columns.
-fn box_mean(v: &[f64], w: usize, h: usize, r: usize) -> Vec<f64> {
-    let mut rows = vec![0f64; w * h];
+/// The sum over a `(2r+1)²` square clipped at the borders (at the borders the square holds
+/// fewer pixels; the contact threshold is a little stricter there): running sums along
+/// rows, then running sums of whole rows.
+fn box_sum(v: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
+    let mut rows = vec![0f32; w * h];
     for (src, dst) in v.chunks_exact(w).zip(rows.chunks_exact_mut(w)) {
-        window_means(src, dst, r);
+        let mut sum: f32 = src[..r.min(w - 1) + 1].iter().sum();
+        for i in 0..w {
+            dst[i] = sum;
+            if i + r + 1 < w {
+                sum += src[i + r + 1];
+            }
+            if i >= r {
+                sum -= src[i - r];
+            }
+        }
     }
-    // Columns: a running sum of whole rows (row-major, so it streams through memory).
-    let mut out = vec![0f64; w * h];
-    let mut acc = vec![0f64; w];
+    let mut out = vec![0f32; w * h];
+    let mut acc = vec![0f32; w];
     for row in rows.chunks_exact(w).take(r.min(h - 1) + 1) {
         acc.iter_mut().zip(row).for_each(|(a, v)| *a += v);
     }
     for y in 0..h {
-        let count = ((y + r).min(h - 1) - y.saturating_sub(r) + 1) as f64;
-        out[y * w..(y + 1) * w]
-            .iter_mut()
-            .zip(&acc)
-            .for_each(|(o, a)| *o = a / count);
+        out[y * w..(y + 1) * w].copy_from_slice(&acc);
         if y + r + 1 < h {
             let add = &rows[(y + r + 1) * w..(y + r + 2) * w];
             acc.iter_mut().zip(add).for_each(|(a, v)| *a += v);
@@ -151,22 +175,6 @@ fn box_mean(v: &[f64], w: usize, h: usize, r: usize) -> Vec<f64> {
     out
 }
 
-/// `dst[i]` = the mean of `src[i−r ..= i+r]` (clipped to the line), by a running sum.
-fn window_means(src: &[f64], dst: &mut [f64], r: usize) {
-    let n = src.len();
-    let mut sum: f64 = src[..r.min(n - 1) + 1].iter().sum();
-    for i in 0..n {
-        let (a, b) = (i.saturating_sub(r), (i + r).min(n - 1));
-        dst[i] = sum / (b - a + 1) as f64;
-        if i + r + 1 < n {
-            sum += src[i + r + 1];
-        }
-        if i >= r {
-            sum -= src[i - r];
-        }
-    }
-}
-
 /// The median of `v`, from every fourth value (a threshold and a baseline need no more).
 fn median(v: impl Iterator<Item = f64>) -> Option<f64> {
     let mut sample: Vec<f64> = v.step_by(4).collect();
@@ -175,14 +183,4 @@ fn median(v: impl Iterator<Item = f64>) -> Option<f64> {
     }
     let mid = sample.len() / 2;
     Some(*sample.select_nth_unstable_by(mid, f64::total_cmp).1)
-}
-
-/// `mask` grown by `r` pixels (a square neighbourhood): a pixel is set when the box mean
-/// of the mask around it is above zero.
-fn grow(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
-    let as_f64: Vec<f64> = mask.iter().map(|&m| f64::from(u8::from(m))).collect();
-    box_mean(&as_f64, w, h, r)
-        .iter()
-        .map(|&m| m > 1e-9)
-        .collect()
 }

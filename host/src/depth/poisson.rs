@@ -14,7 +14,7 @@
 
 use anyhow::{bail, ensure};
 use rayon::prelude::*;
-use rustdct::DctPlanner;
+use rustdct::{DctNum, DctPlanner};
 
 /// Integrates forward-difference gradients (`w × h` each, row-major; the last column of
 /// `gx` and the last row of `gy` are ignored) into heights with mean 0, in the
@@ -33,58 +33,64 @@ pub fn integrate(gx: &[f64], gy: &[f64], w: usize, h: usize) -> anyhow::Result<V
     // Right-hand side Dxᵀgx + Dyᵀgy: (Dxᵀg)[x] = g[x−1] − g[x], with g[−1] = g[W−1] = 0.
     let mut f = vec![0f64; w * h];
     for y in 0..h {
-        let row = &mut f[y * w..(y + 1) * w];
-        let g = &gx[y * w..(y + 1) * w];
         for x in 0..w {
-            let left = if x > 0 { g[x - 1] } else { 0.0 };
-            let here = if x + 1 < w { g[x] } else { 0.0 };
-            row[x] = left - here;
+            let i = y * w + x;
+            let left = if x > 0 { gx[i - 1] } else { 0.0 };
+            let right = if x + 1 < w { gx[i] } else { 0.0 };
+            let up = if y > 0 { gy[i - w] } else { 0.0 };
+            let down = if y + 1 < h { gy[i] } else { 0.0 };
+            f[i] = left - right + up - down;
         }
     }
-    for y in 0..h {
-        for x in 0..w {
-            let up = if y > 0 { gy[(y - 1) * w + x] } else { 0.0 };
-            let here = if y + 1 < h { gy[y * w + x] } else { 0.0 };
-            f[y * w + x] += up - here;
-        }
-    }
+    solve_neumann(f, w, h)
+}
 
+/// Solves `(DxᵀDx + DyᵀDy) h = f` for the height map with mean 0, `f` being the
+/// right-hand side (`w × h`, row-major; its values must sum to zero, as a divergence does),
+/// in place of `f`. In `f64` (what the exactness test holds to 1e-6) or `f32` (twice the
+/// vector width, what depth maps use: their heights are good to far less).
+pub fn solve_neumann<T: DctNum>(mut f: Vec<T>, w: usize, h: usize) -> anyhow::Result<Vec<T>> {
+    ensure!(
+        f.len() == w * h && w >= 1 && h >= 1,
+        "a {w}×{h} map needs {} values",
+        w * h
+    );
     let mut planner = DctPlanner::new();
     let (dct_w, dct_h) = (planner.plan_dct2(w), planner.plan_dct2(h));
     // Each worker keeps one scratch buffer for all its rows (rustdct's plain `process_*`
     // would allocate one per row).
     let scratch_len = dct_w.get_scratch_len().max(dct_h.get_scratch_len());
-    let rows = |data: &mut [f64], len: usize, f: &(dyn Fn(&mut [f64], &mut [f64]) + Sync)| {
+    let rows = |data: &mut [T], len: usize, f: &(dyn Fn(&mut [T], &mut [T]) + Sync)| {
         data.par_chunks_mut(len)
-            .for_each_init(|| vec![0f64; scratch_len], |scratch, r| f(r, scratch));
+            .for_each_init(|| vec![T::zero(); scratch_len], |scratch, r| f(r, scratch));
     };
     // Forward: rows, transpose, rows (now along y), spectrum laid out [kx][ky].
     rows(&mut f, w, &|r, s| dct_w.process_dct2_with_scratch(r, s));
-    let mut t = transpose(&f, w, h);
+    let mut t = vec![T::zero(); w * h];
+    transpose(&f, &mut t, w, h);
     rows(&mut t, h, &|r, s| dct_h.process_dct2_with_scratch(r, s));
     let mu = |k: usize, n: usize| 2.0 - 2.0 * (std::f64::consts::PI * k as f64 / n as f64).cos();
     let mu_y: Vec<f64> = (0..h).map(|k| mu(k, h)).collect();
+    // rustdct's DCT-III of a DCT-II gives the signal times N/2, per axis: folded in here.
+    let scale = 4.0 / (w as f64 * h as f64);
     t.par_chunks_mut(h).enumerate().for_each(|(kx, row)| {
         let mx = mu(kx, w);
         for (v, &my) in row.iter_mut().zip(&mu_y) {
             let d = mx + my;
-            *v = if d > 0.0 { *v / d } else { 0.0 };
+            let factor = if d > 0.0 { scale / d } else { 0.0 };
+            *v = *v * T::from_f64(factor).unwrap_or_else(T::zero);
         }
     });
-    // Inverse: DCT-III along y, transpose back, DCT-III along x. rustdct's DCT-III of a
-    // DCT-II gives the signal times N/2.
+    // Inverse: DCT-III along y, transpose back (into `f`'s memory), DCT-III along x.
     rows(&mut t, h, &|r, s| dct_h.process_dct3_with_scratch(r, s));
-    let mut out = transpose(&t, h, w);
-    rows(&mut out, w, &|r, s| dct_w.process_dct3_with_scratch(r, s));
-    let scale = 4.0 / (w as f64 * h as f64);
-    out.iter_mut().for_each(|v| *v *= scale);
-    Ok(out)
+    transpose(&t, &mut f, h, w);
+    rows(&mut f, w, &|r, s| dct_w.process_dct3_with_scratch(r, s));
+    Ok(f)
 }
 
-/// Transposes a `w × h` row-major array, in cache-sized blocks.
-fn transpose(src: &[f64], w: usize, h: usize) -> Vec<f64> {
+/// Writes the transpose of the `w × h` row-major `src` into `dst`, in cache-sized blocks.
+fn transpose<T: Copy>(src: &[T], dst: &mut [T], w: usize, h: usize) {
     const B: usize = 32;
-    let mut dst = vec![0f64; w * h];
     for y0 in (0..h).step_by(B) {
         for x0 in (0..w).step_by(B) {
             for y in y0..(y0 + B).min(h) {
@@ -94,7 +100,6 @@ fn transpose(src: &[f64], w: usize, h: usize) -> Vec<f64> {
             }
         }
     }
-    dst
 }
 
 /// Forward differences of `heights` (`w × h`): the gradients [`integrate`] takes.
