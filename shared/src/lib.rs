@@ -21,6 +21,7 @@
 //! - [`device`]: the device pipeline (downsampling, belt offsets, the streaming tile
 //!   model) and the device's command handling.
 //! - [`protocol`]: the messages of the USB link, their framing, CRC and limits.
+//! - [`motion`]: the roller's trapezoidal step profile and frame triggers.
 #![no_std]
 #![forbid(unsafe_code)]
 
@@ -30,6 +31,7 @@ pub mod float;
 pub mod fusion;
 pub mod geometry;
 pub mod lifting;
+pub mod motion;
 pub mod protocol;
 pub mod saliency;
 

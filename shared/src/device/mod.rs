@@ -7,9 +7,11 @@
 //! - [`pipeline`]: the streaming tile model — tiles fused from the frames that see them
 //!   near the roller's apex and emitted once complete, in fixed, caller-owned memory.
 //! - [`controller`]: commands decoded, validated and answered.
+//! - [`leds`]: LED duties to PWM compare values.
 
 pub mod controller;
 pub mod downsample;
+pub mod leds;
 pub mod pipeline;
 pub mod refine;
 
