@@ -144,7 +144,8 @@ impl Ramp {
             self.cruise
         };
         self.steps += 1;
-        let trigger = self.steps_per_frame > 0 && self.steps % u64::from(self.steps_per_frame) == 0;
+        let trigger =
+            self.steps_per_frame > 0 && self.steps.is_multiple_of(u64::from(self.steps_per_frame));
         Some(Step {
             interval: interval.clamp(1, u64::from(u32::MAX)) as u32,
             trigger,
