@@ -1,0 +1,150 @@
+//! The firmware proper (only built for the MCU).
+
+mod link;
+mod selftest;
+
+use defmt::{error, info};
+use embassy_executor::Spawner;
+use embassy_futures::join::join3;
+use embassy_stm32::gpio::{Level, Output, Speed};
+use embassy_stm32::wdg::IndependentWatchdog;
+use embassy_stm32::{Config, bind_interrupts, peripherals, usb};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::channel::Channel;
+use embassy_time::{Instant, Timer};
+use rollfuse_core::device::{Controller, Effect, Sensor};
+use rollfuse_core::protocol::{DeviceConfig, PixelFormat};
+use {defmt_rtt as _, panic_probe as _};
+
+bind_interrupts!(struct Irqs {
+    OTG_FS => usb::InterruptHandler<peripherals::USB_OTG_FS>;
+});
+
+/// Fused tiles, encoded, waiting for the USB link. The pipeline drops a tile (and counts
+/// it) when this is full rather than stall the camera.
+pub static TILES: Channel<CriticalSectionRawMutex, link::Message, 4> = Channel::new();
+
+/// Accepted commands' effects, for the tasks that carry them out.
+pub static EFFECTS: Channel<CriticalSectionRawMutex, Effect, 8> = Channel::new();
+
+/// The camera the firmware is built for: an OV7725-class sensor at QVGA, YUYV.
+const SENSOR: Sensor = Sensor {
+    width: 320,
+    height: 240,
+    format: PixelFormat::Yuyv,
+};
+
+/// Firmware version, as `Info` reports it.
+const FIRMWARE: [u8; 3] = [0, 1, 0];
+
+/// 400 MHz from the PLL on HSI (480 MHz needs voltage scale 0, which only revision V
+/// silicon has; 400 MHz runs on every H743), HSI48 for USB.
+fn clocks() -> Config {
+    use embassy_stm32::rcc::*;
+    let mut config = embassy_stm32::Config::default();
+    config.rcc.hsi = Some(HSIPrescaler::DIV1);
+    config.rcc.csi = true;
+    config.rcc.hsi48 = Some(Hsi48Config {
+        sync_from_usb: true,
+    });
+    config.rcc.pll1 = Some(Pll {
+        source: PllSource::HSI,
+        prediv: PllPreDiv::DIV4,
+        mul: PllMul::MUL50,
+        fracn: None,
+        divp: Some(PllDiv::DIV2),
+        divq: Some(PllDiv::DIV8),
+        divr: None,
+    });
+    config.rcc.sys = Sysclk::PLL1_P;
+    config.rcc.ahb_pre = AHBPrescaler::DIV2;
+    config.rcc.apb1_pre = APBPrescaler::DIV2;
+    config.rcc.apb2_pre = APBPrescaler::DIV2;
+    config.rcc.apb3_pre = APBPrescaler::DIV2;
+    config.rcc.apb4_pre = APBPrescaler::DIV2;
+    config.rcc.voltage_scale = VoltageScale::Scale1;
+    config.rcc.mux.usbsel = mux::Usbsel::HSI48;
+    config
+}
+
+#[embassy_executor::main]
+async fn main(_spawner: Spawner) {
+    let p = embassy_stm32::init(clocks());
+    info!("rollfuse-fw {}", env!("CARGO_PKG_VERSION"));
+    let t0 = Instant::now();
+    match selftest::run() {
+        Ok(step) => info!(
+            "fusion self-test: edge step {} of 160 kept, {} us",
+            step,
+            t0.elapsed().as_micros()
+        ),
+        Err(_) => error!("fusion self-test failed"),
+    }
+    let Ok(mut controller) = Controller::new(SENSOR, FIRMWARE, DeviceConfig::default()) else {
+        // The default configuration fits the sensor (a host test checks it); if not,
+        // there is nothing to serve.
+        error!("default configuration refused");
+        return;
+    };
+
+    // USB: vendor interface, bulk OUT then bulk IN (addresses 0x01 and 0x81).
+    let mut ep_out_buffer = [0u8; 256];
+    let mut usb_config = usb::Config::default();
+    // Bus-powered board: no VBUS sensing needed.
+    usb_config.vbus_detection = false;
+    let driver = usb::Driver::new_fs(
+        p.USB_OTG_FS,
+        Irqs,
+        p.PA12,
+        p.PA11,
+        &mut ep_out_buffer,
+        usb_config,
+    );
+    let mut config = embassy_usb::Config::new(0x1209, 0x0001);
+    config.manufacturer = Some("rollfuse");
+    config.product = Some("rollfuse tactile module");
+    config.serial_number = Some("0001");
+    config.max_power = 100;
+    config.max_packet_size_0 = 64;
+    let mut config_descriptor = [0; 256];
+    let mut bos_descriptor = [0; 256];
+    let mut control_buf = [0; 64];
+    let mut builder = embassy_usb::Builder::new(
+        driver,
+        config,
+        &mut config_descriptor,
+        &mut bos_descriptor,
+        &mut [],
+        &mut control_buf,
+    );
+    let mut function = builder.function(0xFF, 0, 0);
+    let mut interface = function.interface();
+    let mut alt = interface.alt_setting(0xFF, 0, 0, None);
+    let mut read_ep = alt.endpoint_bulk_out(None, link::PACKET as u16);
+    let mut write_ep = alt.endpoint_bulk_in(None, link::PACKET as u16);
+    drop(function);
+    let mut device = builder.build();
+
+    let serve = async {
+        loop {
+            link::serve(&mut read_ep, &mut write_ep, &mut controller).await;
+        }
+    };
+
+    // The watchdog restarts a hung firmware after 1 s; the board LED shows it is alive.
+    let mut watchdog = IndependentWatchdog::new(p.IWDG1, 1_000_000);
+    watchdog.unleash();
+    let mut led = Output::new(p.PB0, Level::High, Speed::Low);
+    let alive = async {
+        loop {
+            watchdog.pet();
+            led.toggle();
+            // Effects are logged until the camera, motion and LED tasks take them.
+            while let Ok(effect) = EFFECTS.try_receive() {
+                info!("effect: {}", defmt::Debug2Format(&effect));
+            }
+            Timer::after_millis(250).await;
+        }
+    };
+    join3(device.run(), serve, alive).await;
+}
