@@ -166,45 +166,39 @@ pub fn evaluate_depth(scene: &Scene) -> anyhow::Result<Vec<DepthRow>> {
         .collect()
 }
 
-/// The table in Markdown, with each std's change against the single frame.
+/// The table in Markdown, with each std's change against the first row (the single frame).
 pub fn markdown(rows: &[DepthRow]) -> String {
     let mut s = String::from(
         "| method | frames | area overlap per sphere | std of area overlap | peak per sphere (mm) | std of peak (mm) |\n|---|---|---|---|---|---|\n",
     );
-    let base = rows.first();
-    let change = |v: f64, b: f64| {
-        if b > 0.0 {
-            format!(" ({:+.0} %)", 100.0 * (v - b) / b)
-        } else {
+    let list = |v: &[f64]| {
+        v.iter()
+            .map(|x| format!("{x:.3}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    // "(−87 %)" after every row but the first.
+    let change = |k: usize, v: f64, base: f64| {
+        if k == 0 || base <= 0.0 {
             String::new()
+        } else {
+            format!(" ({:+.0} %)", 100.0 * (v - base) / base)
         }
     };
-    for r in rows {
-        let list = |v: &[f64], digits: usize| {
-            v.iter()
-                .map(|x| format!("{x:.digits$}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
-        let (ob, pb) = base.map_or((0.0, 0.0), |b| (b.overlap_std, b.peak_std_mm));
+    let (ob, pb) = rows
+        .first()
+        .map_or((0.0, 0.0), |b| (b.overlap_std, b.peak_std_mm));
+    for (k, r) in rows.iter().enumerate() {
         s += &format!(
             "| {} | {:?} | {} | {:.4}{} | {} | {:.4}{} |\n",
             r.method,
             r.frames,
-            list(&r.overlap, 3),
+            list(&r.overlap),
             r.overlap_std,
-            if std::ptr::eq(r, base.unwrap_or(r)) {
-                String::new()
-            } else {
-                change(r.overlap_std, ob)
-            },
-            list(&r.peak_mm, 3),
+            change(k, r.overlap_std, ob),
+            list(&r.peak_mm),
             r.peak_std_mm,
-            if std::ptr::eq(r, base.unwrap_or(r)) {
-                String::new()
-            } else {
-                change(r.peak_std_mm, pb)
-            },
+            change(k, r.peak_std_mm, pb),
         );
     }
     s
