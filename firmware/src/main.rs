@@ -4,9 +4,10 @@
 //! product's protocol over USB (vendor interface, bulk OUT 0x01 / IN 0x81, 1209:0001):
 //! every command is decoded, validated and answered by the core's `device::Controller`,
 //! the same code the host's virtual device runs, and fused tiles queued by the pipeline
-//! go out one message per transfer. It logs over defmt-RTT, is guarded by the independent
-//! watchdog, and blinks the board LED (PB0 on a NUCLEO-H743ZI). The camera, pipeline,
-//! motion and LED tasks follow (see README.md).
+//! go out one message per transfer. It drives the three LEDs (PWM) and the roller's
+//! stepper (the core's trapezoidal ramp, with frame triggers), logs over defmt-RTT, is
+//! guarded by the independent watchdog, and blinks the board LED (PB0 on a NUCLEO-H743ZI).
+//! The camera and pipeline tasks follow (see README.md).
 #![cfg_attr(target_os = "none", no_std)]
 #![cfg_attr(target_os = "none", no_main)]
 

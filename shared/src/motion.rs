@@ -122,6 +122,11 @@ impl Ramp {
         self.n == 0 && self.target_n == 0
     }
 
+    /// Frames every `n` steps from now on (0 = no frames).
+    pub fn set_steps_per_frame(&mut self, n: u32) {
+        self.steps_per_frame = n;
+    }
+
     /// Steps taken since creation.
     pub fn steps(&self) -> u64 {
         self.steps
@@ -212,6 +217,8 @@ mod tests {
             .collect();
         assert_eq!(triggers.len(), 50);
         assert_eq!(CFG.steps_per_frame(1), 1, "never zero");
+        r.set_steps_per_frame(0);
+        assert!((0..100).all(|_| !r.next_step().unwrap().trigger));
     }
 
     #[test]

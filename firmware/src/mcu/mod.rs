@@ -1,16 +1,21 @@
 //! The firmware proper (only built for the MCU).
 
+mod leds;
 mod link;
+mod motion;
 mod selftest;
 
 use defmt::{error, info};
 use embassy_executor::Spawner;
-use embassy_futures::join::join3;
-use embassy_stm32::gpio::{Level, Output, Speed};
+use embassy_futures::join::join5;
+use embassy_stm32::gpio::{Level, Output, OutputType, Speed};
+use embassy_stm32::time::khz;
+use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
 use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{Config, bind_interrupts, peripherals, usb};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
+use embassy_sync::signal::Signal;
 use embassy_time::{Instant, Timer};
 use rollfuse_core::device::{Controller, Effect, Sensor};
 use rollfuse_core::protocol::{DeviceConfig, PixelFormat};
@@ -26,6 +31,10 @@ pub static TILES: Channel<CriticalSectionRawMutex, link::Message, 4> = Channel::
 
 /// Accepted commands' effects, for the tasks that carry them out.
 pub static EFFECTS: Channel<CriticalSectionRawMutex, Effect, 8> = Channel::new();
+
+/// Frame triggers from the motion task: the step count at each. A trigger the camera has
+/// not taken when the next arrives is overwritten (the camera counts it as an overrun).
+pub static TRIGGERS: Signal<CriticalSectionRawMutex, u64> = Signal::new();
 
 /// The camera the firmware is built for: an OV7725-class sensor at QVGA, YUYV.
 const SENSOR: Sensor = Sensor {
@@ -131,6 +140,43 @@ async fn main(_spawner: Spawner) {
         }
     };
 
+    // LEDs on TIM4 channels 1–3, 20 kHz.
+    let pwm = SimplePwm::new(
+        p.TIM4,
+        Some(PwmPin::new(p.PD12, OutputType::PushPull)),
+        Some(PwmPin::new(p.PD13, OutputType::PushPull)),
+        Some(PwmPin::new(p.PD14, OutputType::PushPull)),
+        None,
+        khz(20),
+        Default::default(),
+    );
+    let mut leds = leds::Leds::new(pwm);
+
+    // The stepper driver: DIR fixed forward, STEP pulses and ENABLE from the motion task.
+    let _dir = Output::new(p.PF12, Level::Low, Speed::Low);
+    let step = Output::new(p.PF13, Level::Low, Speed::High);
+    let enable = Output::new(p.PF14, Level::High, Speed::Low);
+    let roller = motion::run(step, enable, DeviceConfig::default().frame_spacing_px);
+
+    // Accepted commands reach the hardware here.
+    let effects = async {
+        loop {
+            match EFFECTS.receive().await {
+                Effect::Leds(duty) => leds.set(duty),
+                Effect::Roller(cmd) => motion::ORDERS.send(motion::Order::Roller(cmd)).await,
+                Effect::Configure(cfg) => {
+                    let px = u16::try_from(cfg.spacing_px).unwrap_or(u16::MAX);
+                    motion::ORDERS.send(motion::Order::FrameSpacing(px)).await;
+                }
+                // The camera and pipeline tasks that take these are not written yet.
+                other => info!(
+                    "effect not carried out yet: {}",
+                    defmt::Debug2Format(&other)
+                ),
+            }
+        }
+    };
+
     // The watchdog restarts a hung firmware after 1 s; the board LED shows it is alive.
     let mut watchdog = IndependentWatchdog::new(p.IWDG1, 1_000_000);
     watchdog.unleash();
@@ -139,12 +185,8 @@ async fn main(_spawner: Spawner) {
         loop {
             watchdog.pet();
             led.toggle();
-            // Effects are logged until the camera, motion and LED tasks take them.
-            while let Ok(effect) = EFFECTS.try_receive() {
-                info!("effect: {}", defmt::Debug2Format(&effect));
-            }
             Timer::after_millis(250).await;
         }
     };
-    join3(device.run(), serve, alive).await;
+    join5(device.run(), serve, effects, roller, alive).await;
 }

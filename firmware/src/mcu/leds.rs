@@ -1,0 +1,34 @@
+//! The three LEDs: PWM channels 1–3 of TIM4 (PD12 red, PD13 green, PD14 blue), duty from
+//! commands through the core's mapping.
+
+use embassy_stm32::peripherals::TIM4;
+use embassy_stm32::timer::simple_pwm::SimplePwm;
+use rollfuse_core::device::leds::compare_values;
+use rollfuse_core::protocol::LedDuty;
+
+/// The LED driver.
+pub struct Leds {
+    pwm: SimplePwm<'static, TIM4>,
+}
+
+impl Leds {
+    /// Takes the timer (already configured with its three pins) and turns the LEDs off.
+    pub fn new(mut pwm: SimplePwm<'static, TIM4>) -> Self {
+        pwm.ch1().enable();
+        pwm.ch2().enable();
+        pwm.ch3().enable();
+        let mut leds = Self { pwm };
+        leds.set(LedDuty::default());
+        leds
+    }
+
+    /// Sets the three duties (per mille).
+    pub fn set(&mut self, duty: LedDuty) {
+        // The timer's full duty fits 16 bits at the 20 kHz the LEDs run at.
+        let max = self.pwm.ch1().max_duty_cycle().min(u32::from(u16::MAX)) as u16;
+        let [r, g, b] = compare_values(duty, max);
+        self.pwm.ch1().set_duty_cycle(u32::from(r));
+        self.pwm.ch2().set_duty_cycle(u32::from(g));
+        self.pwm.ch3().set_duty_cycle(u32::from(b));
+    }
+}

@@ -1,0 +1,92 @@
+//! The roller: step pulses from the core's trapezoidal ramp (`rollfuse_core::motion`),
+//! timed against absolute deadlines of the 1 MHz time driver (TIM2), so intervals never
+//! accumulate error; a frame trigger every `steps_per_frame` steps.
+//!
+//! Pins: STEP PF13, DIR PF12 (fixed forward), ENABLE PF14 (low = driver on).
+
+use super::TRIGGERS;
+use defmt::{info, warn};
+use embassy_futures::select::{Either, select};
+use embassy_stm32::gpio::Output;
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::channel::Channel;
+use embassy_time::{Duration, Instant, Timer};
+use rollfuse_core::motion::{MotionConfig, Ramp};
+use rollfuse_core::protocol::RollerCommand;
+
+/// The mechanics: a 24 mm roller driven by a 200-step motor at 16 microsteps
+/// (75.4 mm / 3200 steps = 23.56 µm of belt per step), 100 mm/s² of acceleration.
+pub const MECHANICS: MotionConfig = MotionConfig {
+    nm_per_step: 23_562,
+    accel_um_s2: 100_000,
+    timer_hz: 1_000_000,
+};
+
+/// The optics: belt micrometres per camera pixel.
+pub const UM_PER_PX: u32 = 50;
+
+/// What the motion task is told.
+#[derive(Debug, Clone, Copy)]
+pub enum Order {
+    /// A roller command from the host.
+    Roller(RollerCommand),
+    /// A new frame spacing, camera pixels.
+    FrameSpacing(u16),
+}
+
+/// Orders for the motion task.
+pub static ORDERS: Channel<CriticalSectionRawMutex, Order, 4> = Channel::new();
+
+/// Runs the roller forever.
+pub async fn run(mut step: Output<'static>, mut enable: Output<'static>, spacing_px: u16) {
+    let steps_per_frame = |px: u16| MECHANICS.steps_per_frame(u32::from(px) * UM_PER_PX);
+    let Ok(mut ramp) = Ramp::new(MECHANICS, steps_per_frame(spacing_px)) else {
+        warn!("motion configuration refused; the roller stays off");
+        return;
+    };
+    enable.set_high();
+    loop {
+        // Stopped: wait for an order.
+        if ramp.is_stopped() {
+            enable.set_high();
+            let order = ORDERS.receive().await;
+            apply(&mut ramp, order, &steps_per_frame);
+            continue;
+        }
+        enable.set_low();
+        let mut deadline = Instant::now();
+        while let Some(s) = ramp.next_step() {
+            deadline += Duration::from_ticks(u64::from(s.interval));
+            // Orders arriving meanwhile are applied; the step already due is still taken.
+            while let Either::Second(order) = select(Timer::at(deadline), ORDERS.receive()).await {
+                apply(&mut ramp, order, &steps_per_frame);
+            }
+            step.set_high();
+            // The driver needs a pulse of at least a microsecond or two.
+            Timer::after_micros(2).await;
+            step.set_low();
+            if s.trigger {
+                TRIGGERS.signal(ramp.steps());
+            }
+        }
+    }
+}
+
+fn apply(ramp: &mut Ramp, order: Order, steps_per_frame: &impl Fn(u16) -> u32) {
+    match order {
+        Order::Roller(
+            RollerCommand::Start { speed_um_s } | RollerCommand::Speed { speed_um_s },
+        ) => {
+            if ramp.set_speed(speed_um_s).is_err() {
+                warn!("roller speed {} um/s refused", speed_um_s);
+            }
+        }
+        Order::Roller(RollerCommand::Stop) => {
+            let _ = ramp.set_speed(0);
+        }
+        Order::FrameSpacing(px) => {
+            ramp.set_steps_per_frame(steps_per_frame(px));
+            info!("frames every {} steps", steps_per_frame(px));
+        }
+    }
+}
