@@ -1,13 +1,11 @@
-//! rollfuse edge-module firmware for the STM32H743ZI.
+//! rollfuse edge-module firmware for the STM32H743ZI (see README.md).
 //!
-//! This build boots at 400 MHz, runs a self-test of the fusion core, and speaks the
-//! product's protocol over USB (vendor interface, bulk OUT 0x01 / IN 0x81, 1209:0001):
-//! every command is decoded, validated and answered by the core's `device::Controller`,
-//! the same code the host's virtual device runs, and fused tiles queued by the pipeline
-//! go out one message per transfer. It drives the three LEDs (PWM) and the roller's
-//! stepper (the core's trapezoidal ramp, with frame triggers), logs over defmt-RTT, is
-//! guarded by the independent watchdog, and blinks the board LED (PB0 on a NUCLEO-H743ZI).
-//! The camera and pipeline tasks follow (see README.md).
+//! Camera (OV7725 over SCCB, DCMI + DMA snapshots) → the core's device pipeline → fused
+//! tiles over USB (vendor interface, one protocol message per transfer), with commands
+//! answered by the core's `device::Controller` — the same pipeline and controller the
+//! host's virtual device runs. The roller's stepper follows the core's trapezoidal ramp
+//! and triggers frames at equal belt spacing; three PWM LEDs; defmt-RTT logs; an
+//! independent watchdog.
 #![cfg_attr(target_os = "none", no_std)]
 #![cfg_attr(target_os = "none", no_main)]
 

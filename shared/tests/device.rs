@@ -60,6 +60,22 @@ fn the_default_configuration_needs_what_the_formula_says() {
     assert_eq!(m.profile_words, 2 * (h - 1));
     assert_eq!(m.total_bytes(), 58_752);
 
+    // The firmware's buffers hold it, and the 2×-downsampled configurations users pick.
+    assert!(m.fits(&rollfuse_core::device::MCU_CAPACITY));
+    for (levels, tile_rows, frames_per_tile) in [(1, 16, 4), (3, 32, 6), (2, 8, 3)] {
+        let wire = DeviceConfig {
+            levels,
+            tile_rows,
+            frames_per_tile,
+            ..DeviceConfig::default()
+        };
+        let cfg = PipelineConfig::from_wire(&wire, QVGA).unwrap();
+        assert!(
+            cfg.memory().fits(&rollfuse_core::device::MCU_CAPACITY),
+            "{wire:?}"
+        );
+    }
+
     // One element short anywhere is refused.
     let mut s = Storage::new(&cfg);
     assert!(Pipeline::new(cfg, s.buffers()).is_ok());
@@ -260,6 +276,31 @@ fn every_command_is_validated_with_a_reason() {
     assert_eq!(nak(&mut ctl, Command::Configure(d)), NakReason::Busy);
     assert_eq!(nak(&mut ctl, Command::StreamStart), NakReason::Busy);
     assert_eq!(ok(&mut ctl, Command::StreamStop), Effect::StreamStop);
+    // A device with fixed buffers refuses what would not fit them.
+    let default_needs = PipelineConfig::from_wire(&d, QVGA).unwrap().memory();
+    let mut small = Controller::new(QVGA, [1, 2, 3], d)
+        .unwrap()
+        .with_capacity(default_needs)
+        .unwrap();
+    let bigger = DeviceConfig { downsample: 1, ..d };
+    assert_eq!(
+        nak(&mut small, Command::Configure(bigger)),
+        NakReason::Memory
+    );
+    assert!(matches!(
+        ok(&mut small, Command::Configure(d)),
+        Effect::Configure(_)
+    ));
+    let tiny = rollfuse_core::device::Memory {
+        frame_bytes: 10,
+        ..default_needs
+    };
+    assert!(
+        Controller::new(QVGA, [0; 3], d)
+            .unwrap()
+            .with_capacity(tiny)
+            .is_err()
+    );
     match ctl.handle(&command(10, &Command::Hello)).0 {
         DeviceMessage::Info(info) => {
             assert_eq!(info.firmware, [1, 2, 3]);

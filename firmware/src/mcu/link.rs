@@ -6,12 +6,15 @@
 //! followed by a zero-length packet when its length is a multiple of 64. Commands go to the
 //! core's [`Controller`]; its replies go back first, then queued tiles.
 
+use super::counters::COUNTERS;
 use super::{EFFECTS, TILES};
 use defmt::{info, warn};
 use embassy_futures::select::{Either, select};
 use embassy_usb::driver::{EndpointError, EndpointIn, EndpointOut};
 use rollfuse_core::device::{Controller, Effect};
-use rollfuse_core::protocol::{DeviceMessage, MAX_MESSAGE};
+use rollfuse_core::protocol::{
+    DeviceMessage, MAX_CHUNK, MAX_MESSAGE, MAX_TILE_BYTES, RawChunk, Tile,
+};
 
 /// Full-speed bulk packet size.
 pub const PACKET: usize = 64;
@@ -29,23 +32,6 @@ async fn send(ep: &mut impl EndpointIn, message: &[u8]) -> Result<(), EndpointEr
         ep.write(&[]).await?;
     }
     Ok(())
-}
-
-/// Encodes and sends a controller reply.
-async fn reply(
-    ep: &mut impl EndpointIn,
-    controller: &mut Controller,
-    msg: &DeviceMessage<'_>,
-) -> Result<(), EndpointError> {
-    let mut buf = [0u8; 128];
-    match controller.encode(msg, &mut buf) {
-        Ok(n) => send(ep, &buf[..n]).await,
-        // Replies are small; a failure to encode one is a bug, not a link fault.
-        Err(_) => {
-            warn!("reply did not encode");
-            Ok(())
-        }
-    }
 }
 
 /// Serves the link until the host goes away, then returns (the caller waits for it to
@@ -71,6 +57,7 @@ pub async fn serve(
                     continue;
                 }
                 let bytes: &[u8] = if oversized { &[] } else { &command };
+                COUNTERS.merge_into(controller.counters_mut());
                 let (answer, effect) = controller.handle(bytes);
                 command.clear();
                 oversized = false;
@@ -81,10 +68,33 @@ pub async fn serve(
                         warn!("effect queue full");
                     }
                 }
-                reply(write, controller, &answer).await
+                encode_and_send(write, controller, &answer).await
             }
             Either::First(Err(e)) => Err(e),
-            Either::Second(tile) => send(write, &tile).await,
+            Either::Second(Outgoing::Tile(t)) => {
+                let tile = Tile {
+                    index: t.index,
+                    width: t.width,
+                    height: t.height,
+                    observations: t.observations,
+                    pixels: &t.pixels,
+                };
+                encode_and_send(write, controller, &DeviceMessage::Tile(tile)).await
+            }
+            Either::Second(Outgoing::Raw(r)) => {
+                let chunk = RawChunk {
+                    frame: r.frame,
+                    offset: r.offset,
+                    total: r.total,
+                    data: &r.data,
+                };
+                encode_and_send(write, controller, &DeviceMessage::RawChunk(chunk)).await
+            }
+            Either::Second(Outgoing::StreamEnded) => {
+                COUNTERS.merge_into(controller.counters_mut());
+                let status = DeviceMessage::Status(controller.counters());
+                encode_and_send(write, controller, &status).await
+            }
         };
         if result.is_err() {
             info!("USB host gone");
@@ -95,5 +105,56 @@ pub async fn serve(
     }
 }
 
-/// A tile message ready to send.
-pub type Message = heapless::Vec<u8, MAX_MESSAGE>;
+/// A completed tile, as the pipeline hands it to the link (which numbers and encodes it).
+pub struct TileOut {
+    /// Belt index.
+    pub index: u32,
+    /// Columns.
+    pub width: u16,
+    /// Rows.
+    pub height: u16,
+    /// Frames fused into it.
+    pub observations: u8,
+    /// The pixels.
+    pub pixels: heapless::Vec<u8, MAX_TILE_BYTES>,
+}
+
+/// What the pipeline queues for the link. Tiles travel inline (there is no allocator), so
+/// the queue's slots are tile-sized on purpose.
+#[allow(clippy::large_enum_variant)]
+pub enum Outgoing {
+    /// A tile.
+    Tile(TileOut),
+    /// A piece of a raw frame (on request).
+    Raw(RawOut),
+    /// Streaming stopped and the last tiles are queued: send the final status.
+    StreamEnded,
+}
+
+/// A piece of a raw camera frame, as the pipeline hands it to the link.
+pub struct RawOut {
+    /// Which frame of the capture.
+    pub frame: u8,
+    /// Byte offset in the frame.
+    pub offset: u32,
+    /// The frame's size in bytes.
+    pub total: u32,
+    /// The bytes.
+    pub data: heapless::Vec<u8, MAX_CHUNK>,
+}
+
+/// Encodes a message with the controller's next sequence number and sends it.
+async fn encode_and_send(
+    ep: &mut impl EndpointIn,
+    controller: &mut Controller,
+    msg: &DeviceMessage<'_>,
+) -> Result<(), EndpointError> {
+    let mut buf = [0u8; MAX_MESSAGE];
+    match controller.encode(msg, &mut buf) {
+        Ok(n) => send(ep, &buf[..n]).await,
+        Err(_) => {
+            warn!("message did not encode");
+            Ok(())
+        }
+    }
+}

@@ -1,33 +1,66 @@
 //! The firmware proper (only built for the MCU).
 
+mod camera;
+mod counters;
 mod leds;
 mod link;
 mod motion;
+mod pipeline;
 mod selftest;
 
 use defmt::{error, info};
 use embassy_executor::Spawner;
-use embassy_futures::join::join5;
+use embassy_futures::join::{join, join5};
 use embassy_stm32::gpio::{Level, Output, OutputType, Speed};
+use embassy_stm32::i2c::I2c;
+use embassy_stm32::rcc::{Mco, Mco1Source, McoConfig, McoPrescaler};
 use embassy_stm32::time::khz;
 use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
 use embassy_stm32::wdg::IndependentWatchdog;
-use embassy_stm32::{Config, bind_interrupts, peripherals, usb};
+use embassy_stm32::{Config, bind_interrupts, dcmi, dma, i2c, peripherals, usb};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
 use embassy_time::{Instant, Timer};
 use rollfuse_core::device::{Controller, Effect, Sensor};
 use rollfuse_core::protocol::{DeviceConfig, PixelFormat};
+use static_cell::StaticCell;
 use {defmt_rtt as _, panic_probe as _};
 
 bind_interrupts!(struct Irqs {
     OTG_FS => usb::InterruptHandler<peripherals::USB_OTG_FS>;
+    I2C1_EV => i2c::EventInterruptHandler<peripherals::I2C1>;
+    I2C1_ER => i2c::ErrorInterruptHandler<peripherals::I2C1>;
+    DCMI => dcmi::InterruptHandler<peripherals::DCMI>;
+    DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
+    DMA1_STREAM1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
+    DMA1_STREAM2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
 });
 
-/// Fused tiles, encoded, waiting for the USB link. The pipeline drops a tile (and counts
-/// it) when this is full rather than stall the camera.
-pub static TILES: Channel<CriticalSectionRawMutex, link::Message, 4> = Channel::new();
+/// Completed tiles waiting for the USB link. The pipeline drops a tile (and counts it)
+/// when this is full rather than stall the camera.
+pub static TILES: Channel<CriticalSectionRawMutex, link::Outgoing, 4> = Channel::new();
+
+/// Orders for the pipeline.
+pub enum StreamOrder {
+    /// Fuse and queue tiles on every frame trigger.
+    Start,
+    /// Flush the tiles in fusion, then stop.
+    Stop,
+    /// Rebuild the pipeline for this configuration.
+    Configure(rollfuse_core::device::PipelineConfig),
+    /// Send this many raw frames, captured now.
+    CaptureRaw(u8),
+}
+
+/// The pipeline's orders.
+pub static STREAM: Channel<CriticalSectionRawMutex, StreamOrder, 4> = Channel::new();
+
+/// The camera's frame buffer (AXI SRAM: DMA-reachable).
+static FRAME: StaticCell<[u32; camera::FRAME_WORDS]> = StaticCell::new();
+
+/// The pipeline's buffers.
+static PIPELINE: StaticCell<pipeline::Buffers> = StaticCell::new();
 
 /// Accepted commands' effects, for the tasks that carry them out.
 pub static EFFECTS: Channel<CriticalSectionRawMutex, Effect, 8> = Channel::new();
@@ -89,12 +122,15 @@ async fn main(_spawner: Spawner) {
         ),
         Err(_) => error!("fusion self-test failed"),
     }
-    let Ok(mut controller) = Controller::new(SENSOR, FIRMWARE, DeviceConfig::default()) else {
+    let controller = Controller::new(SENSOR, FIRMWARE, DeviceConfig::default())
+        .and_then(|c| c.with_capacity(pipeline::CAPACITY));
+    let Ok(mut controller) = controller else {
         // The default configuration fits the sensor (a host test checks it); if not,
         // there is nothing to serve.
         error!("default configuration refused");
         return;
     };
+    let initial = controller.pipeline_config();
 
     // USB: vendor interface, bulk OUT then bulk IN (addresses 0x01 and 0x81).
     let mut ep_out_buffer = [0u8; 256];
@@ -152,6 +188,46 @@ async fn main(_spawner: Spawner) {
     );
     let mut leds = leds::Leds::new(pwm);
 
+    // The camera: XCLK from MCO1 (HSI / 3 ≈ 21 MHz), SCCB on I2C1, DCMI on DMA1 stream 0.
+    let mut mco_config = McoConfig::default();
+    mco_config.prescaler = McoPrescaler::DIV3;
+    let _xclk = Mco::new(p.MCO1, p.PA8, Mco1Source::HSI, mco_config);
+    let mut sccb = I2c::new(
+        p.I2C1,
+        p.PB8,
+        p.PB9,
+        p.DMA1_CH1,
+        p.DMA1_CH2,
+        Irqs,
+        Default::default(),
+    );
+    if let Err(e) = camera::setup(&mut sccb).await {
+        error!("camera: {}", e);
+    }
+    let dcmi = dcmi::Dcmi::new_8bit(
+        p.DCMI,
+        p.DMA1_CH0,
+        Irqs,
+        p.PC6,
+        p.PC7,
+        p.PE0,
+        p.PE1,
+        p.PE4,
+        p.PD3,
+        p.PE5,
+        p.PE6,
+        p.PB7,
+        p.PA4,
+        p.PA6,
+        dcmi::Config::default(),
+    );
+    let frames = pipeline::run(
+        dcmi,
+        FRAME.init([0; camera::FRAME_WORDS]),
+        PIPELINE.init(pipeline::Buffers::new()),
+        initial,
+    );
+
     // The stepper driver: DIR fixed forward, STEP pulses and ENABLE from the motion task.
     let _dir = Output::new(p.PF12, Level::Low, Speed::Low);
     let step = Output::new(p.PF13, Level::Low, Speed::High);
@@ -167,12 +243,12 @@ async fn main(_spawner: Spawner) {
                 Effect::Configure(cfg) => {
                     let px = u16::try_from(cfg.spacing_px).unwrap_or(u16::MAX);
                     motion::ORDERS.send(motion::Order::FrameSpacing(px)).await;
+                    STREAM.send(StreamOrder::Configure(cfg)).await;
                 }
-                // The camera and pipeline tasks that take these are not written yet.
-                other => info!(
-                    "effect not carried out yet: {}",
-                    defmt::Debug2Format(&other)
-                ),
+                Effect::StreamStart => STREAM.send(StreamOrder::Start).await,
+                Effect::StreamStop => STREAM.send(StreamOrder::Stop).await,
+                Effect::CaptureRaw(n) => STREAM.send(StreamOrder::CaptureRaw(n)).await,
+                Effect::None => {}
             }
         }
     };
@@ -188,5 +264,5 @@ async fn main(_spawner: Spawner) {
             Timer::after_millis(250).await;
         }
     };
-    join5(device.run(), serve, effects, roller, alive).await;
+    join(join5(device.run(), serve, effects, roller, alive), frames).await;
 }

@@ -2,7 +2,7 @@
 //! do. The firmware and the host's virtual device both run this, so a command is refused
 //! for the same reason on both.
 
-use super::pipeline::{PipelineConfig, Sensor};
+use super::pipeline::{Memory, PipelineConfig, Sensor};
 use crate::protocol::{
     self, Command, DecodeError, DeviceConfig, DeviceInfo, DeviceMessage, EncodeError, LedDuty,
     MAX_TILE_BYTES, NakReason, RollerCommand, StatusCounters,
@@ -41,6 +41,8 @@ pub struct Controller {
     pipeline: PipelineConfig,
     counters: StatusCounters,
     seq: u32,
+    /// The device's pipeline buffers, when it has fixed ones.
+    capacity: Option<Memory>,
 }
 
 impl Controller {
@@ -53,7 +55,18 @@ impl Controller {
             config,
             counters: StatusCounters::default(),
             seq: 0,
+            capacity: None,
         })
+    }
+
+    /// Refuses, from now on, configurations whose pipeline would not fit `capacity` (the
+    /// firmware's static buffers); fails if the current one does not.
+    pub fn with_capacity(mut self, capacity: Memory) -> Result<Self, NakReason> {
+        if !self.pipeline.memory().fits(&capacity) {
+            return Err(NakReason::Memory);
+        }
+        self.capacity = Some(capacity);
+        Ok(self)
     }
 
     /// The pipeline configuration in force.
@@ -110,6 +123,11 @@ impl Controller {
             Command::Configure(_) if streaming => return Err(NakReason::Busy),
             Command::Configure(cfg) => {
                 let pipeline = PipelineConfig::from_wire(&cfg, self.sensor)?;
+                if let Some(capacity) = &self.capacity
+                    && !pipeline.memory().fits(capacity)
+                {
+                    return Err(NakReason::Memory);
+                }
                 self.config = cfg;
                 self.pipeline = pipeline;
                 (None, Effect::Configure(pipeline))

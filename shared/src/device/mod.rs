@@ -17,5 +17,6 @@ pub mod refine;
 
 pub use controller::{Controller, Effect};
 pub use pipeline::{
-    FrameError, FrameReport, Memory, Pipeline, PipelineBuffers, PipelineConfig, Sensor,
+    FrameError, FrameReport, MCU_CAPACITY, Memory, Pipeline, PipelineBuffers, PipelineConfig,
+    Sensor,
 };

@@ -24,6 +24,16 @@ use crate::protocol::{DeviceConfig, NakReason, NormMode, PixelFormat, Tile, Wave
 use crate::saliency::laplacian_max_u8;
 use crate::{Ablation, Dims, Error, FuseConfig, LlWeighting, SaliencyNorm, Wavelet};
 
+/// The pipeline buffers the firmware has (`firmware/src/mcu/pipeline.rs` sizes its statics
+/// by this): a QVGA frame downsampled at least 2×, 48 KiB of tiles, 16 Ki words of work
+/// area. The firmware's controller refuses configurations that need more.
+pub const MCU_CAPACITY: Memory = Memory {
+    frame_bytes: 160 * 120,
+    tile_bytes: 48 * 1024,
+    work_words: 16 * 1024,
+    profile_words: 2 * 119,
+};
+
 /// Tiles in fusion at once, at most.
 pub const MAX_ACTIVE_TILES: usize = 16;
 
@@ -97,6 +107,14 @@ pub struct Memory {
 }
 
 impl Memory {
+    /// Whether every buffer this much memory needs fits in `capacity`'s.
+    pub const fn fits(&self, capacity: &Memory) -> bool {
+        self.frame_bytes <= capacity.frame_bytes
+            && self.tile_bytes <= capacity.tile_bytes
+            && self.work_words <= capacity.work_words
+            && self.profile_words <= capacity.profile_words
+    }
+
     /// Everything, in bytes.
     pub const fn total_bytes(&self) -> usize {
         self.frame_bytes + self.tile_bytes + 4 * (self.work_words + self.profile_words)
@@ -279,6 +297,12 @@ impl<'a> Pipeline<'a> {
     /// The configuration.
     pub fn config(&self) -> &PipelineConfig {
         &self.cfg
+    }
+
+    /// Gives the caller's memory back (e.g. to build a pipeline of another configuration
+    /// on it); tiles still in fusion are dropped, so [`Self::finish`] first.
+    pub fn into_buffers(self) -> PipelineBuffers<'a> {
+        self.bufs
     }
 
     /// Takes one camera frame, taken when the commanded belt position was `position_px`

@@ -180,6 +180,8 @@ pub enum NakReason {
     RawFrames,
     /// Not allowed now (e.g. configuring while streaming).
     Busy,
+    /// The configuration needs more pipeline memory than the device has.
+    Memory,
 }
 
 /// What the device is and how it is set up.

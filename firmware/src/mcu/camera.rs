@@ -1,0 +1,78 @@
+//! The camera: an OV7725-class sensor configured over SCCB (I2C1) for QVGA YUYV, its pixel
+//! clock from MCO1, frames captured by DCMI + DMA as single snapshots into a buffer in
+//! AXI SRAM (38 400 words, under the DMA's 65 535-word limit).
+//!
+//! The register values are the OV7725 datasheet's QVGA settings; they are not yet tried on
+//! hardware (firmware/README.md).
+
+use embassy_stm32::dcmi::Dcmi;
+use embassy_stm32::i2c::{I2c, Master};
+use embassy_stm32::mode::Async;
+use embassy_stm32::peripherals::DCMI;
+use embassy_time::Timer;
+
+/// SCCB address of the sensor (7-bit).
+const ADDRESS: u8 = 0x21;
+
+/// Register, value: reset first, then QVGA, YUV output, the 320×240 window.
+const SETUP: &[(u8, u8)] = &[
+    (0x12, 0x40), // COM7: QVGA, YUV
+    (0x11, 0x01), // CLKRC: internal clock = input / 2
+    (0x67, 0x00), // DSP_Ctrl4: YUV output from the DSP
+    (0x17, 0x3F), // HSTART
+    (0x18, 0x50), // HSIZE: 320 / 4
+    (0x19, 0x03), // VSTART
+    (0x1A, 0x78), // VSIZE: 240 / 2
+    (0x32, 0x00), // HREF
+    (0x29, 0x50), // HOutSize: 320 / 4
+    (0x2C, 0x78), // VOutSize: 240 / 2
+    (0x2A, 0x00), // EXHCH
+];
+
+/// Words of one QVGA YUYV frame.
+pub const FRAME_WORDS: usize = 320 * 240 * 2 / 4;
+
+/// Why the camera could not be used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
+pub enum CameraError {
+    /// The sensor did not answer on SCCB.
+    Sccb,
+    /// The product ID is not an OV7725's (0x77xx).
+    NotOv7725(u16),
+}
+
+/// Resets and configures the sensor.
+pub async fn setup(i2c: &mut I2c<'static, Async, Master>) -> Result<(), CameraError> {
+    let mut id = [0u8; 2];
+    i2c.write_read(ADDRESS, &[0x0A], &mut id[..1])
+        .await
+        .map_err(|_| CameraError::Sccb)?;
+    i2c.write_read(ADDRESS, &[0x0B], &mut id[1..])
+        .await
+        .map_err(|_| CameraError::Sccb)?;
+    let pid = u16::from_be_bytes(id);
+    if pid >> 8 != 0x77 {
+        return Err(CameraError::NotOv7725(pid));
+    }
+    i2c.write(ADDRESS, &[0x12, 0x80])
+        .await
+        .map_err(|_| CameraError::Sccb)?;
+    Timer::after_millis(5).await;
+    for &(reg, value) in SETUP {
+        i2c.write(ADDRESS, &[reg, value])
+            .await
+            .map_err(|_| CameraError::Sccb)?;
+    }
+    Ok(())
+}
+
+/// Captures one frame into `frame`; `false` on a DMA or synchronization error (an overrun).
+pub async fn capture(dcmi: &mut Dcmi<'static, DCMI>, frame: &mut [u32; FRAME_WORDS]) -> bool {
+    dcmi.capture(frame.as_mut_slice()).await.is_ok()
+}
+
+/// The frame's bytes (YUYV), as the pipeline reads them: the DMA wrote them in memory
+/// order, and the little-endian words hold them as they came.
+pub fn bytes(frame: &[u32; FRAME_WORDS]) -> &[u8] {
+    bytemuck::cast_slice(frame.as_slice())
+}

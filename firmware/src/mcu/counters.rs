@@ -1,0 +1,37 @@
+//! What the tasks count, for the status the controller reports.
+
+use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
+use rollfuse_core::protocol::StatusCounters;
+
+/// Counters shared by the camera, pipeline and link.
+pub struct Counters {
+    pub frames_captured: AtomicU32,
+    pub camera_overruns: AtomicU32,
+    pub frames_fused: AtomicU32,
+    pub frames_rejected: AtomicU32,
+    pub tiles_emitted: AtomicU32,
+    pub tiles_dropped: AtomicU32,
+}
+
+/// The firmware's counters.
+pub static COUNTERS: Counters = Counters {
+    frames_captured: AtomicU32::new(0),
+    camera_overruns: AtomicU32::new(0),
+    frames_fused: AtomicU32::new(0),
+    frames_rejected: AtomicU32::new(0),
+    tiles_emitted: AtomicU32::new(0),
+    tiles_dropped: AtomicU32::new(0),
+};
+
+impl Counters {
+    /// Copies the tasks' counts into the controller's status (its own fields — messages
+    /// sent, bad commands, streaming — it keeps itself).
+    pub fn merge_into(&self, status: &mut StatusCounters) {
+        status.frames_captured = self.frames_captured.load(Relaxed);
+        status.camera_overruns = self.camera_overruns.load(Relaxed);
+        status.frames_fused = self.frames_fused.load(Relaxed);
+        status.frames_rejected = self.frames_rejected.load(Relaxed);
+        status.tiles_emitted = self.tiles_emitted.load(Relaxed);
+        status.tiles_dropped = self.tiles_dropped.load(Relaxed);
+    }
+}

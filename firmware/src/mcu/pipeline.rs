@@ -1,0 +1,141 @@
+//! The device pipeline on the MCU: on every frame trigger while streaming, one snapshot
+//! through `rollfuse_core::device::Pipeline` — the same type the host's virtual device
+//! runs — and each completed tile queued for the USB link, or dropped and counted when the
+//! queue is full.
+
+use super::camera::{self, FRAME_WORDS};
+use super::counters::COUNTERS;
+use super::link::{Outgoing, RawOut, TileOut};
+use super::{STREAM, StreamOrder, TILES, TRIGGERS, motion};
+use core::sync::atomic::Ordering::Relaxed;
+use defmt::warn;
+use embassy_futures::select::{Either, select};
+use embassy_stm32::dcmi::Dcmi;
+use embassy_stm32::peripherals::DCMI;
+use rollfuse_core::device::{MCU_CAPACITY, Memory, Pipeline, PipelineBuffers, PipelineConfig};
+use rollfuse_core::protocol::{MAX_CHUNK, Tile};
+
+/// The pipeline memory the firmware has (see `MCU_CAPACITY`: the controller refuses
+/// configurations that need more).
+pub const CAPACITY: Memory = MCU_CAPACITY;
+
+/// The pipeline's static buffers.
+pub struct Buffers {
+    pub frame: [u8; CAPACITY.frame_bytes],
+    pub tiles: [u8; CAPACITY.tile_bytes],
+    pub work: [i32; CAPACITY.work_words],
+    pub profiles: [i32; CAPACITY.profile_words],
+}
+
+impl Buffers {
+    /// All zero.
+    pub const fn new() -> Self {
+        Self {
+            frame: [0; CAPACITY.frame_bytes],
+            tiles: [0; CAPACITY.tile_bytes],
+            work: [0; CAPACITY.work_words],
+            profiles: [0; CAPACITY.profile_words],
+        }
+    }
+}
+
+/// Queues a tile for the link; a full queue drops it, counted.
+fn queue(tile: Tile<'_>) {
+    COUNTERS.tiles_emitted.fetch_add(1, Relaxed);
+    let Ok(pixels) = heapless::Vec::from_slice(tile.pixels) else {
+        COUNTERS.tiles_dropped.fetch_add(1, Relaxed);
+        return;
+    };
+    let out = TileOut {
+        index: tile.index,
+        width: tile.width,
+        height: tile.height,
+        observations: tile.observations,
+        pixels,
+    };
+    if TILES.try_send(Outgoing::Tile(out)).is_err() {
+        COUNTERS.tiles_dropped.fetch_add(1, Relaxed);
+    }
+}
+
+/// Captures `n` frames now and queues them raw, in chunks; waits for room in the queue
+/// rather than drop any (a raw capture is an explicit request).
+async fn send_raw(dcmi: &mut Dcmi<'static, DCMI>, frame: &mut [u32; FRAME_WORDS], n: u8) {
+    for k in 0..n {
+        if !camera::capture(dcmi, frame).await {
+            COUNTERS.camera_overruns.fetch_add(1, Relaxed);
+            continue;
+        }
+        COUNTERS.frames_captured.fetch_add(1, Relaxed);
+        let bytes = camera::bytes(frame);
+        for (i, piece) in bytes.chunks(MAX_CHUNK).enumerate() {
+            let Ok(data) = heapless::Vec::from_slice(piece) else {
+                continue;
+            };
+            let raw = RawOut {
+                frame: k,
+                offset: (i * MAX_CHUNK) as u32,
+                total: bytes.len() as u32,
+                data,
+            };
+            TILES.send(Outgoing::Raw(raw)).await;
+        }
+    }
+}
+
+/// Runs the pipeline forever on the camera's frames.
+pub async fn run(
+    mut dcmi: Dcmi<'static, DCMI>,
+    frame: &'static mut [u32; FRAME_WORDS],
+    buffers: &'static mut Buffers,
+    initial: PipelineConfig,
+) {
+    let mut bufs = PipelineBuffers {
+        frame: &mut buffers.frame,
+        tiles: &mut buffers.tiles,
+        work: &mut buffers.work,
+        profiles: &mut buffers.profiles,
+    };
+    let mut config = initial;
+    let mut streaming = false;
+    loop {
+        let Ok(mut pipeline) = Pipeline::new(config, bufs) else {
+            warn!("pipeline buffers too small for the configuration");
+            return;
+        };
+        // Serve this configuration until the host sends another.
+        let next = loop {
+            match select(TRIGGERS.wait(), STREAM.receive()).await {
+                Either::First(steps) => {
+                    if !streaming {
+                        continue;
+                    }
+                    if !camera::capture(&mut dcmi, frame).await {
+                        COUNTERS.camera_overruns.fetch_add(1, Relaxed);
+                        continue;
+                    }
+                    COUNTERS.frames_captured.fetch_add(1, Relaxed);
+                    let position_px = steps * u64::from(motion::MECHANICS.nm_per_step)
+                        / (u64::from(motion::UM_PER_PX) * 1000);
+                    match pipeline.push_frame(camera::bytes(frame), position_px, queue) {
+                        Ok(_) => COUNTERS.frames_fused.fetch_add(1, Relaxed),
+                        Err(_) => COUNTERS.frames_rejected.fetch_add(1, Relaxed),
+                    };
+                }
+                Either::Second(StreamOrder::Start) => streaming = true,
+                Either::Second(StreamOrder::Stop) => {
+                    streaming = false;
+                    pipeline.finish(queue);
+                    // The link sends the final status once the flushed tiles are out.
+                    if TILES.try_send(Outgoing::StreamEnded).is_err() {
+                        warn!("stream end not queued");
+                    }
+                }
+                Either::Second(StreamOrder::Configure(c)) => break c,
+                Either::Second(StreamOrder::CaptureRaw(n)) => send_raw(&mut dcmi, frame, n).await,
+            }
+        };
+        bufs = pipeline.into_buffers();
+        config = next;
+    }
+}
