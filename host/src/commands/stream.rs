@@ -101,10 +101,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.tiles == Some(0) {
         bail!("--tiles must be at least 1");
     }
-    super::check_writable(&args.out.join("manifest.json")).or_else(|_| {
-        std::fs::create_dir_all(&args.out)
-            .with_context(|| format!("cannot create output folder {}", args.out.display()))
-    })?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create output folder {}", args.out.display()))?;
+    super::check_writable(&args.out.join("manifest.json"))?;
     if let Some(r) = &args.record {
         super::check_writable(r)?;
     }

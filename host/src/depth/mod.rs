@@ -63,9 +63,8 @@ pub fn reconstruct(
     let (w, h) = (s.width, s.height);
     let contact = contact_mask(&s.p, &s.q, w, h);
     // Slopes between pixel centres: the mean of the two pixels' slopes, in mm per pixel;
-    // zero on the flat gel so its noise does not integrate into a tilt. The Poisson
-    // right-hand side (their divergence, as `poisson::integrate` forms it) is built
-    // directly, without gradient arrays.
+    // zero on the flat gel so its noise does not integrate into a tilt. Taken straight
+    // into the Poisson right-hand side, without gradient arrays.
     let k = lights.mm_per_px;
     let between = |v: &[f64], i: usize, j: usize| {
         if contact[i] || contact[j] {
@@ -74,22 +73,12 @@ pub fn reconstruct(
             0.0
         }
     };
-    let mut rhs = vec![0f32; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            if x + 1 < w {
-                let g = between(&s.p, i, i + 1);
-                rhs[i] -= g;
-                rhs[i + 1] += g;
-            }
-            if y + 1 < h {
-                let g = between(&s.q, i, i + w);
-                rhs[i] -= g;
-                rhs[i + w] += g;
-            }
-        }
-    }
+    let rhs = poisson::divergence(
+        w,
+        h,
+        |i| between(&s.p, i, i + 1),
+        |i| between(&s.q, i, i + w),
+    );
     let heights = poisson::solve_neumann(rhs, w, h)?;
     if heights.iter().any(|v| !v.is_finite()) {
         anyhow::bail!("the slopes did not integrate to finite heights");

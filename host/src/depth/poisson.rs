@@ -30,19 +30,37 @@ pub fn integrate(gx: &[f64], gy: &[f64], w: usize, h: usize) -> anyhow::Result<V
     if let Some(i) = gx.iter().chain(gy).position(|v| !v.is_finite()) {
         bail!("gradient {i} is not finite: refusing to integrate NaN or infinity");
     }
-    // Right-hand side Dxᵀgx + Dyᵀgy: (Dxᵀg)[x] = g[x−1] − g[x], with g[−1] = g[W−1] = 0.
-    let mut f = vec![0f64; w * h];
+    let f = divergence(w, h, |i| gx[i], |i| gy[i]);
+    solve_neumann(f, w, h)
+}
+
+/// The right-hand side `Dxᵀgx + Dyᵀgy` of the normal equations, for gradients given by
+/// `gx(i)` (pixel `i`'s difference to its right neighbour, asked only where there is
+/// one) and `gy(i)` (to the one below): each difference leaves pixel `i` and enters its
+/// neighbour, `(Dxᵀg)[x] = g[x−1] − g[x]`.
+pub fn divergence<T: DctNum>(
+    w: usize,
+    h: usize,
+    gx: impl Fn(usize) -> T,
+    gy: impl Fn(usize) -> T,
+) -> Vec<T> {
+    let mut f = vec![T::zero(); w * h];
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
-            let left = if x > 0 { gx[i - 1] } else { 0.0 };
-            let right = if x + 1 < w { gx[i] } else { 0.0 };
-            let up = if y > 0 { gy[i - w] } else { 0.0 };
-            let down = if y + 1 < h { gy[i] } else { 0.0 };
-            f[i] = left - right + up - down;
+            if x + 1 < w {
+                let g = gx(i);
+                f[i] = f[i] - g;
+                f[i + 1] = f[i + 1] + g;
+            }
+            if y + 1 < h {
+                let g = gy(i);
+                f[i] = f[i] - g;
+                f[i + w] = f[i + w] + g;
+            }
         }
     }
-    solve_neumann(f, w, h)
+    f
 }
 
 /// Solves `(DxᵀDx + DyᵀDy) h = f` for the height map with mean 0, `f` being the
