@@ -189,8 +189,10 @@ pub fn laplacian_max_u8(buf: &[u8], dims: Dims) -> u32 {
         return 0;
     }
     let mut max = 0;
-    for_each_neighbourhood(buf, dims, |_, _, c, around| {
-        max = max.max(laplacian(i32::from(c), around.map(i32::from)));
+    // Bytes keep the Laplacian within ±2040: i32 throughout, no widening.
+    for_each_neighbourhood(buf, dims, |_, _, c, [up, down, left, right]| {
+        let sum = i32::from(up) + i32::from(down) + i32::from(left) + i32::from(right);
+        max = max.max((sum - 4 * i32::from(c)).unsigned_abs());
     });
     max
 }
@@ -290,21 +292,33 @@ pub(crate) fn saliency_rows(
     }
 }
 
-/// `W₁ = S₁ / (S₁ + S₂)` as Q15 (`1.0` = 32768), `½` when both are zero.
+/// `W₁ = S₁ / (S₁ + S₂)` as Q15 (`1.0` = 32768), rounded to nearest, `½` when both are
+/// zero.
 ///
-/// Sums are first scaled down below 2¹⁷ together (keeping their ratio to 17 bits), so the
-/// division fits in `u64` for any input.
+/// Both sums are first halved together until they add up to at most 2¹⁷ (keeping their
+/// ratio to 17 bits). The division then runs as two 32-bit divisions: a 64-bit one is a
+/// library call of some hundred instructions on the Cortex-M7, once per window.
 pub fn weight(s1: u32, s2: u32) -> U1F15 {
-    let (mut a, mut b) = (u64::from(s1), u64::from(s2));
-    let total = a + b;
+    let (mut a, mut b) = (s1, s2);
+    let total = u64::from(a) + u64::from(b);
     if total == 0 {
         return U1F15::from_bits(1 << 14);
     }
+    // The fewest halvings that bring the sum to 2¹⁷ or below: at least those that bring
+    // `total` below 2¹⁸, then one more while the halved sum is still above.
+    let bits = 64 - total.leading_zeros();
+    let skip = bits.saturating_sub(18);
+    a >>= skip;
+    b >>= skip;
     while a + b > (1 << 17) {
         a >>= 1;
         b >>= 1;
     }
-    let w = ((a << 15) + (a + b) / 2) / (a + b).max(1);
+    let t = a + b;
+    // (a·2¹⁵ + t/2) / t = q₁·2⁷ + (r₁·2⁷ + t/2) / t with q₁, r₁ = divmod(a·2⁸, t);
+    // a ≤ 2¹⁷ keeps a·2⁸ and r₁·2⁷ within 32 bits.
+    let (q1, r1) = ((a << 8) / t, (a << 8) % t);
+    let w = (q1 << 7) + ((r1 << 7) + t / 2) / t;
     U1F15::from_bits(w.min(1 << 15) as u16)
 }
 
@@ -323,6 +337,46 @@ mod tests {
             );
         }
         assert_eq!(EXP_TABLE[0], U8F24::ZERO);
+    }
+
+    /// The plain statement of [`weight`]: halve until the sum is at most 2¹⁷, then one
+    /// 64-bit division.
+    fn weight_by_u64_division(s1: u32, s2: u32) -> u16 {
+        let (mut a, mut b) = (u64::from(s1), u64::from(s2));
+        if a + b == 0 {
+            return 1 << 14;
+        }
+        while a + b > (1 << 17) {
+            a >>= 1;
+            b >>= 1;
+        }
+        (((a << 15) + (a + b) / 2) / (a + b)).min(1 << 15) as u16
+    }
+
+    #[test]
+    fn weight_matches_the_plain_64_bit_division() {
+        // Edges of every scaling step, and a deterministic spread of the whole range.
+        let mut values = [0u32; 96];
+        for (k, v) in values.iter_mut().enumerate().take(64) {
+            *v = (1u64 << (k / 2)).saturating_sub((k % 2) as u64) as u32;
+        }
+        let mut x = 0x2545_f491u32;
+        for v in values.iter_mut().skip(64) {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            *v = x >> (x % 32);
+        }
+        values[95] = u32::MAX;
+        for &a in &values {
+            for &b in &values {
+                assert_eq!(
+                    weight(a, b).to_bits(),
+                    weight_by_u64_division(a, b),
+                    "{a} {b}"
+                );
+            }
+        }
     }
 
     #[test]

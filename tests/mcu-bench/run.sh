@@ -1,0 +1,63 @@
+#!/usr/bin/env bash
+# Builds the Cortex-M7 instruction-count bench, runs it under QEMU (mps2-an500,
+# -icount shift=0) and writes its CSV to OUT (default target/mcu-bench/mcu-bench.csv),
+# headed by the SHA-256 of the binary that produced it.
+#
+#   bash tests/mcu-bench/run.sh [OUT]          run once
+#   bash tests/mcu-bench/run.sh --check [OUT]  run twice, require identical numbers and
+#                                              sane values (what CI does)
+#
+# Needs the thumbv7em-none-eabihf target and qemu-system-arm (Debian: qemu-system-arm).
+set -euo pipefail
+cd "$(dirname "$0")"
+root="$(cd ../.. && pwd)"
+
+check=false
+if [ "${1:-}" = "--check" ]; then
+    check=true
+    shift
+fi
+out="${1:-$root/target/mcu-bench/mcu-bench.csv}"
+mkdir -p "$(dirname "$out")"
+
+cargo build -q --release --target thumbv7em-none-eabihf --target-dir "$root/target"
+elf="$root/target/thumbv7em-none-eabihf/release/rollfuse-mcu-bench"
+build_id="$(sha256sum "$elf" | cut -c1-16)"
+
+run() {
+    timeout 600 qemu-system-arm -machine mps2-an500 -cpu cortex-m7 -icount shift=0 \
+        -nographic -monitor none -serial none \
+        -semihosting-config enable=on,target=native -kernel "$elf"
+}
+
+{
+    echo "# build $build_id"
+    run
+} > "$out.part"
+mv "$out.part" "$out"
+
+if $check; then
+    second="$(mktemp)"
+    trap 'rm -f "$second"' EXIT
+    { echo "# build $build_id"; run; } > "$second"
+    if ! diff -q "$out" "$second" > /dev/null; then
+        echo "mcu-bench: two runs of one build differ:" >&2
+        diff "$out" "$second" >&2 || true
+        exit 1
+    fi
+    # Sane: the calibration loop shows 40 instructions per SysTick tick, every
+    # configuration ran, and every per-pixel count is positive and below 10 000.
+    awk -F, '
+        /^calibration/ { cal = $10 }
+        /^pipeline/ { p++ }
+        /^(kernel|tile|pipeline)/ { if (!($11 > 0 && $11 < 10000)) { bad = bad " " $1 "/" $2 } }
+        END {
+            if (cal != 40) { print "mcu-bench: calibration gave " cal " instructions per tick, not 40"; exit 1 }
+            if (p != 36) { print "mcu-bench: " p " of 36 pipeline configurations ran"; exit 1 }
+            if (bad != "") { print "mcu-bench: implausible per-pixel counts:" bad; exit 1 }
+        }' "$out" >&2
+    echo "mcu-bench: two runs identical, numbers sane"
+fi
+echo "mcu-bench: $out (build $build_id)"
+grep -E '^pipeline,frame,db2,2,2,frame' "$out" |
+    awk -F, '{ printf "default (db2, 2 levels, 2x, per frame): %d instructions per frame, %.1f per downsampled pixel\n", $10, $11 }'
