@@ -32,7 +32,7 @@ awk -F, '
     /^tile,fuse_fixed,db2,2,2,frame/ { fuse = $10; fusepx = $11; tilepx = $7 }
     /^tile,fuse_f32,db2,2,2,frame/ { fuse32 = $10; fuse32px = $11 }
     END {
-        print "| part | instructions per call | per pixel it works on | calls per frame (tile observations; a tile's first is a copy) |"
+        print "| part | instructions per call | per pixel it works on | calls per frame (tile observations, the first of each tile a copy) |"
         print "|---|---:|---:|---:|"
         printf "| whole pipeline | %d | %.1f (per downsampled pixel) | 1 |\n", frame, per
         split("downsample row_profile refine_shift laplacian_max", names, " ")
