@@ -56,6 +56,11 @@ impl Setup {
             ..DeviceConfig::default()
         }
     }
+
+    /// The validated pipeline configuration for the bench's camera.
+    fn config(self) -> Option<PipelineConfig> {
+        PipelineConfig::from_wire(&self.wire(), SENSOR).ok()
+    }
 }
 
 /// One CSV line.
@@ -154,7 +159,7 @@ pub fn all(clock: &Clock, out: &mut impl FnMut(&Row)) -> bool {
 
 /// The device pipeline, instructions per frame in steady state.
 fn pipeline(clock: &Clock, b: &mut Buffers, setup: Setup, out: &mut impl FnMut(&Row)) -> bool {
-    let Ok(cfg) = PipelineConfig::from_wire(&setup.wire(), SENSOR) else {
+    let Some(cfg) = setup.config() else {
         return false;
     };
     let mem = cfg.memory();
@@ -196,7 +201,7 @@ fn pipeline(clock: &Clock, b: &mut Buffers, setup: Setup, out: &mut impl FnMut(&
 /// One tile's fuse step on both paths at the configuration's tile size, on two tiles cut
 /// from a downsampled frame.
 fn tile_fuse(clock: &Clock, b: &mut Buffers, setup: Setup, out: &mut impl FnMut(&Row)) -> bool {
-    let Ok(cfg) = PipelineConfig::from_wire(&setup.wire(), SENSOR) else {
+    let Some(cfg) = setup.config() else {
         return false;
     };
     frames::draw(0, &mut b.camera);
@@ -266,7 +271,7 @@ fn kernels(clock: &Clock, b: &mut Buffers, out: &mut impl FnMut(&Row)) -> bool {
         downsample: 2,
         per_frame: true,
     };
-    let Ok(cfg) = PipelineConfig::from_wire(&setup.wire(), SENSOR) else {
+    let Some(cfg) = setup.config() else {
         return false;
     };
     let mut row = |name, pixels, instructions| {
