@@ -26,3 +26,4 @@ pub mod link;
 pub mod npy;
 pub mod sim;
 pub mod stream;
+pub mod tradeoff;

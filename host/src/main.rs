@@ -1,7 +1,7 @@
 //! `rollfuse`: the command-line tool of the rollfuse tactile sensor module.
 
 use clap::{Parser, Subcommand};
-use rollfuse::commands::{depth, eval, fuse, metrics, simulate, splice, stream};
+use rollfuse::commands::{depth, eval, fuse, metrics, simulate, splice, stream, tradeoff};
 use std::process::ExitCode;
 
 /// Cyclic wavelet fusion of tactile images from a rolling, curved elastomer sensor.
@@ -26,6 +26,8 @@ enum Command {
     Metrics(metrics::Args),
     /// Tables II and III (ablations; single, fused, spliced) on simulated samples.
     Eval(eval::Args),
+    /// Accuracy against time over the device configurations (see docs/tradeoff.md).
+    Tradeoff(tradeoff::Args),
     /// Height map (mm) of an RGB tactile image by photometric stereo (see docs/depth.md).
     Depth(depth::Args),
     /// Fit the light file from an image of a ball of known radius.
@@ -48,6 +50,7 @@ fn main() -> ExitCode {
         Command::Splice(args) => splice::run(args),
         Command::Metrics(args) => metrics::run(args),
         Command::Eval(args) => eval::run(args),
+        Command::Tradeoff(args) => tradeoff::run(args),
         Command::Depth(args) => depth::run(args),
         Command::Calibrate(args) => depth::calibrate_run(args),
         Command::Stream(args) => stream::run(args),

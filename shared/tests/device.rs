@@ -2,7 +2,7 @@
 //! tile model's observation counts, refused frames, and every command's validation.
 
 use rollfuse_core::device::{
-    Controller, Effect, FrameError, Pipeline, PipelineBuffers, PipelineConfig, Sensor,
+    Controller, Effect, FrameError, Pipeline, PipelineBuffers, PipelineConfig, Precision, Sensor,
 };
 use rollfuse_core::protocol::{
     self, Command, DeviceConfig, DeviceMessage, LedDuty, NakReason, PixelFormat, RollerCommand,
@@ -151,6 +151,67 @@ fn interior_tiles_get_exactly_their_observations_in_belt_order() {
     let full = seen.iter().filter(|s| s.1 == 3).count();
     assert!(full >= seen.len() - 6, "{seen:?}");
     assert!(seen.iter().all(|s| (1..=3).contains(&s.1)));
+}
+
+/// Every tile a pipeline of `cfg` emits over a run of `frames` frames of a textured belt
+/// moving `spacing` rows per frame, each frame with noise of its own (so a tile's
+/// observations differ): (index, observations, pixels).
+fn run_tiles(cfg: PipelineConfig, frames: usize, spacing: usize) -> Vec<(u32, u8, Vec<u8>)> {
+    let (w, h) = (cfg.sensor.width, cfg.sensor.height);
+    let mut s = Storage::new(&cfg);
+    let mut p = Pipeline::new(cfg, s.buffers()).unwrap();
+    let mut tiles = Vec::new();
+    let mut keep = |t: protocol::Tile<'_>| tiles.push((t.index, t.observations, t.pixels.to_vec()));
+    for k in 0..frames {
+        let mut frame = belt_frame(spacing * k, w, h);
+        for (i, v) in frame.iter_mut().enumerate() {
+            let noise = ((i * 2_654_435_761) ^ (k * 40_503)) >> 7 & 15;
+            *v = v.saturating_add(noise as u8);
+        }
+        p.push_frame(&frame, (spacing * k) as u64, &mut keep)
+            .unwrap();
+    }
+    p.finish(&mut keep);
+    tiles
+}
+
+/// The `f32` fuse step in the pipeline: the same tiles, the same observations, pixels
+/// within two gray levels of the integer path's (both round to 8 bits every step; the
+/// integer path's lifting also rounds, so they are not identical — and must not be equal
+/// everywhere either, or the precision switch would not be doing anything).
+#[test]
+fn the_f32_pipeline_emits_what_the_integer_one_does_up_to_rounding() {
+    let sensor = Sensor {
+        width: 64,
+        height: 96,
+        format: PixelFormat::Gray8,
+    };
+    let wire = DeviceConfig {
+        downsample: 1,
+        tile_rows: 8,
+        frames_per_tile: 3,
+        frame_spacing_px: 6,
+        ..DeviceConfig::default()
+    };
+    let fixed = PipelineConfig::from_wire(&wire, sensor).unwrap();
+    let mut float = fixed;
+    float.precision = Precision::F32;
+    assert!(
+        float.memory().work_words > fixed.memory().work_words,
+        "a second transform line"
+    );
+    let (a, b) = (run_tiles(fixed, 20, 6), run_tiles(float, 20, 6));
+    assert_eq!(a.len(), b.len());
+    let (mut worst, mut differing) = (0, 0);
+    for ((ia, oa, pa), (ib, ob, pb)) in a.iter().zip(&b) {
+        assert_eq!((ia, oa), (ib, ob));
+        for (&x, &y) in pa.iter().zip(pb) {
+            worst = worst.max(x.abs_diff(y));
+            differing += usize::from(x != y);
+        }
+    }
+    assert!(worst <= 2, "largest difference {worst} gray levels");
+    assert!(differing > 0, "the f32 path changed nothing");
 }
 
 fn command(seq: u32, c: &Command) -> Vec<u8> {

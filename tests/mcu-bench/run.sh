@@ -53,11 +53,11 @@ if $check; then
         /^(kernel|tile|pipeline)/ { if (!($11 > 0 && $11 < 10000)) { bad = bad " " $1 "/" $2 } }
         END {
             if (cal != 40) { print "mcu-bench: calibration gave " cal " instructions per tick, not 40"; exit 1 }
-            if (p != 36) { print "mcu-bench: " p " of 36 pipeline configurations ran"; exit 1 }
+            if (p != 72) { print "mcu-bench: " p " of 72 pipeline configurations ran"; exit 1 }
             if (bad != "") { print "mcu-bench: implausible per-pixel counts:" bad; exit 1 }
         }' "$out" >&2
     echo "mcu-bench: two runs identical, numbers sane"
 fi
 echo "mcu-bench: $out (build $build_id)"
-grep -E '^pipeline,frame,db2,2,2,frame' "$out" |
+grep -E '^pipeline,frame_fixed,db2,2,2,frame' "$out" |
     awk -F, '{ printf "default (db2, 2 levels, 2x, per frame): %d instructions per frame, %.1f per downsampled pixel\n", $10, $11 }'

@@ -14,11 +14,12 @@ awk -F, -v budget=1600000 '
     /^# build/ { build = $0; sub(/^# build /, "", build) }
     /^pipeline/ {
         if (!header) {
-            print "| wavelet | levels | downsample | normalized per | instructions / frame | per downsampled pixel | % of a frame at 480 MHz, 30 fps | within 10 % | fits the firmware'"'"'s RAM |"
-            print "|---|---|---|---|---:|---:|---:|---|---|"
+            print "| wavelet | levels | downsample | normalized per | fuse step | instructions / frame | per downsampled pixel | % of a frame at 480 MHz, 30 fps | within 10 % | fits the firmware'"'"'s RAM |"
+            print "|---|---|---|---|---|---:|---:|---:|---|---|"
             header = 1
         }
-        printf "| %s | %s | %s× | %s | %d | %.1f | %.1f %% | %s | %s |\n", $3, $4, $5, $6, $10, $11, 100 * $10 / 16000000, ($10 <= budget ? "yes" : "no"), ($13 == 1 ? "yes" : "no")
+        precision = $2; sub(/^frame_/, "", precision)
+        printf "| %s | %s | %s× | %s | %s | %d | %.1f | %.1f %% | %s | %s |\n", $3, $4, $5, $6, precision, $10, $11, 100 * $10 / 16000000, ($10 <= budget ? "yes" : "no"), ($13 == 1 ? "yes" : "no")
     }
     END { printf "\nBench build %s.\n", build }
 ' "$csv"
@@ -28,7 +29,7 @@ echo "Default configuration (db2, 2 levels, 2× downsampling, per-frame normaliz
 echo
 awk -F, '
     /^kernel/ { k[$2] = $10; kp[$2] = $11; kpx[$2] = $7 }
-    /^pipeline,frame,db2,2,2,frame/ { frame = $10; per = $11; obs = $12 }
+    /^pipeline,frame_fixed,db2,2,2,frame/ { frame = $10; per = $11; obs = $12 }
     /^tile,fuse_fixed,db2,2,2,frame/ { fuse = $10; fusepx = $11; tilepx = $7 }
     /^tile,fuse_f32,db2,2,2,frame/ { fuse32 = $10; fuse32px = $11 }
     END {

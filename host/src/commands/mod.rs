@@ -7,6 +7,7 @@ pub mod metrics;
 pub mod simulate;
 pub mod splice;
 pub mod stream;
+pub mod tradeoff;
 
 use clap::ValueEnum;
 use rollfuse_core::{Ablation, LlWeighting, Wavelet};

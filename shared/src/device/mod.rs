@@ -18,5 +18,5 @@ pub mod refine;
 pub use controller::{Controller, Effect};
 pub use pipeline::{
     FrameError, FrameReport, MCU_CAPACITY, Memory, Pipeline, PipelineBuffers, PipelineConfig,
-    Sensor,
+    Precision, Schedule, Sensor,
 };

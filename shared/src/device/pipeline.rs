@@ -19,6 +19,7 @@
 
 use super::downsample::{downsample, downsampled_dims};
 use super::refine::{refine_shift, row_profile};
+use crate::float;
 use crate::fusion::{LlWeight, U8Work, fuse_scratch_words, fuse_u8};
 use crate::protocol::{DeviceConfig, NakReason, NormMode, PixelFormat, Tile, WaveletId};
 use crate::saliency::laplacian_max_u8;
@@ -42,6 +43,16 @@ pub const MAX_FRAMES_PER_TILE: usize = 16;
 
 /// The largest refinement search, rows either side.
 pub const MAX_REFINE_ROWS: usize = 16;
+
+/// The arithmetic a pipeline fuses tiles in. Tiles are 8-bit either way.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Precision {
+    /// The integer path ([`crate::fusion::fuse_u8`]): what the firmware runs.
+    #[default]
+    Fixed,
+    /// The `f32` path ([`crate::float::fuse_pair`]) on the MCU's FPU.
+    F32,
+}
 
 /// The camera: frame size and pixel format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -80,6 +91,10 @@ pub struct PipelineConfig {
     pub spacing_px: usize,
     /// Refinement search, ± downsampled rows.
     pub refine_rows: usize,
+    /// The arithmetic of the fuse step. The wire has no field for it: a device runs
+    /// [`Precision::Fixed`]; the host's trade-off study and the Cortex-M7 bench set
+    /// [`Precision::F32`] to measure the alternative.
+    pub precision: Precision,
     /// The downsampled frame.
     frame: Dims,
     /// One tile.
@@ -161,6 +176,7 @@ impl PipelineConfig {
             frames_per_tile: usize::from(cfg.frames_per_tile),
             spacing_px: spacing,
             refine_rows: usize::from(cfg.refine_rows),
+            precision: Precision::Fixed,
             frame,
             tile,
         };
@@ -189,14 +205,19 @@ impl PipelineConfig {
         (self.spacing_px / self.downsample).max(1)
     }
 
-    /// Height of the observation window, rows: `n·s + T − 1`.
-    pub fn window_rows(&self) -> usize {
-        self.frames_per_tile * self.spacing_rows() + self.tile_rows - 1
+    /// Which tiles each frame observes.
+    pub fn schedule(&self) -> Schedule {
+        Schedule::new(
+            self.frame_dims().height(),
+            self.tile_rows,
+            self.frames_per_tile,
+            self.spacing_rows(),
+        )
     }
 
-    /// First frame row of the observation window: the window centred on the frame.
-    pub fn window_top(&self) -> usize {
-        (self.frame_dims().height() - self.window_rows().min(self.frame_dims().height())) / 2
+    /// Height of the observation window, rows: `n·s + T − 1`.
+    pub fn window_rows(&self) -> usize {
+        self.schedule().window_rows
     }
 
     /// Tiles in fusion at once, at most: `⌈(n·s + T − 1)/T⌉ + 1` (tiles are emitted
@@ -212,9 +233,68 @@ impl PipelineConfig {
         Memory {
             frame_bytes: w * h,
             tile_bytes: self.active_tiles() * t * w,
-            work_words: 2 * t * w + fuse_scratch_words(w, t),
+            work_words: 2 * t * w
+                + match self.precision {
+                    Precision::Fixed => fuse_scratch_words(w, t),
+                    Precision::F32 => float::fuse_scratch_len(self.tile),
+                },
             profile_words: 2 * (h - 1),
         }
+    }
+}
+
+/// The tile schedule: which tiles of belt space a frame at belt offset `o` observes (those
+/// wholly inside its observation window, rows `o + top .. o + top + window`), at any
+/// resolution — the pipeline's, or full resolution for the host's reference fusion.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Schedule {
+    /// Tile height `T`, rows.
+    pub tile_rows: usize,
+    /// First frame row of the window.
+    pub window_top: usize,
+    /// Window height `n·s + T − 1`, rows. It may exceed the frame's height; then the
+    /// window starts at row 0 and the tiles beyond the frame are not observable
+    /// ([`PipelineConfig::from_wire`] refuses such configurations).
+    pub window_rows: usize,
+}
+
+impl Schedule {
+    /// The window of `frames_per_tile` (`n`) frames `spacing_rows` (`s`) apart, centred on
+    /// a frame of `frame_rows`; `tile_rows` is raised to 1 at least.
+    pub fn new(
+        frame_rows: usize,
+        tile_rows: usize,
+        frames_per_tile: usize,
+        spacing_rows: usize,
+    ) -> Self {
+        let tile_rows = tile_rows.max(1);
+        let window_rows = frames_per_tile
+            .saturating_mul(spacing_rows)
+            .saturating_add(tile_rows - 1);
+        Self {
+            tile_rows,
+            window_top: frame_rows.saturating_sub(window_rows) / 2,
+            window_rows,
+        }
+    }
+
+    /// Tiles a frame at belt `offset` observes: `t·T ≥ top` and `t·T + T ≤ bottom`.
+    pub fn observed(&self, offset: u64) -> core::ops::Range<u64> {
+        let t = self.tile_rows as u64;
+        let top = offset + self.window_top as u64;
+        let first = top.div_ceil(t);
+        first..((top + self.window_rows as u64) / t).max(first)
+    }
+
+    /// Whether tile `index` starts above the window of a frame at `offset` (offsets only
+    /// grow, so no later frame observes it).
+    pub fn is_done(&self, index: u64, offset: u64) -> bool {
+        index * (self.tile_rows as u64) < offset + self.window_top as u64
+    }
+
+    /// The frame row where tile `index` (one of [`Self::observed`]) starts.
+    pub fn frame_row(&self, index: u64, offset: u64) -> usize {
+        (index * self.tile_rows as u64).saturating_sub(offset) as usize
     }
 }
 
@@ -360,22 +440,18 @@ impl<'a> Pipeline<'a> {
             SaliencyNorm::Local
         };
         let fuse_cfg = FuseConfig { norm, ..cfg.fuse };
-        let t = cfg.tile_rows as u64;
-        let top = offset + cfg.window_top() as u64;
-        let bottom = top + cfg.window_rows() as u64; // exclusive
+        let schedule = cfg.schedule();
         // Tiles above the window are done: no later frame can see them. Emitting them
         // first bounds the tiles held to those starting inside the window.
-        let emitted = self.emit_where(|index| index * t < top, &mut emit);
-        // Tiles wholly inside the window: t·T ≥ top and t·T + T ≤ bottom.
-        let first_tile = top.div_ceil(t);
-        let end_tile = (bottom / t).max(first_tile);
-        for index in first_tile..end_tile {
-            self.observe(index, (index * t - offset) as usize, &fuse_cfg);
+        let emitted = self.emit_where(|index| schedule.is_done(index, offset), &mut emit);
+        let observed = schedule.observed(offset);
+        for index in observed.clone() {
+            self.observe(index, schedule.frame_row(index, offset), &fuse_cfg);
         }
         Ok(FrameReport {
             offset,
             shift,
-            observed: (end_tile - first_tile) as usize,
+            observed: (observed.end - observed.start) as usize,
             emitted,
         })
     }
@@ -415,21 +491,14 @@ impl<'a> Pipeline<'a> {
         if observations == 0 {
             tile.copy_from_slice(src);
         } else {
-            let (wa, rest) = self.bufs.work.split_at_mut(n);
-            let (wb, scratch) = rest.split_at_mut(n);
             let ll = LlWeight::for_frame(cfg.ll_weighting, u32::from(observations) + 1);
-            let work = U8Work {
-                a: &mut *wa,
-                b: wb,
-                scratch,
-            };
             // Sizes were validated with the configuration; should this fail, the tile
             // keeps its previous observations.
-            if fuse_u8((tile, dims), (src, dims), cfg, ll, work).is_ok() {
-                for (d, &v) in tile.iter_mut().zip(wa.iter()) {
-                    *d = v as u8;
-                }
-            } else {
+            let fused = match self.cfg.precision {
+                Precision::Fixed => fuse_tile_fixed(tile, src, dims, cfg, ll, self.bufs.work),
+                Precision::F32 => fuse_tile_f32(tile, src, dims, cfg, ll, self.bufs.work),
+            };
+            if fused.is_err() {
                 return;
             }
         }
@@ -467,4 +536,61 @@ impl<'a> Pipeline<'a> {
             }
         }
     }
+}
+
+/// Fuses observation `src` into `tile` on the integer path; `work` holds the two work
+/// images and the scratch ([`PipelineConfig::memory`]).
+fn fuse_tile_fixed(
+    tile: &mut [u8],
+    src: &[u8],
+    dims: Dims,
+    cfg: &FuseConfig,
+    ll: LlWeight,
+    work: &mut [i32],
+) -> Result<(), Error> {
+    let n = dims.pixels();
+    let (wa, rest) = work.split_at_mut(n.min(work.len()));
+    let (wb, scratch) = rest.split_at_mut(n.min(rest.len()));
+    fuse_u8(
+        (tile, dims),
+        (src, dims),
+        cfg,
+        ll,
+        U8Work {
+            a: &mut *wa,
+            b: wb,
+            scratch,
+        },
+    )?;
+    for (d, &v) in tile.iter_mut().zip(wa.iter()) {
+        *d = v as u8; // fuse_u8 clamped it to 0..=255
+    }
+    Ok(())
+}
+
+/// [`fuse_tile_fixed`] on the `f32` path: the tiles stay 8-bit, the step runs in `f32`
+/// on the same work words (an `f32` is one word) and rounds back.
+fn fuse_tile_f32(
+    tile: &mut [u8],
+    src: &[u8],
+    dims: Dims,
+    cfg: &FuseConfig,
+    ll: LlWeight,
+    work: &mut [i32],
+) -> Result<(), Error> {
+    let n = dims.pixels();
+    let work: &mut [f32] = bytemuck::cast_slice_mut(work);
+    let (fa, rest) = work.split_at_mut(n.min(work.len()));
+    let (fb, scratch) = rest.split_at_mut(n.min(rest.len()));
+    for (dst, src) in [(&mut *fa, &*tile), (&mut *fb, src)] {
+        for (d, &v) in dst.iter_mut().zip(src) {
+            *d = f32::from(v);
+        }
+    }
+    float::fuse_pair(fa, fb, dims, cfg, ll, scratch)?;
+    for (d, &v) in tile.iter_mut().zip(fa.iter()) {
+        // Round half up after clamping (`as` truncates; `f32::round` needs std).
+        *d = (v.clamp(0.0, 255.0) + 0.5) as u8;
+    }
+    Ok(())
 }

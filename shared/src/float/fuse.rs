@@ -1,18 +1,105 @@
-//! The `f32` fusion path: the shared driver with the integer path's lifting steps run in
-//! exact `f32` arithmetic, `f32` saliency and `f32` weights.
+//! The float fusion paths: the shared driver with the integer path's lifting steps run in
+//! exact floating-point arithmetic, float saliency and float weights — in `f32` (the
+//! host's working path) or `f64` (the reference the trade-off study measures against).
 
 use crate::fusion::{Arith, FuseConfig, Join, LlWeight, Sequential, fuse_pair_checked};
-use crate::lifting::{self, LevelBounds};
+use crate::lifting::{self, LevelBounds, Lift};
 use crate::saliency::ll_gain_q16;
 use crate::saliency::{SaliencyNorm, map_neighbourhood_row};
 use crate::{Dims, Error, Wavelet};
 
-impl Arith for f32 {
-    fn forward_level(wavelet: Wavelet, buf: &mut [f32], dims: Dims, scratch: &mut [f32]) {
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for f32 {}
+    impl Sealed for f64 {}
+}
+
+/// A float sample type the float fusion runs in: `f32` or `f64`.
+#[allow(private_bounds)] // `Lift` is the lifting's internal seam; users see only the two impls.
+pub trait Float:
+    sealed::Sealed
+    + Lift
+    + Default
+    + Send
+    + Sync
+    + PartialOrd
+    + core::ops::Mul<Output = Self>
+    + core::ops::Div<Output = Self>
+{
+    /// 0.
+    const ZERO: Self;
+    /// ½.
+    const HALF: Self;
+    /// 1.
+    const ONE: Self;
+    /// 4.
+    const FOUR: Self;
+    /// The largest sample magnitude accepted: [`MAX_SAMPLE_F32`] for both types.
+    const MAX_SAMPLE: Self;
+    /// From an `f64` (rounded to nearest for `f32`).
+    fn from_f64(v: f64) -> Self;
+    /// `|self|`.
+    fn abs(self) -> Self;
+    /// Whether neither infinite nor NaN.
+    fn is_finite(self) -> bool;
+    /// `eˣ − 1` for `x` in `0..=1`.
+    fn expm1_unit(self) -> Self;
+}
+
+impl Float for f32 {
+    const ZERO: Self = 0.0;
+    const HALF: Self = 0.5;
+    const ONE: Self = 1.0;
+    const FOUR: Self = 4.0;
+    const MAX_SAMPLE: Self = MAX_SAMPLE_F32;
+    #[inline(always)]
+    fn from_f64(v: f64) -> Self {
+        v as f32
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        f32::abs(self)
+    }
+    #[inline(always)]
+    fn is_finite(self) -> bool {
+        f32::is_finite(self)
+    }
+    #[inline(always)]
+    fn expm1_unit(self) -> Self {
+        expm1_unit(self)
+    }
+}
+
+impl Float for f64 {
+    const ZERO: Self = 0.0;
+    const HALF: Self = 0.5;
+    const ONE: Self = 1.0;
+    const FOUR: Self = 4.0;
+    const MAX_SAMPLE: Self = MAX_SAMPLE_F32 as f64;
+    #[inline(always)]
+    fn from_f64(v: f64) -> Self {
+        v
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        f64::abs(self)
+    }
+    #[inline(always)]
+    fn is_finite(self) -> bool {
+        f64::is_finite(self)
+    }
+    /// libm's: the reference path takes no shortcut.
+    fn expm1_unit(self) -> Self {
+        libm::expm1(self)
+    }
+}
+
+impl<T: Float> Arith for T {
+    fn forward_level(wavelet: Wavelet, buf: &mut [T], dims: Dims, scratch: &mut [T]) {
         lifting::forward_level(wavelet, buf, dims, scratch);
     }
 
-    fn inverse(wavelet: Wavelet, buf: &mut [f32], dims: Dims, levels: u8, scratch: &mut [f32]) {
+    fn inverse(wavelet: Wavelet, buf: &mut [T], dims: Dims, levels: u8, scratch: &mut [T]) {
         // Floats need no saturation: the bounds are only passed along.
         let bounds = LevelBounds::default();
         let mut sizes = [dims; 4];
@@ -25,71 +112,73 @@ impl Arith for f32 {
     }
 
     fn saliency_rows(
-        buf: &[f32],
+        buf: &[T],
         dims: Dims,
         norm: SaliencyNorm,
         wavelet: Wavelet,
         level: u8,
-        row: &mut [f32],
-        mut f: impl FnMut(usize, &[f32]),
+        row: &mut [T],
+        mut f: impl FnMut(usize, &[T]),
     ) {
         let lap =
-            |c: f32, [up, down, left, right]: [f32; 4]| (up + down + left + right - 4.0 * c).abs();
+            |c: T, [up, down, left, right]: [T; 4]| (up + down + left + right - T::FOUR * c).abs();
         let row = &mut row[..dims.width()];
         let max = match norm {
-            SaliencyNorm::Local => (0..dims.height()).fold(0f32, |m, y| {
+            SaliencyNorm::Local => (0..dims.height()).fold(T::ZERO, |m, y| {
                 map_neighbourhood_row(buf, dims, y, row, lap);
-                max_of(row).max(m)
+                let r = max_of(row);
+                if r > m { r } else { m }
             }),
             // The LL band's DC gain per level, as on the integer path.
             SaliencyNorm::Reference(r) => {
-                let gain = ll_gain_q16(wavelet) as f32 / 65536.0;
-                (1..level).fold(r as f32, |m, _| m * gain)
+                let gain = T::from_f64(ll_gain_q16(wavelet) as f64 / 65536.0);
+                (1..level).fold(T::from_f64(f64::from(r)), |m, _| m * gain)
             }
         };
-        if max <= 0.0 || !max.is_finite() {
+        if max <= T::ZERO || !max.is_finite() {
             return;
         }
-        let inv = 1.0 / max;
+        let inv = T::ONE / max;
         for y in 0..dims.height() {
             // Sal/255 = |∇²I| / max, saturated at 1 for a Reference maximum.
             map_neighbourhood_row(buf, dims, y, row, lap);
             // A pass of its own: a plain map over the row, which vectorizes.
             for v in row.iter_mut() {
-                *v = expm1_unit((*v * inv).min(1.0));
+                let x = *v * inv;
+                *v = (if x < T::ONE { x } else { T::ONE }).expm1_unit();
             }
             f(y, row);
         }
     }
 
-    fn weight(s1: f32, s2: f32) -> f32 {
+    fn weight(s1: T, s2: T) -> T {
         let total = s1 + s2;
-        if total > 0.0 { s1 / total } else { 0.5 }
+        if total > T::ZERO { s1 / total } else { T::HALF }
     }
 
     #[inline(always)]
-    fn blend(h1: f32, h2: f32, w1: f32) -> f32 {
-        w1 * h1 + (1.0 - w1) * h2
+    fn blend(h1: T, h2: T, w1: T) -> T {
+        w1 * h1 + (T::ONE - w1) * h2
     }
 
     #[inline(always)]
-    fn mix(a: f32, b: f32, w: LlWeight) -> f32 {
-        let w = w.as_f32();
-        (1.0 - w) * a + w * b
+    fn mix(a: T, b: T, w: LlWeight) -> T {
+        let w = T::from_f64(f64::from(w.0) / 32768.0);
+        (T::ONE - w) * a + w * b
     }
 
     #[inline(always)]
-    fn abs_ge(a: f32, b: f32) -> bool {
+    fn abs_ge(a: T, b: T) -> bool {
         a.abs() >= b.abs()
     }
 
-    fn check_samples(buf: &[f32], dims: Dims) -> Result<(), Error> {
+    fn check_samples(buf: &[T], dims: Dims) -> Result<(), Error> {
         for y in 0..dims.height() {
             let row = &buf[dims.at(0, y)..dims.at(dims.width(), y)];
             // No early exit, so the scan vectorizes; NaN fails the comparison.
             let in_range = row
                 .iter()
-                .fold(true, |ok, v| ok & (v.abs() <= MAX_SAMPLE_F32));
+                .fold(true, |ok, v| ok & (v.abs() <= T::MAX_SAMPLE));
             if !in_range {
                 return Err(Error::InvalidParameter {
                     name: "sample (NaN, infinite or beyond ±1e9)",
@@ -101,16 +190,17 @@ impl Arith for f32 {
 }
 
 /// The largest of `values` (all finite and ≥ 0), over eight lanes so that it vectorizes.
-fn max_of(values: &[f32]) -> f32 {
-    let mut lanes = [0f32; 8];
+fn max_of<T: Float>(values: &[T]) -> T {
+    let max = |m: T, v: T| if v > m { v } else { m };
+    let mut lanes = [T::ZERO; 8];
     let mut chunks = values.chunks_exact(8);
     for chunk in &mut chunks {
         for (m, &v) in lanes.iter_mut().zip(chunk) {
-            *m = if v > *m { v } else { *m };
+            *m = max(*m, v);
         }
     }
     let rest = chunks.remainder().iter();
-    lanes.iter().chain(rest).fold(0f32, |m, &v| m.max(v))
+    lanes.iter().chain(rest).fold(T::ZERO, |m, &v| max(m, v))
 }
 
 /// `eˣ − 1` for `x` in `0..=1`: its Taylor series to degree 9 in Horner form, exact to
@@ -135,41 +225,41 @@ fn expm1_unit(x: f32) -> f32 {
     x * acc
 }
 
-/// The largest sample magnitude the float path accepts: far beyond any image (16-bit data
+/// The largest sample magnitude the float paths accept: far beyond any image (16-bit data
 /// is 65535), far enough below `f32::MAX` that Laplacians and sums stay finite.
 pub const MAX_SAMPLE_F32: f32 = 1e9;
 
-/// Scratch length (in `f32`) that [`fuse_pair`] and [`fuse_pair_with`] need for `dims`:
+/// Scratch length (in samples) that [`fuse_pair`] and [`fuse_pair_with`] need for `dims`:
 /// as on the integer path ([`crate::fusion::fuse_scratch_len`]), plus a second transform
 /// line so both images can be worked on at once.
 pub fn fuse_scratch_len(dims: Dims) -> usize {
     crate::fusion::fuse_scratch_len(dims) + lifting::scratch_len(dims)
 }
 
-/// One `f32` fuse step on the `dims` region of `a` and `b`: the fused image replaces `a`,
+/// One float fuse step (`f32` or `f64`) on the `dims` region of `a` and `b`: the fused image replaces `a`,
 /// `b` is used as work space. Any size from 1 up, as on the integer path; samples must be
 /// finite with `|x| ≤` [`MAX_SAMPLE_F32`].
-pub fn fuse_pair(
-    a: &mut [f32],
-    b: &mut [f32],
+pub fn fuse_pair<T: Float>(
+    a: &mut [T],
+    b: &mut [T],
     dims: Dims,
     cfg: &FuseConfig,
     ll_weight: LlWeight,
-    scratch: &mut [f32],
+    scratch: &mut [T],
 ) -> Result<(), Error> {
     fuse_pair_with(&Sequential, a, b, dims, cfg, ll_weight, scratch)
 }
 
 /// [`fuse_pair`] with each level's two independent halves (saliency and transform of
 /// each image) run through `join`, e.g. on two threads. The result does not depend on it.
-pub fn fuse_pair_with(
+pub fn fuse_pair_with<T: Float>(
     join: &impl Join,
-    a: &mut [f32],
-    b: &mut [f32],
+    a: &mut [T],
+    b: &mut [T],
     dims: Dims,
     cfg: &FuseConfig,
     ll_weight: LlWeight,
-    scratch: &mut [f32],
+    scratch: &mut [T],
 ) -> Result<(), Error> {
     fuse_pair_checked(a, b, dims, cfg, ll_weight, scratch, 2, join)
 }

@@ -14,4 +14,4 @@ mod dwt;
 mod fuse;
 
 pub use dwt::{dwt2, idwt2, level_scratch_len, subband_dims};
-pub use fuse::{MAX_SAMPLE_F32, fuse_pair, fuse_pair_with, fuse_scratch_len};
+pub use fuse::{Float, MAX_SAMPLE_F32, fuse_pair, fuse_pair_with, fuse_scratch_len};

@@ -31,7 +31,7 @@ pub enum Wavelet {
 }
 
 /// The arithmetic of the lifting steps: integers rounded in every step (`i32`, the MCU's
-/// reversible transform) or exact reals (`f32`, the host's float path). Both run the same
+/// reversible transform) or exact reals (`f32`, the host's float path; `f64`, the reference). Both run the same
 /// steps with the same boundary rule, so their coefficients differ only by rounding.
 pub(crate) trait Lift:
     Copy
@@ -69,29 +69,34 @@ impl Lift for i32 {
     }
 }
 
-/// √3 to f32 precision.
-const SQRT_3_F32: f32 = 1.732_050_8;
-
-impl Lift for f32 {
-    #[inline(always)]
-    fn half(self) -> Self {
-        0.5 * self
-    }
-    #[inline(always)]
-    fn sqrt3(self) -> Self {
-        SQRT_3_F32 * self
-    }
-    #[inline(always)]
-    fn predict(s: Self, s_prev: Self) -> Self {
-        const A: f32 = SQRT_3_F32 / 4.0;
-        const B: f32 = (SQRT_3_F32 - 2.0) / 4.0;
-        A * s + B * s_prev
-    }
-    #[inline(always)]
-    fn saturate(self, _bound: i32) -> Self {
-        self
-    }
+/// The float lifting: the integer steps without rounding, to the type's precision.
+macro_rules! float_lift {
+    ($t:ty, $sqrt3:expr) => {
+        impl Lift for $t {
+            #[inline(always)]
+            fn half(self) -> Self {
+                0.5 * self
+            }
+            #[inline(always)]
+            fn sqrt3(self) -> Self {
+                $sqrt3 * self
+            }
+            #[inline(always)]
+            fn predict(s: Self, s_prev: Self) -> Self {
+                const A: $t = $sqrt3 / 4.0;
+                const B: $t = ($sqrt3 - 2.0) / 4.0;
+                A * s + B * s_prev
+            }
+            #[inline(always)]
+            fn saturate(self, _bound: i32) -> Self {
+                self
+            }
+        }
+    };
 }
+
+float_lift!(f32, 1.732_050_8_f32);
+float_lift!(f64, 1.732_050_807_568_877_2_f64);
 
 impl Wavelet {
     /// Forward lifting of split channels made of rows of `width` samples side by side.

@@ -9,7 +9,7 @@ use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
 
 /// Version of the output format (the host's `rollfuse tradeoff` checks it).
-const FORMAT: u32 = 1;
+const FORMAT: u32 = 2;
 
 #[entry]
 fn main() -> ! {

@@ -1,5 +1,5 @@
 //! What is measured: the device pipeline per frame over the trade-off sweep (wavelet ×
-//! levels × downsampling × normalization), the fuse step per tile on the integer and the
+//! levels × downsampling × normalization × fixed/`f32` fuse step), the fuse step per tile on the integer and the
 //! `f32` path for each of those, and the pipeline's kernels at the default configuration.
 
 use super::clock::Clock;
@@ -7,7 +7,9 @@ use super::frames::{self, FRAME_BYTES, HEIGHT, SPACING_PX, WIDTH};
 use core::fmt;
 use rollfuse_core::device::downsample::downsample;
 use rollfuse_core::device::refine::{refine_shift, row_profile};
-use rollfuse_core::device::{MCU_CAPACITY, Pipeline, PipelineBuffers, PipelineConfig, Sensor};
+use rollfuse_core::device::{
+    MCU_CAPACITY, Pipeline, PipelineBuffers, PipelineConfig, Precision, Sensor,
+};
 use rollfuse_core::fusion::{LlWeight, U8Work, fuse_u8};
 use rollfuse_core::lifting::{forward_2d, inverse_2d};
 use rollfuse_core::protocol::{DeviceConfig, NormMode, PixelFormat, WaveletId};
@@ -148,8 +150,9 @@ pub fn all(clock: &Clock, out: &mut impl FnMut(&Row)) -> bool {
                         downsample,
                         per_frame,
                     };
-                    ok &=
-                        pipeline(clock, &mut b, setup, out) && tile_fuse(clock, &mut b, setup, out);
+                    ok &= pipeline(clock, &mut b, setup, Precision::Fixed, out)
+                        && pipeline(clock, &mut b, setup, Precision::F32, out)
+                        && tile_fuse(clock, &mut b, setup, out);
                 }
             }
         }
@@ -157,11 +160,18 @@ pub fn all(clock: &Clock, out: &mut impl FnMut(&Row)) -> bool {
     ok
 }
 
-/// The device pipeline, instructions per frame in steady state.
-fn pipeline(clock: &Clock, b: &mut Buffers, setup: Setup, out: &mut impl FnMut(&Row)) -> bool {
-    let Some(cfg) = setup.config() else {
+/// The device pipeline fusing with `precision`, instructions per frame in steady state.
+fn pipeline(
+    clock: &Clock,
+    b: &mut Buffers,
+    setup: Setup,
+    precision: Precision,
+    out: &mut impl FnMut(&Row),
+) -> bool {
+    let Some(mut cfg) = setup.config() else {
         return false;
     };
+    cfg.precision = precision;
     let mem = cfg.memory();
     let bufs = PipelineBuffers {
         frame: &mut b.frame[..mem.frame_bytes],
@@ -188,7 +198,10 @@ fn pipeline(clock: &Clock, b: &mut Buffers, setup: Setup, out: &mut impl FnMut(&
     }
     out(&Row {
         section: "pipeline",
-        name: "frame",
+        name: match precision {
+            Precision::Fixed => "frame_fixed",
+            Precision::F32 => "frame_f32",
+        },
         setup,
         pixels: cfg.frame_dims().pixels(),
         calls: MEASURED as u64,

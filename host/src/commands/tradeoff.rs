@@ -1,0 +1,86 @@
+//! `rollfuse tradeoff`: the accuracy/time study over the device configurations
+//! (docs/tradeoff.md).
+
+use super::simulate::progress;
+use crate::sim::Scene;
+use crate::tradeoff::bench::McuTable;
+use crate::tradeoff::{acquire, report, study, sweep};
+use anyhow::{Context, ensure};
+use std::path::PathBuf;
+
+/// Arguments of `rollfuse tradeoff`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Folder for tradeoff.md, tradeoff.csv and pareto.svg.
+    #[arg(long, default_value = "out/tradeoff")]
+    pub out: PathBuf,
+    /// Scenes to fuse (default: the built-in letters scene, as the virtual device streams).
+    #[arg(long)]
+    pub scene: Vec<PathBuf>,
+    /// The Cortex-M7 bench's CSV (written by `bash tests/mcu-bench/run.sh`); without it
+    /// the study reports host time only.
+    #[arg(long, default_value = default_bench())]
+    pub bench: PathBuf,
+    /// Timed runs per configuration and scene; the fastest counts.
+    #[arg(long, default_value_t = 3)]
+    pub repeats: usize,
+}
+
+/// Where `tests/mcu-bench/run.sh` writes by default.
+fn default_bench() -> &'static str {
+    concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../target/mcu-bench/mcu-bench.csv"
+    )
+}
+
+/// Runs the command.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    ensure!(
+        (1..=100).contains(&args.repeats),
+        "--repeats must be 1..=100, not {}",
+        args.repeats
+    );
+    let scenes = if args.scene.is_empty() {
+        vec![PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/letters.toml")]
+    } else {
+        args.scene.clone()
+    };
+    let mcu = if args.bench.exists() {
+        McuTable::load(&args.bench)?
+    } else {
+        eprintln!(
+            "note: no MCU bench results at {}: run `bash tests/mcu-bench/run.sh` for the \
+             instruction counts; reporting host time only",
+            args.bench.display()
+        );
+        McuTable::empty()
+    };
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let mut acquisitions = Vec::new();
+    for path in &scenes {
+        acquisitions.push(acquire(&Scene::load(path)?)?);
+    }
+    let setups = sweep();
+    let bar = progress(setups.len(), "configurations", "measuring".into());
+    let rows = study(&acquisitions, &setups, args.repeats, &mcu, |k| {
+        bar.set_position(k as u64)
+    })?;
+    bar.finish_and_clear();
+    let names: Vec<String> = acquisitions.iter().map(|a| a.name.clone()).collect();
+    let md = report::markdown(&rows, &names, mcu.build.as_deref());
+    let write = |name: &str, text: &str| {
+        let path = args.out.join(name);
+        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))
+    };
+    write("tradeoff.md", &md)?;
+    write("tradeoff.csv", &report::csv(&rows))?;
+    write("pareto.svg", &report::pareto_svg(&rows)?)?;
+    print!("{md}");
+    println!(
+        "\nwritten: {}/tradeoff.md, tradeoff.csv, pareto.svg",
+        args.out.display()
+    );
+    Ok(())
+}
