@@ -61,7 +61,7 @@ pub enum SaliencyNorm {
     /// By a caller-supplied level-1 maximum, in the input's units (8-bit gray levels for
     /// [`crate::fusion::fuse_u8`]), e.g. the whole frame's (see [`laplacian_max`]), so every
     /// tile of a frame is judged on one scale. Deeper levels scale it by the transform's
-    /// LL gain (integer path: [`ll_gain_q16`]; float path: 2, the orthonormal gain); larger
+    /// LL gain ([`ll_gain_q16`]: both paths run the same unscaled lifting); larger
     /// values saturate at 255. `Reference(0)` treats both images as flat: every weight ½.
     Reference(u32),
 }
