@@ -135,9 +135,44 @@ impl Dims {
     pub(crate) fn at(&self, x: usize, y: usize) -> usize {
         y * self.stride + x
     }
+
+    /// Row `y` of the region in `buf` (`width` elements), or `None` if `buf` ends before
+    /// it does.
+    #[inline]
+    pub(crate) fn row<'b, T>(&self, buf: &'b [T], y: usize) -> Option<&'b [T]> {
+        let start = self.at(0, y);
+        buf.get(start..start + self.width)
+    }
+
+    /// Row `y` of the region in `buf`, mutable; `None` if `buf` ends before it does.
+    #[inline]
+    pub(crate) fn row_mut<'b, T>(&self, buf: &'b mut [T], y: usize) -> Option<&'b mut [T]> {
+        let start = self.at(0, y);
+        buf.get_mut(start..start + self.width)
+    }
+
+    /// The region's rows in `buf`, top to bottom (fewer if `buf` is shorter than
+    /// [`Self::buffer_len`]).
+    #[inline]
+    pub(crate) fn rows<'b, T>(&self, buf: &'b [T]) -> impl Iterator<Item = &'b [T]> {
+        let dims = *self;
+        (0..self.height).map_while(move |y| dims.row(buf, y))
+    }
+
+    /// The error for a `which` buffer of `got` elements that does not hold the region.
+    pub(crate) fn too_small(&self, which: &'static str, got: usize) -> Error {
+        Error::BufferTooSmall {
+            which,
+            needed: self.buffer_len(),
+            got,
+        }
+    }
 }
 
-/// A strided line inside a buffer: `len` elements, `step` apart, from `start`.
+/// A strided line inside a buffer: `len` elements, `step` apart, from `start`. The
+/// transforms work on whole rows and column blocks ([`Dims::row`]); the tests walk lines
+/// one by one as the reference.
+#[cfg(test)]
 #[derive(Clone, Copy)]
 pub(crate) struct Line {
     pub start: usize,
@@ -145,6 +180,7 @@ pub(crate) struct Line {
     pub len: usize,
 }
 
+#[cfg(test)]
 impl Line {
     /// The row `y` of a region.
     pub fn row(dims: Dims, y: usize) -> Self {
@@ -155,9 +191,7 @@ impl Line {
         }
     }
 
-    /// The column `x` of a region (the transforms lift columns in blocks; tests walk
-    /// them one by one as the reference).
-    #[cfg(test)]
+    /// The column `x` of a region (the transforms lift columns in blocks).
     pub fn column(dims: Dims, x: usize) -> Self {
         Self {
             start: x,
@@ -191,6 +225,7 @@ pub(crate) fn mirror(i: isize, n: usize) -> usize {
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
 
     #[test]
@@ -211,6 +246,33 @@ mod tests {
         assert_eq!(levels(5, 5), 3);
         assert_eq!(levels(9, 1), 4);
         assert_eq!(levels(640, 480), 4);
+    }
+
+    #[test]
+    fn rows_stop_where_the_buffer_does() {
+        let d = Dims::with_stride(2, 3, 3).unwrap();
+        let buf = [0, 1, 9, 3, 4, 9, 6, 7];
+        assert_eq!(d.row(&buf, 1), Some(&[3, 4][..]));
+        assert_eq!(
+            d.rows(&buf).collect::<std::vec::Vec<_>>(),
+            [[0, 1], [3, 4], [6, 7]]
+        );
+        assert_eq!(d.rows(&buf[..7]).count(), 2);
+        assert_eq!(d.row(&buf[..7], 2), None);
+        let mut buf = buf;
+        if let Some(row) = d.row_mut(&mut buf, 2) {
+            row[1] = 8;
+        }
+        assert_eq!(buf[7], 8);
+        assert!(d.row_mut(&mut buf[..6], 2).is_none());
+        assert_eq!(
+            d.too_small("image", 7),
+            Error::BufferTooSmall {
+                which: "image",
+                needed: 8,
+                got: 7
+            }
+        );
     }
 
     #[test]

@@ -24,6 +24,11 @@
 //! - [`motion`]: the roller's trapezoidal step profile and frame triggers.
 #![no_std]
 #![forbid(unsafe_code)]
+// The core must never panic: public entry points validate sizes and return `Error`s.
+#![cfg_attr(
+    not(test),
+    deny(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)
+)]
 
 pub mod device;
 pub mod error;

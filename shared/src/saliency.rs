@@ -32,6 +32,10 @@ pub const EXP_TABLE: [U8F24; 256] = build_exp_table();
 
 /// Computes `e^(k/255)` by its Taylor series in Q62 integer arithmetic (exact to far below
 /// the table's Q24 step), at compile time.
+// `table[k]` has `k < 256` by the loop guard, and this only runs in const evaluation (for
+// `EXP_TABLE`): an out-of-range index would fail the build, never panic at run time. A
+// `const fn` cannot use `get_mut` or iterators.
+#[allow(clippy::indexing_slicing)]
 const fn build_exp_table() -> [U8F24; 256] {
     const ONE: u128 = 1 << 62;
     let mut table = [U8F24::ZERO; 256];
@@ -77,7 +81,12 @@ pub fn ll_gain_q16(wavelet: Wavelet) -> u64 {
 
 /// Calls `f(x, centre, [up, down, left, right])` for every pixel of row `y`, with
 /// whole-sample symmetric extension at the borders (`x = −1` reads `x = 1`). The border
-/// columns are handled apart so the inner loop indexes directly.
+/// columns are handled apart so the inner loop indexes directly. Nothing is called if
+/// `buf` is shorter than the region.
+// Indices stay inside the rows: `row_and_neighbours` returns three rows of exactly
+// `w = dims.width() ≥ 1` elements (a `Dims` is never empty), and x − 1, x, x + 1 are kept in
+// `0..w` by the `w == 1` case and the `1..w − 1` interior.
+#[allow(clippy::indexing_slicing)]
 #[inline(always)]
 pub(crate) fn neighbourhood_row<T: Copy>(
     buf: &[T],
@@ -85,7 +94,9 @@ pub(crate) fn neighbourhood_row<T: Copy>(
     y: usize,
     mut f: impl FnMut(usize, T, [T; 4]),
 ) {
-    let (up, mid, down) = row_and_neighbours(buf, dims, y);
+    let Some((up, mid, down)) = row_and_neighbours(buf, dims, y) else {
+        return;
+    };
     let w = mid.len();
     if w == 1 {
         f(0, mid[0], [up[0], down[0], mid[0], mid[0]]);
@@ -104,7 +115,12 @@ pub(crate) fn neighbourhood_row<T: Copy>(
 
 /// Sets `out[x] = f(centre, [up, down, left, right])` for every pixel of row `y`, with the
 /// extension of [`neighbourhood_row`]. The interior runs over zipped slices, with no index
-/// checks, so a simple `f` vectorizes.
+/// checks, so a simple `f` vectorizes. Nothing is written if `buf` is shorter than the
+/// region or `out` than its width.
+// Indices stay inside the rows: `row_and_neighbours` returns three rows of exactly
+// `w = dims.width() ≥ 1` elements and `out` is cut to `w` by `get_mut`; the border indices
+// are 0, 1, w − 2 and w − 1 with `w ≥ 2` past the `w == 1` case, and `m` is a window of 3.
+#[allow(clippy::indexing_slicing)]
 #[inline(always)]
 pub(crate) fn map_neighbourhood_row<T: Copy, U>(
     buf: &[T],
@@ -113,9 +129,13 @@ pub(crate) fn map_neighbourhood_row<T: Copy, U>(
     out: &mut [U],
     f: impl Fn(T, [T; 4]) -> U,
 ) {
-    let (up, mid, down) = row_and_neighbours(buf, dims, y);
+    let Some((up, mid, down)) = row_and_neighbours(buf, dims, y) else {
+        return;
+    };
     let w = mid.len();
-    let out = &mut out[..w];
+    let Some(out) = out.get_mut(..w) else {
+        return;
+    };
     if w == 1 {
         out[0] = f(mid[0], [up[0], down[0], mid[0], mid[0]]);
         return;
@@ -132,16 +152,16 @@ pub(crate) fn map_neighbourhood_row<T: Copy, U>(
     }
 }
 
-/// Rows `y − 1`, `y` and `y + 1` of the region, mirrored at its top and bottom.
+/// Rows `y − 1`, `y` and `y + 1` of the region, mirrored at its top and bottom, each
+/// `dims.width()` long; `None` if `buf` does not hold them.
 #[inline(always)]
-fn row_and_neighbours<T>(buf: &[T], dims: Dims, y: usize) -> (&[T], &[T], &[T]) {
-    let (w, h) = (dims.width(), dims.height());
-    let row = |r: usize| &buf[dims.at(0, r)..dims.at(0, r) + w];
-    (
-        row(mirror(y as isize - 1, h)),
-        row(y),
-        row(mirror(y as isize + 1, h)),
-    )
+fn row_and_neighbours<T>(buf: &[T], dims: Dims, y: usize) -> Option<(&[T], &[T], &[T])> {
+    let h = dims.height();
+    Some((
+        dims.row(buf, mirror(y as isize - 1, h))?,
+        dims.row(buf, y)?,
+        dims.row(buf, mirror(y as isize + 1, h))?,
+    ))
 }
 
 /// Calls `f(x, y, centre, [up, down, left, right])` for every pixel of the region, in
@@ -237,6 +257,9 @@ impl Normalizer {
     }
 
     /// `S = exp(Sal/255) − 1` in Q24, interpolated between table entries.
+    // `k = Sal >> 8 ≤ 255` because `sal_q8` returns at most 255·256, and the upper entry is
+    // capped at 255: both index the 256-entry `EXP_TABLE` in range. Runs once per pixel.
+    #[allow(clippy::indexing_slicing)]
     #[inline(always)]
     fn saliency(self, lap: u32) -> u32 {
         let q = self.sal_q8(lap);
@@ -282,7 +305,9 @@ pub(crate) fn saliency_rows(
         return;
     }
     let norm = Normalizer::new(max);
-    let row = &mut row[..dims.width()];
+    let Some(row) = row.get_mut(..dims.width()) else {
+        return;
+    };
     for y in 0..dims.height() {
         // S ≤ 1.7183 · 2²⁴ < 2³¹.
         map_neighbourhood_row(buf, dims, y, row, |c, around| {

@@ -18,7 +18,8 @@ use rustdct::{DctNum, DctPlanner};
 
 /// Integrates forward-difference gradients (`w × h` each, row-major; the last column of
 /// `gx` and the last row of `gy` are ignored) into heights with mean 0, in the
-/// gradients' units times pixels. Refuses non-finite gradients.
+/// gradients' units times pixels. Refuses non-finite gradients, and gradients so large
+/// that the heights would overflow.
 pub fn integrate(gx: &[f64], gy: &[f64], w: usize, h: usize) -> anyhow::Result<Vec<f64>> {
     ensure!(w >= 1 && h >= 1, "an empty gradient field");
     ensure!(
@@ -31,7 +32,13 @@ pub fn integrate(gx: &[f64], gy: &[f64], w: usize, h: usize) -> anyhow::Result<V
         bail!("gradient {i} is not finite: refusing to integrate NaN or infinity");
     }
     let f = divergence(w, h, |i| gx[i], |i| gy[i]);
-    solve_neumann(f, w, h)
+    let heights = solve_neumann(f, w, h)?;
+    // Finite gradients near f64::MAX still overflow the transform's sums.
+    ensure!(
+        heights.iter().all(|v| v.is_finite()),
+        "gradients too large to integrate: the heights overflow f64"
+    );
+    Ok(heights)
 }
 
 /// The right-hand side `Dxᵀgx + Dyᵀgy` of the normal equations, for gradients given by

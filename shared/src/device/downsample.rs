@@ -93,7 +93,10 @@ pub fn downsample(
             .step_by(sums.len())
             .zip(out_row.chunks_mut(sums.len()))
         {
-            let sums = &mut sums[..out_chunk.len()];
+            // `out_chunk` is one of `chunks_mut(sums.len())`: never longer than `sums`.
+            let Some(sums) = sums.get_mut(..out_chunk.len()) else {
+                continue;
+            };
             sums.fill(0);
             let bytes = x0 * factor * bpp..(x0 + sums.len()) * factor * bpp;
             for row in rows.clone() {

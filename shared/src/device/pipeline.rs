@@ -406,11 +406,22 @@ impl<'a> Pipeline<'a> {
         let h = dims.height();
         let f = cfg.downsample as u64;
         let p = h - 1;
-        let (first, second) = self.bufs.profiles.split_at_mut(p);
+        // `new` checked the profiles hold two of `p` words (`cfg.memory()`).
+        let profiles_error = FrameError::Size(Error::BufferTooSmall {
+            which: "profiles",
+            needed: 2 * p,
+            got: self.bufs.profiles.len(),
+        });
+        let (first, second) = self
+            .bufs
+            .profiles
+            .split_at_mut_checked(p)
+            .ok_or(profiles_error)?;
+        let second = second.get_mut(..p).ok_or(profiles_error)?;
         let (previous, current) = if self.previous_profile_first {
-            (&*first, &mut second[..p])
+            (&*first, second)
         } else {
-            (&*second, &mut first[..p])
+            (&*second, first)
         };
         row_profile(self.bufs.frame, dims, current);
         let (offset, shift) = match self.last {
@@ -487,7 +498,10 @@ impl<'a> Pipeline<'a> {
         let Some(src) = self.bufs.frame.get(row * w..(row + t) * w) else {
             return;
         };
-        let observations = self.slots[slot_no].map_or(0, |s| s.observations);
+        let Some(slot) = self.slots.get_mut(slot_no) else {
+            return;
+        };
+        let observations = slot.map_or(0, |s| s.observations);
         if observations == 0 {
             tile.copy_from_slice(src);
         } else {
@@ -502,7 +516,7 @@ impl<'a> Pipeline<'a> {
                 return;
             }
         }
-        self.slots[slot_no] = Some(Slot {
+        *slot = Some(Slot {
             index,
             observations: observations.saturating_add(1),
         });
@@ -523,7 +537,11 @@ impl<'a> Pipeline<'a> {
             let Some((k, slot)) = next else {
                 return count;
             };
-            self.slots[k] = None;
+            // `k` came from enumerating the slots.
+            let Some(freed) = self.slots.get_mut(k) else {
+                return count;
+            };
+            *freed = None;
             if let Some(pixels) = self.bufs.tiles.get(k * t * w..(k + 1) * t * w) {
                 emit(Tile {
                     index: slot.index as u32,

@@ -1,6 +1,5 @@
 //! Orthonormal periodic filter-bank transforms (PyWavelets' `periodization` mode).
 
-use crate::geometry::Line;
 use crate::{Dims, Error, Wavelet};
 
 /// Decomposition filters `(low, high)` as PyWavelets lists them (`dec_lo`, `dec_hi`).
@@ -48,55 +47,73 @@ fn tap(i: usize, at: usize, k: usize, n: usize) -> usize {
     }
 }
 
-/// Forward analysis of one even-length line `x` into `out`: `cA` then `cD`.
+/// Sample `j` of `x` (`tap` keeps `j` inside `x`; 0 if it were not).
+#[inline(always)]
+fn sample(x: &[f32], j: usize) -> f32 {
+    x.get(j).copied().unwrap_or(0.0)
+}
+
+/// Forward analysis of one even-length line `x` into `out` (as long as `x`): `cA` then `cD`.
 fn analyze(wavelet: Wavelet, phase: Phase, x: &[f32], out: &mut [f32]) {
     let (lo, hi) = filters(wavelet);
     let n = x.len();
     let half = n / 2;
-    for i in 0..half {
+    let Some((out_a, out_d)) = out.split_at_mut_checked(half) else {
+        return;
+    };
+    for (i, (oa, od)) in out_a.iter_mut().zip(out_d.iter_mut()).enumerate() {
         let (mut a, mut d) = (0f32, 0f32);
         for (k, (&l, &h)) in lo.iter().zip(hi).enumerate() {
-            a += l * x[tap(i, phase.lo_at, k, n)];
-            d += h * x[tap(i, phase.hi_at, k, n)];
+            a += l * sample(x, tap(i, phase.lo_at, k, n));
+            d += h * sample(x, tap(i, phase.hi_at, k, n));
         }
-        out[i] = a;
-        out[half + i] = d;
+        *oa = a;
+        *od = d;
     }
 }
 
 /// Inverse of [`analyze`] (its adjoint, the filter bank being orthonormal): `c` holds `cA`
-/// then `cD`; the even-length signal is written to `x`.
+/// then `cD`; the even-length signal is written to `x` (as long as `c`).
 fn synthesize(wavelet: Wavelet, phase: Phase, c: &[f32], x: &mut [f32]) {
     let (lo, hi) = filters(wavelet);
     let n = x.len();
     let half = n / 2;
     x.fill(0.0);
-    for i in 0..half {
-        let (a, d) = (c[i], c[half + i]);
+    let Some((c_a, c_d)) = c.split_at_checked(half) else {
+        return;
+    };
+    for (i, (&a, &d)) in c_a.iter().zip(c_d).enumerate() {
         for (k, (&l, &h)) in lo.iter().zip(hi).enumerate() {
-            x[tap(i, phase.lo_at, k, n)] += l * a;
-            x[tap(i, phase.hi_at, k, n)] += h * d;
+            // `tap` keeps the index inside `x`.
+            if let Some(v) = x.get_mut(tap(i, phase.lo_at, k, n)) {
+                *v += l * a;
+            }
+            if let Some(v) = x.get_mut(tap(i, phase.hi_at, k, n)) {
+                *v += h * d;
+            }
         }
     }
 }
 
-/// Runs `op(input, output)` on each line in turn: the line is copied into the first half
-/// of `scratch`, and `op`'s result, in the second half, is written back in its place.
-fn each_line(
-    buf: &mut [f32],
-    lines: impl Iterator<Item = Line>,
-    scratch: &mut [f32],
-    op: impl Fn(&[f32], &mut [f32]),
-) {
-    for line in lines {
-        let (input, output) = scratch.split_at_mut(line.len);
-        for (v, p) in input.iter_mut().zip(line.positions()) {
-            *v = buf[p];
-        }
-        op(input, &mut output[..line.len]);
-        for (p, &v) in line.positions().zip(output.iter()) {
-            buf[p] = v;
-        }
+/// Runs `op(input, output)` on each row of the region in turn: the row is copied into the
+/// first half of `scratch`, and `op`'s result, in the second half, is written back in its
+/// place.
+fn each_row(buf: &mut [f32], dims: Dims, scratch: &mut [f32], op: impl Fn(&[f32], &mut [f32])) {
+    let w = dims.width();
+    // The public entry points check `scratch` holds two rows and `buf` the region.
+    let Some((input, output)) = scratch.split_at_mut_checked(w) else {
+        return;
+    };
+    let Some(output) = output.get_mut(..w) else {
+        return;
+    };
+    for y in 0..dims.height() {
+        let Some(row) = dims.row_mut(buf, y) else {
+            return;
+        };
+        input.copy_from_slice(row);
+        op(input, output);
+        row.copy_from_slice(output);
     }
 }
 
@@ -114,24 +131,34 @@ fn analyze_columns(wavelet: Wavelet, phase: Phase, buf: &mut [f32], dims: Dims, 
     let (lo, hi) = filters(wavelet);
     let (w, h) = (dims.width(), dims.height());
     let half = h / 2;
-    let tmp = &mut tmp[..w * h];
+    // The public entry points check `tmp` holds the region and `buf` its rows.
+    let Some(tmp) = tmp.get_mut(..w * h) else {
+        return;
+    };
     tmp.fill(0.0);
     let (low, high) = tmp.split_at_mut(half * w);
-    for i in 0..half {
-        let (a_row, d_row) = (&mut low[i * w..(i + 1) * w], &mut high[i * w..(i + 1) * w]);
+    let row_pairs = low.chunks_exact_mut(w).zip(high.chunks_exact_mut(w));
+    for (i, (a_row, d_row)) in row_pairs.enumerate() {
         for (k, (&l, &g)) in lo.iter().zip(hi).enumerate() {
-            let sa = dims.at(0, tap(i, phase.lo_at, k, h));
-            let sd = dims.at(0, tap(i, phase.hi_at, k, h));
-            for (o, &v) in a_row.iter_mut().zip(&buf[sa..sa + w]) {
+            let src_a = dims.row(buf, tap(i, phase.lo_at, k, h)).unwrap_or_default();
+            let src_d = dims.row(buf, tap(i, phase.hi_at, k, h)).unwrap_or_default();
+            for (o, &v) in a_row.iter_mut().zip(src_a) {
                 *o += l * v;
             }
-            for (o, &v) in d_row.iter_mut().zip(&buf[sd..sd + w]) {
+            for (o, &v) in d_row.iter_mut().zip(src_d) {
                 *o += g * v;
             }
         }
     }
-    for y in 0..h {
-        buf[dims.at(0, y)..dims.at(0, y) + w].copy_from_slice(&tmp[y * w..(y + 1) * w]);
+    copy_rows_back(buf, dims, tmp);
+}
+
+/// Replaces the region's rows in `buf` by the packed rows of `tmp`.
+fn copy_rows_back(buf: &mut [f32], dims: Dims, tmp: &[f32]) {
+    for (y, src) in tmp.chunks_exact(dims.width()).enumerate() {
+        if let Some(dst) = dims.row_mut(buf, y) {
+            dst.copy_from_slice(src);
+        }
     }
 }
 
@@ -146,24 +173,28 @@ fn synthesize_columns(
     let (lo, hi) = filters(wavelet);
     let (w, h) = (dims.width(), dims.height());
     let half = h / 2;
-    let tmp = &mut tmp[..w * h];
+    // The public entry points check `tmp` holds the region and `buf` its rows.
+    let Some(tmp) = tmp.get_mut(..w * h) else {
+        return;
+    };
     tmp.fill(0.0);
     for i in 0..half {
-        let (ra, rd) = (dims.at(0, i), dims.at(0, half + i));
+        let src_a = dims.row(buf, i).unwrap_or_default();
+        let src_d = dims.row(buf, half + i).unwrap_or_default();
         for (k, (&l, &g)) in lo.iter().zip(hi).enumerate() {
             let ta = tap(i, phase.lo_at, k, h) * w;
-            for (o, &v) in tmp[ta..ta + w].iter_mut().zip(&buf[ra..ra + w]) {
+            let dst_a = tmp.get_mut(ta..ta + w).unwrap_or_default();
+            for (o, &v) in dst_a.iter_mut().zip(src_a) {
                 *o += l * v;
             }
             let td = tap(i, phase.hi_at, k, h) * w;
-            for (o, &v) in tmp[td..td + w].iter_mut().zip(&buf[rd..rd + w]) {
+            let dst_d = tmp.get_mut(td..td + w).unwrap_or_default();
+            for (o, &v) in dst_d.iter_mut().zip(src_d) {
                 *o += g * v;
             }
         }
     }
-    for y in 0..h {
-        buf[dims.at(0, y)..dims.at(0, y) + w].copy_from_slice(&tmp[y * w..(y + 1) * w]);
-    }
+    copy_rows_back(buf, dims, tmp);
 }
 
 /// One forward 2-D level on an even-sized region, in place: rows then columns, Mallat
@@ -175,8 +206,7 @@ pub(crate) fn forward_level(
     dims: Dims,
     scratch: &mut [f32],
 ) {
-    let rows = (0..dims.height()).map(|y| Line::row(dims, y));
-    each_line(buf, rows, scratch, |x, out| analyze(wavelet, phase, x, out));
+    each_row(buf, dims, scratch, |x, out| analyze(wavelet, phase, x, out));
     analyze_columns(wavelet, phase, buf, dims, scratch);
 }
 
@@ -189,8 +219,7 @@ pub(crate) fn inverse_level(
     scratch: &mut [f32],
 ) {
     synthesize_columns(wavelet, phase, buf, dims, scratch);
-    let rows = (0..dims.height()).map(|y| Line::row(dims, y));
-    each_line(buf, rows, scratch, |c, x| synthesize(wavelet, phase, c, x));
+    each_row(buf, dims, scratch, |c, x| synthesize(wavelet, phase, c, x));
 }
 
 /// Size of each subband of a single-level `dwt2` on a `w × h` image: `⌈w/2⌉ × ⌈h/2⌉`.
@@ -215,10 +244,16 @@ pub fn dwt2(
     let padded = Dims::new(2 * bw, 2 * bh)?;
     check_len("output", out.len(), padded.pixels())?;
     check_len("scratch", scratch.len(), level_scratch_len(padded))?;
-    for y in 0..padded.height() {
-        let sy = y.min(dims.height() - 1);
-        for x in 0..padded.width() {
-            out[padded.at(x, y)] = img[dims.at(x.min(dims.width() - 1), sy)];
+    // Odd sides are extended by repeating the last row and column.
+    let out_rows = out.chunks_exact_mut(padded.width()).take(padded.height());
+    for (y, out_row) in out_rows.enumerate() {
+        let src = dims
+            .row(img, y.min(dims.height() - 1))
+            .ok_or(dims.too_small("image", img.len()))?;
+        let (head, tail) = out_row.split_at_mut(dims.width());
+        head.copy_from_slice(src);
+        if let Some(&last) = src.last() {
+            tail.fill(last);
         }
     }
     forward_level(wavelet, Phase::pywt(wavelet), out, padded, scratch);
@@ -241,10 +276,14 @@ pub fn idwt2(
     check_len("output", out.len(), dims.pixels())?;
     check_len("scratch", scratch.len(), level_scratch_len(padded))?;
     inverse_level(wavelet, Phase::pywt(wavelet), coeffs, padded, scratch);
-    for y in 0..dims.height() {
-        for x in 0..dims.width() {
-            out[y * dims.width() + x] = coeffs[padded.at(x, y)];
-        }
+    // The top-left `w × h` of the padded grid, packed: `coeffs` holds at least `ph ≥ h`
+    // rows of `pw ≥ w`, `out` at least `h` rows of `w` (both checked above).
+    let rows = coeffs
+        .chunks_exact(padded.width())
+        .zip(out.chunks_exact_mut(dims.width()));
+    for (src, dst) in rows.take(dims.height()) {
+        let (src, _) = src.split_at(dims.width());
+        dst.copy_from_slice(src);
     }
     Ok(())
 }

@@ -2,7 +2,9 @@
 //! exact floating-point arithmetic, float saliency and float weights — in `f32` (the
 //! host's working path) or `f64` (the reference the trade-off study measures against).
 
-use crate::fusion::{Arith, FuseConfig, Join, LlWeight, Sequential, fuse_pair_checked};
+use crate::fusion::{
+    Arith, FuseConfig, Join, LlWeight, Sequential, fuse_pair_checked, level_sizes,
+};
 use crate::lifting::{self, LevelBounds, Lift};
 use crate::saliency::ll_gain_q16;
 use crate::saliency::{SaliencyNorm, map_neighbourhood_row};
@@ -102,12 +104,8 @@ impl<T: Float> Arith for T {
     fn inverse(wavelet: Wavelet, buf: &mut [T], dims: Dims, levels: u8, scratch: &mut [T]) {
         // Floats need no saturation: the bounds are only passed along.
         let bounds = LevelBounds::default();
-        let mut sizes = [dims; 4];
-        for k in 1..levels as usize {
-            sizes[k] = sizes[k - 1].low_band();
-        }
-        for d in sizes[..levels as usize].iter().rev() {
-            lifting::inverse_level(wavelet, buf, *d, scratch, &bounds);
+        for &d in level_sizes(dims).iter().take(levels as usize).rev() {
+            lifting::inverse_level(wavelet, buf, d, scratch, &bounds);
         }
     }
 
@@ -122,7 +120,9 @@ impl<T: Float> Arith for T {
     ) {
         let lap =
             |c: T, [up, down, left, right]: [T; 4]| (up + down + left + right - T::FOUR * c).abs();
-        let row = &mut row[..dims.width()];
+        let Some(row) = row.get_mut(..dims.width()) else {
+            return;
+        };
         let max = match norm {
             SaliencyNorm::Local => (0..dims.height()).fold(T::ZERO, |m, y| {
                 map_neighbourhood_row(buf, dims, y, row, lap);
@@ -173,8 +173,8 @@ impl<T: Float> Arith for T {
     }
 
     fn check_samples(buf: &[T], dims: Dims) -> Result<(), Error> {
-        for y in 0..dims.height() {
-            let row = &buf[dims.at(0, y)..dims.at(dims.width(), y)];
+        dims.check_buffer("image", buf.len())?;
+        for row in dims.rows(buf) {
             // No early exit, so the scan vectorizes; NaN fails the comparison.
             let in_range = row
                 .iter()

@@ -76,10 +76,15 @@ impl<'a> CyclicFuser<'a> {
         let src = Dims::with_stride(w, h, stride)?;
         src.check_buffer("frame", frame.len())?;
         let n = self.dims.pixels();
+        let fused_error = Error::BufferTooSmall {
+            which: "fused",
+            needed: n,
+            got: self.bufs.fused.len(),
+        };
         if self.frames == 0 {
-            for y in 0..h {
-                let row = &frame[src.at(0, y)..src.at(w, y)];
-                self.bufs.fused[y * w..(y + 1) * w].copy_from_slice(row);
+            // `new` checked `fused` holds `h` rows of `w`, and `frame` was checked above.
+            for (row, dst) in src.rows(frame).zip(self.bufs.fused.chunks_exact_mut(w)) {
+                dst.copy_from_slice(row);
             }
             self.frames = 1;
             return Ok(());
@@ -88,7 +93,7 @@ impl<'a> CyclicFuser<'a> {
         let ll_weight = LlWeight::for_frame(self.cfg.ll_weighting, frame_no);
         let bufs = &mut self.bufs;
         fuse_u8(
-            (&bufs.fused[..n], self.dims),
+            (bufs.fused.get(..n).ok_or(fused_error)?, self.dims),
             (frame, src),
             &self.cfg,
             ll_weight,
@@ -98,7 +103,7 @@ impl<'a> CyclicFuser<'a> {
                 scratch: bufs.scratch,
             },
         )?;
-        for (dst, &v) in bufs.fused[..n].iter_mut().zip(bufs.work_a.iter()) {
+        for (dst, &v) in bufs.fused.iter_mut().take(n).zip(bufs.work_a.iter()) {
             *dst = v as u8;
         }
         self.frames = frame_no;
@@ -110,7 +115,11 @@ impl<'a> CyclicFuser<'a> {
         if self.frames == 0 {
             &[]
         } else {
-            &self.bufs.fused[..self.dims.pixels()]
+            // `new` checked `fused` holds the image.
+            self.bufs
+                .fused
+                .get(..self.dims.pixels())
+                .unwrap_or_default()
         }
     }
 

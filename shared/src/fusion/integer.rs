@@ -2,8 +2,8 @@
 //! [`crate::lifting`]. This is what the MCU runs.
 
 use super::{
-    Arith, FuseConfig, LlWeight, Sequential, fuse_generic, fuse_pair_checked, maps_len,
-    split_scratch,
+    Arith, FuseConfig, LlWeight, Sequential, fuse_generic, fuse_pair_checked, level_sizes,
+    maps_len, split_scratch,
 };
 use crate::lifting::{self, bounds::level_bounds};
 use crate::saliency::{self, SaliencyNorm};
@@ -16,12 +16,9 @@ impl Arith for i32 {
 
     fn inverse(wavelet: Wavelet, buf: &mut [i32], dims: Dims, levels: u8, scratch: &mut [i32]) {
         let bounds = level_bounds(wavelet, levels);
-        let mut sizes = [dims; 4];
-        for k in 1..levels as usize {
-            sizes[k] = sizes[k - 1].low_band();
-        }
-        for k in (0..levels as usize).rev() {
-            lifting::inverse_level(wavelet, buf, sizes[k], scratch, &bounds[k]);
+        let sizes = level_sizes(dims);
+        for (&d, b) in sizes.iter().zip(&bounds).take(levels as usize).rev() {
+            lifting::inverse_level(wavelet, buf, d, scratch, b);
         }
     }
 
@@ -135,10 +132,10 @@ pub fn fuse_u8(
         return Err(Error::InvalidParameter { name: "ll_weight" });
     }
     let parts = split_scratch(work.scratch, lifting::scratch_len(packed), 1, packed)?;
+    // Every buffer was checked to hold its region above: the zips pair all `h` rows.
     for (src, src_dims, dst) in [(a, a_dims, &mut *work.a), (b, b_dims, &mut *work.b)] {
-        for y in 0..h {
-            let row = &src[src_dims.at(0, y)..src_dims.at(w, y)];
-            for (d, &v) in dst[y * w..(y + 1) * w].iter_mut().zip(row) {
+        for (row, dst_row) in src_dims.rows(src).zip(dst.chunks_exact_mut(w)) {
+            for (d, &v) in dst_row.iter_mut().zip(row) {
                 *d = i32::from(v) << GUARD_BITS;
             }
         }
@@ -153,9 +150,9 @@ pub fn fuse_u8(
         },
         ..*cfg
     };
-    fuse_generic(work.a, work.b, packed, cfg, ll_weight, parts, &Sequential);
+    fuse_generic(work.a, work.b, packed, cfg, ll_weight, parts, &Sequential)?;
     let half = 1 << (GUARD_BITS - 1);
-    for v in work.a[..packed.pixels()].iter_mut() {
+    for v in work.a.iter_mut().take(packed.pixels()) {
         *v = ((*v + half) >> GUARD_BITS).clamp(0, 255);
     }
     Ok(())

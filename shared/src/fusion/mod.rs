@@ -18,7 +18,7 @@ pub(crate) mod integer;
 pub use cyclic::{CyclicBuffers, CyclicFuser};
 pub use integer::{GUARD_BITS, U8Work, fuse_pair, fuse_scratch_len, fuse_scratch_words, fuse_u8};
 
-use crate::{Dims, Error, Wavelet, saliency::SaliencyNorm};
+use crate::{Dims, Error, MAX_LEVELS, Wavelet, saliency::SaliencyNorm};
 
 /// The ablations of the paper's Table II: each removes one part of the method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -215,8 +215,7 @@ pub(crate) fn fuse_pair_checked<T: Arith>(
     T::check_samples(a, dims)?;
     T::check_samples(b, dims)?;
     let work = split_scratch(scratch, crate::lifting::scratch_len(dims), lines, dims)?;
-    fuse_generic(a, b, dims, cfg, ll_weight, work, join);
-    Ok(())
+    fuse_generic(a, b, dims, cfg, ll_weight, work, join)
 }
 
 /// Scratch a fuse step needs besides its transform line: one window map per image, each
@@ -245,16 +244,17 @@ pub(crate) fn split_scratch<T>(
 ) -> Result<Work<'_, T>, Error> {
     let maps = maps_len(dims.width(), dims.height());
     let needed = lines * line + maps;
+    let too_small = Error::BufferTooSmall {
+        which: "scratch",
+        needed,
+        got: scratch.len(),
+    };
     if scratch.len() < needed {
-        return Err(Error::BufferTooSmall {
-            which: "scratch",
-            needed,
-            got: scratch.len(),
-        });
+        return Err(too_small);
     }
-    let (first, rest) = scratch.split_at_mut(line);
+    let (first, rest) = scratch.split_at_mut_checked(line).ok_or(too_small)?;
     let (line_b, rest) = if lines > 1 {
-        let (b, rest) = rest.split_at_mut(line);
+        let (b, rest) = rest.split_at_mut_checked(line).ok_or(too_small)?;
         (Some(b), rest)
     } else {
         (None, rest)
@@ -262,7 +262,7 @@ pub(crate) fn split_scratch<T>(
     Ok(Work {
         line: first,
         line_b,
-        maps: &mut rest[..maps],
+        maps: rest.get_mut(..maps).ok_or(too_small)?,
     })
 }
 
@@ -281,20 +281,28 @@ fn window_saliency<T: Arith>(
     map.fill(T::default());
     T::saliency_rows(buf, dims, cfg.norm, cfg.wavelet, level, row, |y, srow| {
         let m = (y + layout.phase) / 2;
-        let map_row = &mut map[m * mw..(m + 1) * mw];
+        // The map has `map_dims(dims)` rows; a short `map` just loses the row.
+        let Some(map_row) = map.get_mut(m * mw..(m + 1) * mw) else {
+            return;
+        };
         // With phase 1, entry 0 holds pixel 0 alone and entry m ≥ 1 pixels 2m − 1, 2m.
         let (map_row, srow) = if layout.phase == 1 {
-            map_row[0] += srow[0];
-            (&mut map_row[1..], &srow[1..])
+            let (Some((first, map_rest)), Some((&s0, s_rest))) =
+                (map_row.split_first_mut(), srow.split_first())
+            else {
+                return;
+            };
+            *first += s0;
+            (map_rest, s_rest)
         } else {
             (map_row, srow)
         };
-        let pairs = srow.chunks_exact(2);
-        let odd_end = pairs.remainder().first().copied();
+        let (pairs, odd_end) = srow.as_chunks::<2>();
+        let odd_end = odd_end.first().copied();
         let full = pairs.len();
-        for (acc, pair) in map_row.iter_mut().zip(pairs) {
-            *acc += pair[0];
-            *acc += pair[1];
+        for (acc, &[p0, p1]) in map_row.iter_mut().zip(pairs) {
+            *acc += p0;
+            *acc += p1;
         }
         if let (Some(v), Some(acc)) = (odd_end, map_row.get_mut(full)) {
             *acc += v;
@@ -320,7 +328,9 @@ fn fuse_band_row<T: Arith>(a: &mut [T], b: &[T], w: &[T], weights: bool) {
 }
 
 /// The fuse step, generic over the path. `a` and `b` hold the two images on `dims`
-/// (already validated); the fused image replaces `a`, `b` is consumed.
+/// (already validated); the fused image replaces `a`, `b` is consumed. The errors cannot
+/// happen after the callers' checks: they stand in for the panics of slicing past a
+/// buffer's end.
 pub(crate) fn fuse_generic<T: Arith>(
     a: &mut [T],
     b: &mut [T],
@@ -329,23 +339,29 @@ pub(crate) fn fuse_generic<T: Arith>(
     ll_weight: LlWeight,
     work: Work<'_, T>,
     join: &impl Join,
-) {
+) -> Result<(), Error> {
     let Work {
         line,
         mut line_b,
         maps,
     } = work;
+    let image_error = dims.too_small("image", a.len().min(b.len()));
     if cfg.ablation == Ablation::NoWavelet {
-        for_each_in(dims, |i| a[i] = T::mix(a[i], b[i], ll_weight));
-        return;
+        return mix_region(a, b, dims, ll_weight).ok_or(image_error);
     }
     let with_weights = cfg.ablation != Ablation::MaxHigh;
     let layout = WindowLayout::of(cfg.wavelet);
+    let [hl_shift, lh_shift, hh_shift] = layout.shifts;
     let mut d = dims;
     for level in 1..=cfg.levels {
         let (mw, mh) = layout.map_dims(d);
-        let (map_a, rest) = maps.split_at_mut(mw * mh);
-        let map_b = &mut rest[..mw * mh];
+        let maps_error = Error::BufferTooSmall {
+            which: "scratch",
+            needed: 2 * mw * mh,
+            got: maps.len(),
+        };
+        let (map_a, rest) = maps.split_at_mut_checked(mw * mh).ok_or(maps_error)?;
+        let map_b = rest.get_mut(..mw * mh).ok_or(maps_error)?;
         // Each image's saliency (read before its transform overwrites it), then its
         // transform: the two images are independent until the weights.
         let side = |img: &mut [T], map: &mut [T], line: &mut [T]| {
@@ -367,44 +383,60 @@ pub(crate) fn fuse_generic<T: Arith>(
                 *s1 = T::weight(*s1, s2);
             }
         }
-        let (w, nlx, nly) = (d.width(), d.width().div_ceil(2), d.height().div_ceil(2));
+        let nlx = d.width().div_ceil(2);
+        let nly = d.height().div_ceil(2);
         // Row y of the transformed level: HL right of the low columns for y < nly; LH and
-        // HH below. `weights(band, j, len)` is that band's row j of W₁.
-        let weights = |band: usize, j: usize, len: usize| {
-            let (sx, sy) = layout.shifts[band];
+        // HH below. `weights((sx, sy), j, len)` is row j of W₁ for the band whose map
+        // entries are shifted by `(sx, sy)`.
+        let weights = |(sx, sy): (usize, usize), j: usize, len: usize| {
             let start = (j + sy) * mw + sx;
-            &map_a[start..start + len]
+            map_a.get(start..start + len).ok_or(maps_error)
         };
         for y in 0..d.height() {
-            let row = d.at(0, y)..d.at(0, y) + w;
-            let (ra, rb) = (&mut a[row.clone()], &b[row]);
+            let (Some(ra), Some(rb)) = (d.row_mut(a, y), d.row(b, y)) else {
+                return Err(image_error);
+            };
+            // nlx = ⌈w/2⌉ ≤ w, the rows' length.
+            let (low_a, high_a) = ra.split_at_mut(nlx);
+            let (low_b, high_b) = rb.split_at(nlx);
             if y < nly {
-                fuse_band_row(
-                    &mut ra[nlx..],
-                    &rb[nlx..],
-                    weights(0, y, w - nlx),
-                    with_weights,
-                );
+                let w_hl = weights(hl_shift, y, high_a.len())?;
+                fuse_band_row(high_a, high_b, w_hl, with_weights);
             } else {
                 let j = y - nly;
-                let (low_a, high_a) = ra.split_at_mut(nlx);
-                fuse_band_row(low_a, &rb[..nlx], weights(1, j, nlx), with_weights);
-                fuse_band_row(high_a, &rb[nlx..], weights(2, j, w - nlx), with_weights);
+                let w_lh = weights(lh_shift, j, low_a.len())?;
+                fuse_band_row(low_a, low_b, w_lh, with_weights);
+                let w_hh = weights(hh_shift, j, high_a.len())?;
+                fuse_band_row(high_a, high_b, w_hh, with_weights);
             }
         }
         d = d.low_band();
     }
     if cfg.ablation != Ablation::SingleLl {
-        for_each_in(d, |i| a[i] = T::mix(a[i], b[i], ll_weight));
+        mix_region(a, b, d, ll_weight).ok_or(image_error)?;
     }
     T::inverse(cfg.wavelet, a, dims, cfg.levels, line);
+    Ok(())
 }
 
-/// Calls `f(index)` for every element of the region.
-fn for_each_in(dims: Dims, mut f: impl FnMut(usize)) {
+/// The region of each level, `dims` first, then the low band of the one before.
+pub(crate) fn level_sizes(dims: Dims) -> [Dims; MAX_LEVELS as usize] {
+    let mut sizes = [dims; MAX_LEVELS as usize];
+    let mut d = dims;
+    for s in &mut sizes {
+        *s = d;
+        d = d.low_band();
+    }
+    sizes
+}
+
+/// Sets `a = (1 − w)·a + w·b` over the `dims` region; `None` if a buffer does not hold it.
+fn mix_region<T: Arith>(a: &mut [T], b: &[T], dims: Dims, ll_weight: LlWeight) -> Option<()> {
     for y in 0..dims.height() {
-        for x in 0..dims.width() {
-            f(dims.at(x, y));
+        let (ra, rb) = (dims.row_mut(a, y)?, dims.row(b, y)?);
+        for (x, &v) in ra.iter_mut().zip(rb) {
+            *x = T::mix(*x, v, ll_weight);
         }
     }
+    Some(())
 }

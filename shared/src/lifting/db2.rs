@@ -69,16 +69,18 @@ fn apply<T: Lift>(dst: &mut [T], a: &[T], b: &[T], add: bool, f: impl Fn(T, T) -
     }
 }
 
-/// Rows `r0..r1` of a channel made of rows of `w` samples.
+/// Rows `r0..r1` of a channel made of rows of `w` samples. The callers stay inside the
+/// channel (`r1 ≤ nl` or `nh`); rows past its end would read as empty, so the step
+/// touches nothing there.
 #[inline(always)]
 fn rows<T>(c: &[T], r0: usize, r1: usize, w: usize) -> &[T] {
-    &c[r0 * w..r1 * w]
+    c.get(r0 * w..r1 * w).unwrap_or_default()
 }
 
-/// Rows `r0..r1`, mutable.
+/// Rows `r0..r1`, mutable (empty past the channel's end, as [`rows`]).
 #[inline(always)]
 fn rows_mut<T>(c: &mut [T], r0: usize, r1: usize, w: usize) -> &mut [T] {
-    &mut c[r0 * w..r1 * w]
+    c.get_mut(r0 * w..r1 * w).unwrap_or_default()
 }
 
 /// Step 1, `s¹[l] = e[l] ± R(√3·o[l])`: rows below `nh` read their own odd row, the last

@@ -143,21 +143,27 @@ pub const fn scratch_words(width: usize, height: usize) -> usize {
 }
 
 /// One forward 1-D pass over a row: the signal is split into even and odd samples,
-/// lifted, and stored low band first.
+/// lifted, and stored low band first. A `scratch` shorter than the row leaves it as it is
+/// (the public entry points check its length first).
 fn forward_row<T: Lift>(wavelet: Wavelet, row: &mut [T], scratch: &mut [T]) {
     let n = row.len();
     let nl = n.div_ceil(2);
-    let (low, high) = scratch[..n].split_at_mut(nl);
+    let Some(work) = scratch.get_mut(..n) else {
+        return;
+    };
+    let (low, high) = work.split_at_mut(nl);
     // Even samples to the low half, odd to the high half.
-    for (pair, (l, h)) in row.chunks_exact(2).zip(low.iter_mut().zip(high.iter_mut())) {
-        *l = pair[0];
-        *h = pair[1];
+    let (pairs, odd_end) = row.as_chunks::<2>();
+    for (&[e, o], (l, h)) in pairs.iter().zip(low.iter_mut().zip(high.iter_mut())) {
+        *l = e;
+        *h = o;
     }
-    if n % 2 == 1 {
-        low[nl - 1] = row[n - 1];
+    // An odd length's last sample goes to the low band's last slot.
+    if let ([last], Some(l)) = (odd_end, low.last_mut()) {
+        *l = *last;
     }
     wavelet.forward_split(low, high, 1);
-    row.copy_from_slice(&scratch[..n]);
+    row.copy_from_slice(work);
 }
 
 /// One forward 1-D pass over a strided `line`, element by element: the reference the
@@ -200,27 +206,34 @@ fn inverse_row<T: Lift>(
 ) {
     let n = row.len();
     let nl = n.div_ceil(2);
-    let (low, high) = scratch[..n].split_at_mut(nl);
-    for (d, &v) in low.iter_mut().zip(&row[..nl]) {
+    let Some(work) = scratch.get_mut(..n) else {
+        return;
+    };
+    let (low, high) = work.split_at_mut(nl);
+    let (row_low, row_high) = row.split_at(nl);
+    for (d, &v) in low.iter_mut().zip(row_low) {
         *d = v.saturate(low_bound);
     }
-    for (d, &v) in high.iter_mut().zip(&row[nl..]) {
+    for (d, &v) in high.iter_mut().zip(row_high) {
         *d = v.saturate(high_bound);
     }
     wavelet.inverse_split(low, high, 1);
-    for (pair, (&l, &h)) in row.chunks_exact_mut(2).zip(low.iter().zip(high.iter())) {
-        pair[0] = l.saturate(out_bound);
-        pair[1] = h.saturate(out_bound);
+    let (pairs, odd_end) = row.as_chunks_mut::<2>();
+    for ([e, o], (&l, &h)) in pairs.iter_mut().zip(low.iter().zip(high.iter())) {
+        *e = l.saturate(out_bound);
+        *o = h.saturate(out_bound);
     }
-    if n % 2 == 1 {
-        row[n - 1] = low[nl - 1].saturate(out_bound);
+    // An odd length's last sample comes from the low band's last slot.
+    if let ([last], Some(&l)) = (odd_end, low.last()) {
+        *last = l.saturate(out_bound);
     }
 }
 
-/// Checks that every sample of the region is within `±MAX_SAMPLE`.
+/// Checks that every sample of the region is within `±MAX_SAMPLE` (and that `buf` holds
+/// the region).
 pub(crate) fn check_samples(buf: &[i32], dims: Dims) -> Result<(), Error> {
-    for y in 0..dims.height() {
-        let row = &buf[dims.at(0, y)..dims.at(dims.width(), y)];
+    dims.check_buffer("image", buf.len())?;
+    for row in dims.rows(buf) {
         if row.iter().any(|v| v.unsigned_abs() > MAX_SAMPLE) {
             return Err(Error::SampleOutOfRange);
         }
@@ -246,7 +259,9 @@ fn check_args(buf: &[i32], dims: Dims, levels: Option<u8>, scratch: &[i32]) -> R
     Ok(())
 }
 
-/// One forward 2-D level on the `dims` region (rows, then columns), in place.
+/// One forward 2-D level on the `dims` region (rows, then columns), in place. Rows and
+/// column blocks that `buf` or `scratch` cannot hold are skipped: the public entry points
+/// check both lengths first.
 pub(crate) fn forward_level<T: Lift>(
     wavelet: Wavelet,
     buf: &mut [T],
@@ -256,7 +271,9 @@ pub(crate) fn forward_level<T: Lift>(
     let (w, h) = (dims.width(), dims.height());
     if w > 1 {
         for y in 0..h {
-            forward_row(wavelet, &mut buf[dims.at(0, y)..dims.at(w, y)], scratch);
+            if let Some(row) = dims.row_mut(buf, y) {
+                forward_row(wavelet, row, scratch);
+            }
         }
     }
     if h > 1 {
@@ -272,21 +289,26 @@ fn forward_columns<T: Lift>(wavelet: Wavelet, buf: &mut [T], dims: Dims, scratch
     let nl = h.div_ceil(2);
     for x0 in (0..w).step_by(COLUMN_BLOCK) {
         let bw = COLUMN_BLOCK.min(w - x0);
-        let block = &mut scratch[..bw * h];
+        let Some(block) = scratch.get_mut(..bw * h) else {
+            return;
+        };
         for y in 0..h {
             let slot = if y % 2 == 0 { y / 2 } else { nl + y / 2 };
-            copy_block_row(
-                &mut block[slot * bw..(slot + 1) * bw],
-                &buf[dims.at(x0, y)..dims.at(x0, y) + bw],
-            );
+            let start = dims.at(x0, y);
+            if let (Some(dst), Some(src)) = (
+                block.get_mut(slot * bw..(slot + 1) * bw),
+                buf.get(start..start + bw),
+            ) {
+                copy_block_row(dst, src);
+            }
         }
         let (low, high) = block.split_at_mut(nl * bw);
         wavelet.forward_split(low, high, bw);
-        for y in 0..h {
-            copy_block_row(
-                &mut buf[dims.at(x0, y)..dims.at(x0, y) + bw],
-                &block[y * bw..(y + 1) * bw],
-            );
+        for (y, src) in block.chunks_exact(bw).enumerate() {
+            let start = dims.at(x0, y);
+            if let Some(dst) = buf.get_mut(start..start + bw) {
+                copy_block_row(dst, src);
+            }
         }
     }
 }
@@ -308,10 +330,13 @@ fn inverse_columns<T: Lift>(
         let bw = COLUMN_BLOCK.min(w - x0);
         // The block's bounds, looked up once rather than per sample.
         let bounds: [(i32, i32, i32); COLUMN_BLOCK] = core::array::from_fn(|k| bounds_of(x0 + k));
-        let block = &mut scratch[..bw * h];
-        for y in 0..h {
-            let src = &buf[dims.at(x0, y)..dims.at(x0, y) + bw];
-            for ((d, &v), b) in block[y * bw..(y + 1) * bw].iter_mut().zip(src).zip(&bounds) {
+        let Some(block) = scratch.get_mut(..bw * h) else {
+            return;
+        };
+        for (y, dst) in block.chunks_exact_mut(bw).enumerate() {
+            let start = dims.at(x0, y);
+            let src = buf.get(start..start + bw).unwrap_or_default();
+            for ((d, &v), b) in dst.iter_mut().zip(src).zip(&bounds) {
                 *d = v.saturate(if y < nl { b.0 } else { b.1 });
             }
         }
@@ -319,12 +344,14 @@ fn inverse_columns<T: Lift>(
         wavelet.inverse_split(low, high, bw);
         for y in 0..h {
             let slot = if y % 2 == 0 { y / 2 } else { nl + y / 2 };
-            let dst = &mut buf[dims.at(x0, y)..dims.at(x0, y) + bw];
-            for ((d, &v), b) in dst
-                .iter_mut()
-                .zip(&block[slot * bw..(slot + 1) * bw])
-                .zip(&bounds)
-            {
+            let start = dims.at(x0, y);
+            let (Some(dst), Some(src)) = (
+                buf.get_mut(start..start + bw),
+                block.get(slot * bw..(slot + 1) * bw),
+            ) else {
+                continue;
+            };
+            for ((d, &v), b) in dst.iter_mut().zip(src).zip(&bounds) {
                 *d = v.saturate(b.2);
             }
         }
@@ -357,12 +384,9 @@ pub(crate) fn inverse_level<T: Lift>(
     if w > 1 {
         for y in 0..h {
             let clamp = (bounds.row_low, bounds.row_high, bounds.input);
-            inverse_row(
-                wavelet,
-                &mut buf[dims.at(0, y)..dims.at(w, y)],
-                scratch,
-                clamp,
-            );
+            if let Some(row) = dims.row_mut(buf, y) {
+                inverse_row(wavelet, row, scratch, clamp);
+            }
         }
     }
 }
@@ -418,12 +442,12 @@ pub fn inverse_2d(
 ) -> Result<(), Error> {
     check_args(buf, dims, Some(levels), scratch)?;
     let bounds = level_bounds(wavelet, levels);
-    for level in (0..levels as usize).rev() {
+    for (level, b) in bounds.iter().enumerate().take(levels as usize).rev() {
         let mut d = dims;
         for _ in 0..level {
             d = d.low_band();
         }
-        inverse_level(wavelet, buf, d, scratch, &bounds[level]);
+        inverse_level(wavelet, buf, d, scratch, b);
     }
     Ok(())
 }
