@@ -4,7 +4,6 @@
 
 use super::Setup;
 use anyhow::{Context, bail};
-use rollfuse_core::device::Precision;
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -124,12 +123,8 @@ impl McuTable {
 
     /// The cost of `setup`, if the bench measured it.
     pub fn get(&self, setup: &Setup) -> Option<McuCost> {
-        let precision = match setup.precision {
-            Precision::Fixed => "fixed",
-            Precision::F32 => "f32",
-        };
         let key = (
-            precision.to_string(),
+            setup.precision_name().to_string(),
             setup.wavelet_name().to_string(),
             setup.levels,
             setup.downsample,
@@ -152,6 +147,7 @@ impl McuTable {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rollfuse_core::device::Precision;
 
     const CSV: &str = "# build 0123456789abcdef\n\
         # rollfuse-mcu-bench format 2\n\

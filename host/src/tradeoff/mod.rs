@@ -368,17 +368,14 @@ pub fn compare(
     }
     let mse = sq / n as f64;
     let psnr_db = 10.0 * (255.0 * 255.0 / mse).log10();
-    let height = n / w;
-    let ms = ms_ssim(
-        &Gray::new(w, height, ours.clone())?,
-        &Gray::new(w, height, theirs.clone())?,
-    )?;
-    let to8 = |v: &Vec<f64>| -> Vec<u8> {
+    let to8 = |v: &[f64]| -> Vec<u8> {
         v.iter()
             .map(|x| x.round().clamp(0.0, 255.0) as u8)
             .collect()
     };
     let (ie, ie_ref) = (entropy(&to8(&ours)), entropy(&to8(&theirs)));
+    let height = n / w;
+    let ms = ms_ssim(&Gray::new(w, height, ours)?, &Gray::new(w, height, theirs)?)?;
     Ok(Accuracy {
         psnr_db,
         ms_ssim: ms,
