@@ -259,30 +259,26 @@ pub fn reference(acq: &Acquisition, setup: &Setup, offsets: &[u64]) -> anyhow::R
     let tile = Dims::new(w, t)?;
     let dev = PipelineConfig::from_wire(&wire, acq.sensor)
         .map_err(|r| anyhow::anyhow!("{}: the device refuses it ({r:?})", setup.label()))?;
-    let fuse = FuseConfig {
-        norm: SaliencyNorm::Local,
-        ..dev.fuse
-    };
-    let mut gray = vec![0u8; w * h];
-    let mut b = vec![0f64; tile.pixels()];
-    let mut scratch = vec![0f64; float::fuse_scratch_len(tile)];
     ensure!(
         offsets.len() == acq.frames.len(),
         "{} offsets for {} frames",
         offsets.len(),
         acq.frames.len()
     );
+    let mut gray = vec![0u8; w * h];
+    let mut b = vec![0f64; tile.pixels()];
+    let mut scratch = vec![0f64; float::fuse_scratch_len(tile)];
     let mut tiles: BTreeMap<u64, (u8, Vec<f64>)> = BTreeMap::new();
     for ((bytes, _), &offset) in acq.frames.iter().zip(offsets) {
-        let at = &(offset * d as u64);
+        let at = offset * d as u64;
         let dims = downsample(bytes, acq.sensor.format, (w, h), 1, &mut gray)
             .map_err(|e| anyhow::anyhow!("{e}"))?;
         let cfg = FuseConfig {
             norm: SaliencyNorm::Reference(laplacian_max_u8(&gray, dims)),
-            ..fuse
+            ..dev.fuse
         };
-        for index in schedule.observed(*at) {
-            let row = schedule.frame_row(index, *at);
+        for index in schedule.observed(at) {
+            let row = schedule.frame_row(index, at);
             let Some(src) = gray.get(row * w..(row + t) * w) else {
                 bail!("tile {index} lies outside frame rows {row}..{}", row + t);
             };
