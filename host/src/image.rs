@@ -29,6 +29,40 @@ impl Planes {
         out
     }
 
+    /// The `height × width` window with its top-left at `(top, left)`; fails if it does not
+    /// lie inside the image.
+    pub fn crop(
+        &self,
+        top: usize,
+        left: usize,
+        height: usize,
+        width: usize,
+    ) -> anyhow::Result<Self> {
+        ensure!(
+            top + height <= self.height && left + width <= self.width,
+            "crop of {width}×{height} at row {top}, column {left} lies outside a {}×{} image",
+            self.width,
+            self.height
+        );
+        let planes = self
+            .planes
+            .iter()
+            .map(|p| {
+                p.chunks_exact(self.width)
+                    .skip(top)
+                    .take(height)
+                    .flat_map(|row| &row[left..left + width])
+                    .copied()
+                    .collect()
+            })
+            .collect();
+        Ok(Self {
+            width,
+            height,
+            planes,
+        })
+    }
+
     /// Whether this is an RGB image.
     pub fn is_rgb(&self) -> bool {
         self.planes.len() == 3

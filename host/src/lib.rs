@@ -12,12 +12,15 @@
 //! - [`eval`]: the paper's metrics.
 //! - [`link`]: the device link — USB, the virtual device, recorded streams.
 //! - [`stream`]: a streaming session — tiles received, checked and stitched into a strip.
+//! - [`tradeoff`]: what each device configuration buys in accuracy and costs in time.
+//! - [`demo`]: the whole system end to end, and its HTML report.
 //! - [`commands`]: the `rollfuse` subcommands.
 //! - [`npy`]: NumPy array files.
 
 pub use rollfuse_core as core;
 
 pub mod commands;
+pub mod demo;
 pub mod depth;
 pub mod eval;
 pub mod fullres;

@@ -1,7 +1,7 @@
 //! `rollfuse`: the command-line tool of the rollfuse tactile sensor module.
 
 use clap::{Parser, Subcommand};
-use rollfuse::commands::{depth, eval, fuse, metrics, simulate, splice, stream, tradeoff};
+use rollfuse::commands::{demo, depth, eval, fuse, metrics, simulate, splice, stream, tradeoff};
 use std::process::ExitCode;
 
 /// Cyclic wavelet fusion of tactile images from a rolling, curved elastomer sensor.
@@ -14,8 +14,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run the whole system on simulated data and write a report (coming: see README).
-    Demo,
+    /// Run the whole system on simulated data and write out/demo/report.html.
+    Demo(demo::Args),
     /// Render a scene's frames, ground truth and manifest (see docs/simulator.md).
     Simulate(simulate::Args),
     /// Fuse frames at full resolution into one image (see docs/fusion.md).
@@ -41,10 +41,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Demo => {
-            println!("{DEMO_PLAN}");
-            Ok(())
-        }
+        Command::Demo(args) => demo::run(args),
         Command::Simulate(args) => simulate::run(args),
         Command::Fuse(args) => fuse::run(args),
         Command::Splice(args) => splice::run(args),
@@ -64,15 +61,3 @@ fn main() -> ExitCode {
         }
     }
 }
-
-const DEMO_PLAN: &str = "\
-rollfuse demo is not built yet. When it is, it will:
-  1. simulate a rolling acquisition of the letters scene,
-  2. stream it through the virtual device and stitch the fused strip,
-  3. fuse the raw frames at full resolution on the host,
-  4. reconstruct depth from the three-sphere RGB scene,
-  5. write out/demo/report.html with images, metric tables and timings.
-What exists today: the fusion core, the simulator, full-resolution fusion and metrics:
-  cargo run --release -- simulate host/scenes/letters.toml --out out/letters
-  cargo run --release -- fuse out/letters/frame_*.png --out out/letters_fused.png
-  cargo run --release -- metrics out/letters_fused.png";

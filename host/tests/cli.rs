@@ -1,4 +1,4 @@
-//! The `rollfuse` command line: help, version and the demo placeholder.
+//! The `rollfuse` command line: help, version, unknown commands, and each command's basics.
 
 use std::process::Command;
 
@@ -18,10 +18,20 @@ fn help_lists_the_demo() {
 }
 
 #[test]
-fn demo_says_what_it_will_do() {
-    let out = rollfuse(&["demo"]);
-    assert!(out.status.success());
-    assert!(String::from_utf8_lossy(&out.stdout).contains("report.html"));
+fn demo_refuses_a_missing_scene_before_any_work() {
+    let out = tempfile::tempdir().unwrap();
+    let dir = out.path().join("demo");
+    let run = rollfuse(&[
+        "demo",
+        "--out",
+        dir.to_str().unwrap(),
+        "--letters",
+        "/nonexistent/letters.toml",
+    ]);
+    assert!(!run.status.success());
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(err.contains("/nonexistent/letters.toml"), "{err}");
+    assert!(!dir.join("report.html").exists());
 }
 
 #[test]

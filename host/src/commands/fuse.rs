@@ -1,7 +1,7 @@
 //! `rollfuse fuse`: full-resolution cyclic fusion of a folder's worth of frames.
 
 use super::{AblationArg, LlWeightingArg, WaveletArg, check_writable, simulate::progress};
-use crate::fullres::align::{Match, Offset, TemplateParams, match_frames};
+use crate::fullres::align::{Aligned, Match, Offset, TemplateParams, align_chain};
 use crate::fullres::{Placed, Precision, fuse_mosaic};
 use crate::image::Planes;
 use anyhow::{Context, bail};
@@ -257,59 +257,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 min_score: args.min_score,
             };
             let bar = progress(frames.len(), "frames", "aligning".into());
-            // Each frame against the last frame kept; a frame that does not match is left out.
-            let mut last = 0;
-            let mut at = Offset { dy: 0, dx: 0 };
-            placed.push(Placed {
-                image: &frames[0],
-                at,
-            });
-            record.frames.push(FrameOffset {
-                file: &args.frames[0],
-                at,
-                matched: None,
-            });
-            for k in 1..frames.len() {
-                bar.set_position(k as u64);
-                match match_frames(&frames[last], &frames[k], &params) {
-                    Some(m) if m.score >= params.min_score => {
-                        let next = Offset {
-                            dy: at.dy + m.shift.dy,
-                            dx: at.dx + m.shift.dx,
-                        };
-                        if m.runner_up > 0.98 * m.score {
+            let chain = align_chain(&frames, &params, |k| bar.set_position(k as u64));
+            for ((file, frame), aligned) in args.frames.iter().zip(&frames).zip(chain) {
+                match aligned {
+                    Aligned::Placed { at, matched } => {
+                        if let Some(m) = matched.filter(Match::is_ambiguous) {
                             eprintln!(
                                 "warning: {} matches ambiguously (score {:.3}, runner-up {:.3}): periodic texture?",
-                                args.frames[k].display(),
+                                file.display(),
                                 m.score,
                                 m.runner_up
                             );
                         }
-                        at = next;
-                        last = k;
-                        placed.push(Placed {
-                            image: &frames[k],
-                            at,
-                        });
-                        record.frames.push(FrameOffset {
-                            file: &args.frames[k],
-                            at,
-                            matched: Some(m),
-                        });
+                        placed.push(Placed { image: frame, at });
+                        record.frames.push(FrameOffset { file, at, matched });
                     }
-                    other => {
-                        let reason = match other {
-                            Some(m) => format!(
-                                "best match score {:.3} is below --min-score {}",
-                                m.score, params.min_score
-                            ),
-                            None => "no texture to match (flat frame or no overlap)".to_string(),
-                        };
-                        eprintln!("skipped {}: {reason}", args.frames[k].display());
-                        record.skipped.push(Skipped {
-                            file: &args.frames[k],
-                            reason,
-                        });
+                    Aligned::Skipped(reason) => {
+                        eprintln!("skipped {}: {reason}", file.display());
+                        record.skipped.push(Skipped { file, reason });
                     }
                 }
             }

@@ -136,3 +136,67 @@ pub fn match_frames(prev: &Planes, next: &Planes, p: &TemplateParams) -> Option<
         runner_up,
     })
 }
+
+/// How one frame of a sequence was aligned by [`align_chain`].
+#[derive(Debug, Clone)]
+pub enum Aligned {
+    /// Placed at `at` on the canvas; `matched` is `None` for the first frame.
+    Placed {
+        /// The frame's offset on the canvas.
+        at: Offset,
+        /// The match that placed it.
+        matched: Option<Match>,
+    },
+    /// Left out, with the reason (no texture, or a match below the threshold).
+    Skipped(String),
+}
+
+impl Match {
+    /// Whether another shift, away from the best one, scores almost as well (periodic
+    /// texture): the offset is then a guess among several.
+    pub fn is_ambiguous(&self) -> bool {
+        self.runner_up > 0.98 * self.score
+    }
+}
+
+/// Aligns a sequence by template matching: the first frame at the origin, every next one
+/// against the last frame kept. A frame that does not match is skipped (never placed at a
+/// guessed offset) and the next one is matched against the last kept frame instead.
+/// `progress(k)` is called before frame `k` is matched.
+pub fn align_chain(
+    frames: &[Planes],
+    params: &TemplateParams,
+    mut progress: impl FnMut(usize),
+) -> Vec<Aligned> {
+    let mut out = Vec::with_capacity(frames.len());
+    let mut at = Offset { dy: 0, dx: 0 };
+    let mut last = 0;
+    for (k, frame) in frames.iter().enumerate() {
+        if k == 0 {
+            out.push(Aligned::Placed { at, matched: None });
+            continue;
+        }
+        progress(k);
+        match match_frames(&frames[last], frame, params) {
+            Some(m) if m.score >= params.min_score => {
+                at = Offset {
+                    dy: at.dy + m.shift.dy,
+                    dx: at.dx + m.shift.dx,
+                };
+                last = k;
+                out.push(Aligned::Placed {
+                    at,
+                    matched: Some(m),
+                });
+            }
+            Some(m) => out.push(Aligned::Skipped(format!(
+                "best match score {:.3} is below the minimum {}",
+                m.score, params.min_score
+            ))),
+            None => out.push(Aligned::Skipped(
+                "no texture to match (flat frame or no overlap)".into(),
+            )),
+        }
+    }
+    out
+}

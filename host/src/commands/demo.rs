@@ -1,0 +1,70 @@
+//! `rollfuse demo`: the whole system on simulated data, and `report.html`.
+
+use crate::demo::{self, Files, Options, STAGES};
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Arguments of `rollfuse demo`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Output folder: report.html and every image and table it shows.
+    #[arg(long, default_value = "out/demo")]
+    pub out: PathBuf,
+    /// The gray scene rolled under the sensor.
+    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/letters.toml"))]
+    pub letters: PathBuf,
+    /// The RGB three-sphere scene for depth.
+    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/spheres.toml"))]
+    pub spheres: PathBuf,
+    /// Cortex-M7 bench results for the trade-off plot (`bash tests/mcu-bench/run.sh`);
+    /// without them the plot shows host time only.
+    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/../target/mcu-bench/mcu-bench.csv"))]
+    pub bench: PathBuf,
+}
+
+/// Runs the command.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let opts = Options {
+        out: args.out.clone(),
+        letters: args.letters,
+        spheres: args.spheres,
+        bench: Some(args.bench),
+    };
+    let started = Instant::now();
+    let bar = super::simulate::progress(STAGES.len(), "stages", String::new());
+    let result = demo::run(&opts, |k, name| {
+        bar.set_position(k as u64);
+        bar.set_message(name.to_string());
+    });
+    bar.finish_and_clear();
+    let d = result?;
+    for s in &d.stages {
+        println!("{:>16}  {:>6.2} s  {}", s.name, s.secs, s.what);
+    }
+    if let Some(single) = d.eval.iter().find(|r| r.method == "single image")
+        && let Some(fused) = d.eval.iter().find(|r| r.method == "fusion of 4")
+    {
+        println!(
+            "fusion of 4 vs the single frame: IE {:.3} → {:.3} ({:+.1} %), IE_std {:.3} → {:.3} ({:+.1} %)",
+            single.report.ie,
+            fused.report.ie,
+            100.0 * (fused.report.ie - single.report.ie) / single.report.ie,
+            single.report.ie_std,
+            fused.report.ie_std,
+            100.0 * (fused.report.ie_std - single.report.ie_std) / single.report.ie_std,
+        );
+    }
+    if let Some(rec) = crate::tradeoff::report::recommended(&d.tradeoff) {
+        println!(
+            "recommended device configuration: {} ({:.2} dB)",
+            rec.setup.label(),
+            rec.accuracy.psnr_db
+        );
+    }
+    println!(
+        "done in {:.1} s → {}",
+        started.elapsed().as_secs_f64(),
+        args.out.join(Files::REPORT).display()
+    );
+    Ok(())
+}

@@ -1,0 +1,321 @@
+//! The demo's `report.html`: one self-contained page (images as data URIs, the Pareto plot
+//! inline, no scripts, no external files) that a browser opens without a network.
+//!
+//! The tables are the Markdown the single-purpose commands write, turned into HTML here,
+//! so the page shows the very figures `rollfuse eval` and `rollfuse tradeoff` print.
+
+use super::{Demo, Files};
+use anyhow::Context;
+use base64::Engine;
+use std::fmt::Write;
+use std::path::Path;
+
+/// Builds the page from the demo's figures and the images it wrote to `dir`.
+pub fn report(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
+    let png = |name: &str, alt: &str| image(dir, name, alt);
+    let read = |name: &str| {
+        std::fs::read_to_string(dir.join(name))
+            .with_context(|| format!("cannot read {}", dir.join(name).display()))
+    };
+    let mut body = String::new();
+    let (n, fw, fh) = demo.frames;
+    let total: f64 = demo.stages.iter().map(|s| s.secs).sum();
+
+    writeln!(
+        body,
+        "<h1>rollfuse demo</h1>\n<p class=lead>The whole system on simulated data: a rolling \
+         acquisition of the <b>{}</b> scene ({n} frames of {fw}×{fh}) fused on the virtual \
+         device and on the host, evaluated the way the paper does, depth from the three-sphere \
+         scene, and what accuracy costs in time. Made by <code>cargo run --release -- demo</code> \
+         in {total:.1} s.</p>",
+        escape(&demo.letters_name)
+    )?;
+
+    body.push_str("<h2>1. The rolling acquisition</h2>\n<div class=row>");
+    let mut frames: Vec<String> = std::fs::read_dir(dir)
+        .with_context(|| format!("cannot list {}", dir.display()))?
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .filter(|f| f.starts_with(Files::FRAME_PREFIX) && f.ends_with(".png"))
+        .collect();
+    frames.sort();
+    for f in &frames {
+        let k = f
+            .trim_start_matches(Files::FRAME_PREFIX)
+            .trim_end_matches(".png");
+        write!(
+            body,
+            "<figure>{}<figcaption>frame {k}</figcaption></figure>",
+            png(f, &format!("camera frame {k}"))?
+        )?;
+    }
+    body.push_str("</div>\n");
+
+    let s = &demo.stream;
+    let faults = s.faults.total();
+    writeln!(
+        body,
+        "<h2>2. Fused on the device, streamed, stitched</h2>\n<p>The shared device pipeline \
+         (downsample, refine offsets, integer wavelet fusion of each tile) ran in the virtual \
+         device; its tiles crossed the link as real protocol messages: <b>{} tiles</b>, {} \
+         bytes, {} messages, {faults} link faults, {} missing tile ranges. The strip is {}×{} \
+         (downsampled).</p>\n<figure class=tall>{}<figcaption>the stitched strip \
+         (stream/strip.png; manifest in stream/manifest.json)</figcaption></figure>",
+        s.tiles_received,
+        s.bytes,
+        s.messages,
+        s.gaps.len(),
+        demo.strip_size.0,
+        demo.strip_size.1,
+        png(Files::STRIP, "the device-fused strip")?
+    )?;
+
+    let a = &demo.alignment;
+    writeln!(
+        body,
+        "<h2>3. Full-resolution fusion on the host</h2>\n<p>{} of {} frames aligned by \
+         template matching (largest disagreement with the belt's motion: {} rows){}, fused \
+         with db2, one level, f32. The mosaic ({}×{}) fuses every frame: each belt point is \
+         seen by about {:.0} of them, and the mean of that many LL bands dilutes the contact, \
+         which is why the device fuses a few frames per tile. Beside it, the middle frame \
+         alone and the fusion of the four frames around it (Table III's \"fusion of 4\") \
+         over the same footprint.</p>\n<div class=row><figure class=tall>{}<figcaption>the \
+         mosaic of all frames (fused.png)</figcaption></figure><figure class=pair>{}\
+         <figcaption>the middle frame alone (single.png)</figcaption></figure><figure \
+         class=pair>{}<figcaption>fusion of 4 over the same footprint (fused_middle.png)\
+         </figcaption></figure></div>",
+        a.placed,
+        a.frames,
+        a.max_motion_disagreement,
+        if a.skipped.is_empty() {
+            String::new()
+        } else {
+            format!(", {} skipped", a.skipped.len())
+        },
+        demo.mosaic_size.0,
+        demo.mosaic_size.1,
+        demo.frames_per_point,
+        png(Files::MOSAIC, "the full-resolution mosaic")?,
+        png(Files::SINGLE, "the middle frame")?,
+        png(Files::FUSED_MIDDLE, "the fused image over the middle frame")?
+    )?;
+
+    writeln!(
+        body,
+        "<h2>4. Does fusion help? (Tables II and III)</h2>\n<p>Information entropy (IE), \
+         MS-SSIM against the ideal contact image, and their spread over 10 strips, over the \
+         middle frame's footprint. The same figures as <code>rollfuse eval --scene …</code> \
+         for this scene.</p>\n{}",
+        tables(&read(Files::EVAL_MD)?)
+    )?;
+
+    writeln!(
+        body,
+        "<h2>5. Depth from single and fused frames (Table IV)</h2>\n<div class=row>"
+    )?;
+    for (name, r) in Files::DEPTH_PNGS.iter().zip(&demo.depth) {
+        write!(
+            body,
+            "<figure>{}<figcaption>{}</figcaption></figure>",
+            png(name, &r.method)?,
+            escape(&r.method)
+        )?;
+    }
+    writeln!(
+        body,
+        "</div>\n<p>Three equal spheres: fusion should make their reconstructed areas and \
+         peaks alike. The same figures as <code>rollfuse eval --depth</code>.</p>\n{}",
+        tables(&read(Files::DEPTH_MD)?)
+    )?;
+
+    let svg = read(Files::PARETO)?;
+    let svg = svg.find("<svg").map_or(svg.as_str(), |i| &svg[i..]);
+    writeln!(
+        body,
+        "<h2>6. What accuracy costs in time</h2>\n<p>Each device configuration against the \
+         f64 full-resolution reference of the same tile schedule: PSNR against host time and \
+         {}.</p>\n<div class=plot>{svg}</div>\n<details><summary>the whole table</summary>{}\
+         </details>",
+        match &demo.mcu_build {
+            Some(b) => format!(
+                "Cortex-M7 instructions per frame (bench build {})",
+                escape(b)
+            ),
+            None => "(no Cortex-M7 bench results were found: run <code>bash tests/mcu-bench/\
+                     run.sh</code> for instruction counts)"
+                .into(),
+        },
+        tables(&read(Files::TRADEOFF_MD)?)
+    )?;
+
+    body.push_str(
+        "<h2>7. How long each stage took</h2>\n<table><tr><th>stage</th><th>what</th>\
+         <th>seconds</th></tr>",
+    );
+    for st in &demo.stages {
+        write!(
+            body,
+            "<tr><td>{}</td><td>{}</td><td class=num>{:.2}</td></tr>",
+            escape(st.name),
+            escape(&st.what),
+            st.secs
+        )?;
+    }
+    writeln!(
+        body,
+        "<tr><th>total</th><td></td><td class=num>{total:.2}</td></tr></table>"
+    )?;
+
+    Ok(format!(
+        "<!DOCTYPE html>\n<html lang=en>\n<head>\n<meta charset=utf-8>\n<title>rollfuse demo \
+         report</title>\n<style>{STYLE}</style>\n</head>\n<body>\n{body}</body>\n</html>\n"
+    ))
+}
+
+const STYLE: &str = "body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;\
+padding:0 1em;color:#222}h1{margin-bottom:.2em}.lead{color:#444}\
+.row{display:flex;flex-wrap:wrap;gap:12px}figure{margin:0}figcaption{font-size:.85em;color:#555}\
+img{image-rendering:pixelated;border:1px solid #ccc;max-width:100%}.row img{height:180px}\
+.tall img{height:480px}.pair img{height:240px}table{border-collapse:collapse;font-size:.85em;margin:.5em 0}\
+td,th{border:1px solid #ccc;padding:2px 6px;text-align:left}td.num{text-align:right}\
+.plot svg{max-width:100%;height:auto}code{background:#f3f3f3;padding:0 3px}";
+
+/// An `<img>` with the PNG at `dir/name` as a data URI.
+fn image(dir: &Path, name: &str, alt: &str) -> anyhow::Result<String> {
+    let path = dir.join(name);
+    let bytes = std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?;
+    let data = base64::engine::general_purpose::STANDARD.encode(bytes);
+    Ok(format!(
+        "<img src=\"data:image/png;base64,{data}\" alt=\"{}\">",
+        escape(alt)
+    ))
+}
+
+/// `&`, `<`, `>` and `"` as entities.
+pub fn escape(text: &str) -> String {
+    text.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// Markdown as the commands write it — pipe tables and plain paragraphs, `**bold**` — as
+/// HTML. A `\|` inside a cell is a literal bar.
+pub fn tables(markdown: &str) -> String {
+    let mut out = String::new();
+    let mut in_table = false;
+    for line in markdown.lines() {
+        let line = line.trim();
+        if let Some(inner) = line.strip_prefix('|') {
+            let cells = split_cells(inner.strip_suffix('|').unwrap_or(inner));
+            if cells.iter().all(|c| is_rule(c)) {
+                continue;
+            }
+            let tag = if in_table { "td" } else { "th" };
+            if !in_table {
+                out.push_str("<table>");
+                in_table = true;
+            }
+            out.push_str("<tr>");
+            for c in cells {
+                let class = if tag == "td" && looks_numeric(&c) {
+                    " class=num"
+                } else {
+                    ""
+                };
+                let _ = write!(out, "<{tag}{class}>{}</{tag}>", inline(&c));
+            }
+            out.push_str("</tr>\n");
+            continue;
+        }
+        if in_table {
+            out.push_str("</table>\n");
+            in_table = false;
+        }
+        if !line.is_empty() {
+            let _ = writeln!(out, "<p>{}</p>", inline(line));
+        }
+    }
+    if in_table {
+        out.push_str("</table>\n");
+    }
+    out
+}
+
+/// The cells of a table row without its outer bars, `\|` kept as `|`.
+fn split_cells(row: &str) -> Vec<String> {
+    let mut cells = vec![String::new()];
+    let mut chars = row.chars().peekable();
+    while let Some(c) = chars.next() {
+        match c {
+            '\\' if chars.peek() == Some(&'|') => {
+                chars.next();
+                if let Some(cell) = cells.last_mut() {
+                    cell.push('|');
+                }
+            }
+            '|' => cells.push(String::new()),
+            c => {
+                if let Some(cell) = cells.last_mut() {
+                    cell.push(c);
+                }
+            }
+        }
+    }
+    cells.into_iter().map(|c| c.trim().to_string()).collect()
+}
+
+/// A header rule cell: `---`, `:---`, `---:`.
+fn is_rule(cell: &str) -> bool {
+    !cell.is_empty() && cell.chars().all(|c| c == '-' || c == ':')
+}
+
+fn looks_numeric(cell: &str) -> bool {
+    cell.chars()
+        .next()
+        .is_some_and(|c| c.is_ascii_digit() || c == '-' || c == '+')
+        && cell.chars().any(|c| c.is_ascii_digit())
+}
+
+/// Escapes the text and turns `**x**` into bold and `` `x` `` into code.
+fn inline(text: &str) -> String {
+    let mut out = String::new();
+    for (k, part) in escape(text).split("**").enumerate() {
+        if k % 2 == 1 {
+            let _ = write!(out, "<b>{part}</b>");
+        } else {
+            for (j, piece) in part.split('`').enumerate() {
+                if j % 2 == 1 {
+                    let _ = write!(out, "<code>{piece}</code>");
+                } else {
+                    out.push_str(piece);
+                }
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tables_become_html_with_escaped_bars_and_bold() {
+        let md = "Intro with **bold** & `code`.\n\n| a | b |\n|---|---:|\n| max-\\|high\\| | 1.5 |\n| <x> | -2 % |\n\nAfter.\n";
+        let html = tables(md);
+        assert_eq!(
+            html,
+            "<p>Intro with <b>bold</b> &amp; <code>code</code>.</p>\n<table><tr><th>a</th><th>b</th></tr>\n\
+             <tr><td>max-|high|</td><td class=num>1.5</td></tr>\n\
+             <tr><td>&lt;x&gt;</td><td class=num>-2 %</td></tr>\n</table>\n<p>After.</p>\n"
+        );
+    }
+
+    #[test]
+    fn an_unclosed_table_is_closed() {
+        assert_eq!(
+            tables("| a |\n| 1 |"),
+            "<table><tr><th>a</th></tr>\n<tr><td class=num>1</td></tr>\n</table>\n"
+        );
+    }
+}

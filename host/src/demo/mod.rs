@@ -1,0 +1,375 @@
+//! `rollfuse demo`: the whole system on simulated data, end to end, and a report.
+//!
+//! The stages, each timed:
+//!
+//! 1. **acquire** — the letters scene rolled under the sensor: its camera frames (8-bit).
+//! 2. **device** — the same scene streamed through the virtual device (the shared device
+//!    pipeline, real message bytes) and its fused tiles stitched into a strip, exactly as
+//!    `rollfuse stream --device sim` does.
+//! 3. **full-res fusion** — the raw frames aligned by template matching and fused at full
+//!    resolution on the host, as `rollfuse fuse` does.
+//! 4. **evaluation** — Tables II and III on the letters scene, as `rollfuse eval` computes
+//!    them.
+//! 5. **depth** — the three-sphere RGB scene: depth from single and fused frames (Table IV,
+//!    as `rollfuse eval --depth`).
+//! 6. **trade-off** — every device configuration against the f64 reference on the letters
+//!    scene (`rollfuse tradeoff`, one repeat): the accuracy/time Pareto plot.
+//! 7. **report** — `report.html`, one self-contained page ([`html`]).
+//!
+//! Every figure comes from the same functions the single-purpose commands use, so the
+//! demo's tables are the ones those commands print for the same scenes.
+
+pub mod html;
+
+use crate::eval::depth::{self as depth_eval, DepthRow};
+use crate::eval::tables::{self, Row, acquire, evaluate_scene};
+use crate::fullres::align::{Aligned, TemplateParams, align_chain};
+use crate::fullres::{Placed, Precision, fuse_mosaic};
+use crate::image::Planes;
+use crate::link::sim::SimDevice;
+use crate::sim::Scene;
+use crate::stream::{self, Manifest};
+use crate::tradeoff::{self, Measured, bench::McuTable, report as tradeoff_report};
+use anyhow::{Context, ensure};
+use rollfuse_core::FuseConfig;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// What the demo runs on and where it writes.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// Output folder.
+    pub out: PathBuf,
+    /// The gray scene rolled under the sensor (default: the letters).
+    pub letters: PathBuf,
+    /// The RGB three-sphere scene for depth.
+    pub spheres: PathBuf,
+    /// The Cortex-M7 bench results, if measured (instruction counts in the trade-off).
+    pub bench: Option<PathBuf>,
+}
+
+/// One stage's name and wall time.
+#[derive(Debug, Clone)]
+pub struct Stage {
+    /// Short name.
+    pub name: &'static str,
+    /// What it did, for the report.
+    pub what: String,
+    /// Wall time, seconds.
+    pub secs: f64,
+}
+
+/// How the template alignment went.
+#[derive(Debug, Clone)]
+pub struct Alignment {
+    /// Frames placed, of all frames.
+    pub placed: usize,
+    /// Frames in the sequence.
+    pub frames: usize,
+    /// Frames left out, with the reason.
+    pub skipped: Vec<(usize, String)>,
+    /// Largest difference, rows, between a placed frame's template offset and its belt
+    /// travel by motion (relative to the first frame).
+    pub max_motion_disagreement: i64,
+}
+
+/// Everything the demo produced. Images are written to the output folder under the names
+/// in [`Files`]; the figures are kept here for the report and the summary.
+pub struct Demo {
+    /// The scenes' names.
+    pub letters_name: String,
+    /// Frames in the letters sequence and their size.
+    pub frames: (usize, usize, usize),
+    /// The streaming session's manifest (tiles, bytes, faults, device counters).
+    pub stream: Manifest,
+    /// The stitched strip's size.
+    pub strip_size: (usize, usize),
+    /// The template alignment.
+    pub alignment: Alignment,
+    /// The full-resolution mosaic's size.
+    pub mosaic_size: (usize, usize),
+    /// How many frames see each belt point: frame height over belt travel per frame.
+    pub frames_per_point: f64,
+    /// Tables II and III on the letters scene.
+    pub eval: Vec<Row>,
+    /// Table IV on the sphere scene.
+    pub depth: Vec<DepthRow>,
+    /// The trade-off study on the letters scene.
+    pub tradeoff: Vec<Measured>,
+    /// The bench build the MCU figures come from, if any.
+    pub mcu_build: Option<String>,
+    /// Stage timings, in order.
+    pub stages: Vec<Stage>,
+}
+
+/// The files the demo writes, relative to its output folder.
+pub struct Files;
+
+impl Files {
+    /// Frames shown in the report, `frame_NN.png`.
+    pub const FRAME_PREFIX: &'static str = "frame_";
+    /// The device-fused strip (in the stream session's folder).
+    pub const STRIP: &'static str = "stream/strip.png";
+    /// The streaming session's manifest.
+    pub const STREAM_MANIFEST: &'static str = "stream/manifest.json";
+    /// The full-resolution mosaic.
+    pub const MOSAIC: &'static str = "fused.png";
+    /// The middle frame alone.
+    pub const SINGLE: &'static str = "single.png";
+    /// The mosaic over the middle frame's footprint.
+    pub const FUSED_MIDDLE: &'static str = "fused_middle.png";
+    /// Tables II and III.
+    pub const EVAL_MD: &'static str = "eval.md";
+    /// Tables II and III, CSV (the same file `rollfuse eval` writes).
+    pub const EVAL_CSV: &'static str = "eval.csv";
+    /// Table IV.
+    pub const DEPTH_MD: &'static str = "depth.md";
+    /// Table IV, CSV (the same file `rollfuse eval --depth` writes).
+    pub const DEPTH_CSV: &'static str = "depth.csv";
+    /// Depth maps, by method.
+    pub const DEPTH_PNGS: [&'static str; 3] =
+        ["depth_single.png", "depth_fused3.png", "depth_fused2.png"];
+    /// The trade-off table.
+    pub const TRADEOFF_MD: &'static str = "tradeoff.md";
+    /// The trade-off CSV.
+    pub const TRADEOFF_CSV: &'static str = "tradeoff.csv";
+    /// The Pareto plot.
+    pub const PARETO: &'static str = "pareto.svg";
+    /// The report.
+    pub const REPORT: &'static str = "report.html";
+}
+
+/// Frames of the sequence shown in the report.
+const SHOWN_FRAMES: usize = 6;
+
+/// Runs every stage; `stage(k, name)` is called as stage `k` (0-based) of
+/// [`STAGES`] starts, for progress.
+pub fn run(opts: &Options, mut stage: impl FnMut(usize, &str)) -> anyhow::Result<Demo> {
+    std::fs::create_dir_all(&opts.out)
+        .with_context(|| format!("cannot create {}", opts.out.display()))?;
+    crate::commands::check_writable(&opts.out.join(Files::REPORT))?;
+    let letters = Scene::load(&opts.letters)?;
+    let spheres = Scene::load(&opts.spheres)?;
+    let mut stages = Vec::new();
+    let mut clock = Clock::new(&mut stages);
+    let out = |name: &str| opts.out.join(name);
+
+    stage(0, STAGES[0]);
+    let acq = acquire(&letters)?;
+    let n = acq.frames.len();
+    ensure!(
+        n >= 7,
+        "scene {} has {n} frames; the demo needs at least 7",
+        letters.name
+    );
+    let (fw, fh) = (acq.frames[0].width, acq.frames[0].height);
+    for k in 0..SHOWN_FRAMES.min(n) {
+        let i = k * (n - 1) / (SHOWN_FRAMES - 1).max(1);
+        acq.frames[i].save_png(&out(&format!("{}{i:02}.png", Files::FRAME_PREFIX)))?;
+    }
+    clock.lap(
+        STAGES[0],
+        format!("{n} frames of {fw}×{fh} rendered from {}", letters.name),
+    );
+
+    stage(1, STAGES[1]);
+    let mut device = SimDevice::start(&letters)?;
+    let session = stream::Options {
+        out: out("stream"),
+        config: Some(device.default_config()),
+        max_tiles: None,
+        max_duration: None,
+        record: None,
+        progress: false,
+    };
+    let streamed = stream::run(&mut device, &session)?;
+    let strip = Planes::load(&out(Files::STRIP))?;
+    clock.lap(
+        STAGES[1],
+        format!(
+            "{} tiles, {} bytes in {} messages through the virtual device",
+            streamed.manifest.tiles_received, streamed.manifest.bytes, streamed.manifest.messages
+        ),
+    );
+
+    stage(2, STAGES[2]);
+    let (mosaic, alignment, middle) = fuse_full_resolution(&acq.frames, &acq.rows)?;
+    mosaic.save_png(&out(Files::MOSAIC))?;
+    let m = (n - 1) / 2;
+    acq.frames[m].save_png(&out(Files::SINGLE))?;
+    middle.save_png(&out(Files::FUSED_MIDDLE))?;
+    clock.lap(
+        STAGES[2],
+        format!(
+            "{} of {n} frames aligned by template matching and fused (db2, 1 level, f32)",
+            alignment.placed
+        ),
+    );
+
+    stage(3, STAGES[3]);
+    let eval = evaluate_scene(&letters, &FuseConfig::default(), 10)?;
+    write(&out(Files::EVAL_MD), &tables::markdown(&eval))?;
+    write(&out(Files::EVAL_CSV), &tables::csv(&eval))?;
+    clock.lap(
+        STAGES[3],
+        format!("{} methods measured against the ideal contact", eval.len()),
+    );
+
+    stage(4, STAGES[4]);
+    let depth = depth_eval::evaluate_depth(&spheres)?;
+    for (r, name) in depth.iter().zip(Files::DEPTH_PNGS) {
+        crate::depth::output::write_png(&r.depth, &out(name))?;
+    }
+    write(&out(Files::DEPTH_MD), &depth_eval::markdown(&depth))?;
+    write(&out(Files::DEPTH_CSV), &depth_eval::csv(&depth))?;
+    clock.lap(
+        STAGES[4],
+        format!("{} height maps from {}", depth.len(), spheres.name),
+    );
+
+    stage(5, STAGES[5]);
+    let mcu = match &opts.bench {
+        Some(p) if p.exists() => McuTable::load(p)?,
+        _ => McuTable::empty(),
+    };
+    let setups = tradeoff::sweep();
+    let study_scene = tradeoff::acquire(&letters)?;
+    let measured = tradeoff::study(&[study_scene], &setups, 1, &mcu, |_| {})?;
+    let names = [letters.name.clone()];
+    write(
+        &out(Files::TRADEOFF_MD),
+        &tradeoff_report::markdown(&measured, &names, mcu.build.as_deref()),
+    )?;
+    write(&out(Files::TRADEOFF_CSV), &tradeoff_report::csv(&measured))?;
+    write(
+        &out(Files::PARETO),
+        &tradeoff_report::pareto_svg(&measured)?,
+    )?;
+    clock.lap(
+        STAGES[5],
+        format!(
+            "{} device configurations against the f64 reference",
+            setups.len()
+        ),
+    );
+
+    let demo = Demo {
+        letters_name: letters.name.clone(),
+        frames: (n, fw, fh),
+        strip_size: (strip.width, strip.height),
+        stream: streamed.manifest,
+        alignment,
+        mosaic_size: (mosaic.width, mosaic.height),
+        frames_per_point: fh as f64 * (n - 1) as f64
+            / (acq.rows[n - 1] - acq.rows[0]).max(1) as f64,
+        eval,
+        depth,
+        tradeoff: measured,
+        mcu_build: mcu.build.clone(),
+        stages,
+    };
+    stage(6, STAGES[6]);
+    // The report's own time cannot be in the report: the command prints it.
+    let page = html::report(&demo, &opts.out)?;
+    write(&out(Files::REPORT), &page)?;
+    Ok(demo)
+}
+
+/// The stages' names, in order.
+pub const STAGES: [&str; 7] = [
+    "acquire",
+    "device",
+    "full-res fusion",
+    "evaluation",
+    "depth",
+    "trade-off",
+    "report",
+];
+
+/// Times consecutive stages.
+struct Clock<'s> {
+    stages: &'s mut Vec<Stage>,
+    since: Instant,
+}
+
+impl<'s> Clock<'s> {
+    fn new(stages: &'s mut Vec<Stage>) -> Self {
+        Self {
+            stages,
+            since: Instant::now(),
+        }
+    }
+
+    /// Ends the current stage and starts the next.
+    fn lap(&mut self, name: &'static str, what: String) {
+        self.stages.push(Stage {
+            name,
+            what,
+            secs: self.since.elapsed().as_secs_f64(),
+        });
+        self.since = Instant::now();
+    }
+}
+
+fn write(path: &Path, text: &str) -> anyhow::Result<()> {
+    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Aligns `frames` by template matching and fuses them at full resolution (the host's
+/// defaults: db2, one level, f32). Returns the mosaic of every frame, how the alignment
+/// went, and the fusion of the four frames around the middle one (Table III's "fusion of
+/// 4") over the middle frame's footprint. `rows` are the frames' belt rows by motion, used
+/// only to check the template offsets.
+fn fuse_full_resolution(
+    frames: &[Planes],
+    rows: &[i64],
+) -> anyhow::Result<(Planes, Alignment, Planes)> {
+    let chain = align_chain(frames, &TemplateParams::default(), |_| {});
+    let mut placed = Vec::new();
+    let mut skipped = Vec::new();
+    let mut disagreement = 0;
+    for (k, (frame, aligned)) in frames.iter().zip(chain).enumerate() {
+        match aligned {
+            Aligned::Placed { at, .. } => {
+                disagreement = disagreement.max((at.dy - (rows[k] - rows[0])).abs());
+                placed.push((k, Placed { image: frame, at }));
+            }
+            Aligned::Skipped(reason) => skipped.push((k, reason)),
+        }
+    }
+    ensure!(
+        placed.len() >= 2,
+        "only {} frame(s) could be aligned by template matching; nothing to fuse",
+        placed.len()
+    );
+    let all: Vec<Placed> = placed.iter().map(|(_, p)| *p).collect();
+    let mosaic = fuse_mosaic(&all, &FuseConfig::default(), Precision::F32)?;
+    // Frames m − 1 ..= m + 2, as the evaluation fuses them.
+    let m = (frames.len() - 1) / 2;
+    let four: Vec<Placed> = placed
+        .iter()
+        .filter(|(k, _)| (m.saturating_sub(1)..=m + 2).contains(k))
+        .map(|(_, p)| *p)
+        .collect();
+    ensure!(
+        four.len() == 4,
+        "the frames around the middle one could not all be aligned"
+    );
+    let around = fuse_mosaic(&four, &FuseConfig::default(), Precision::F32)?;
+    let middle = &four[1];
+    let top = four.iter().map(|p| p.at.dy).min().unwrap_or(0);
+    let left = four.iter().map(|p| p.at.dx).min().unwrap_or(0);
+    let over_middle = around.crop(
+        usize::try_from(middle.at.dy - top)?,
+        usize::try_from(middle.at.dx - left)?,
+        middle.image.height,
+        middle.image.width,
+    )?;
+    let alignment = Alignment {
+        placed: placed.len(),
+        frames: frames.len(),
+        skipped,
+        max_motion_disagreement: disagreement,
+    };
+    Ok((mosaic, alignment, over_middle))
+}

@@ -1,0 +1,191 @@
+//! `rollfuse demo` end to end on small scenes: every artefact is written, every figure is
+//! finite and in range, the report is self-contained, and its tables are the ones
+//! `rollfuse eval` writes for the same scenes.
+
+use rollfuse::demo::{self, Files, Options, STAGES};
+use std::path::Path;
+use std::process::Command;
+
+/// The letters scene, smaller: 160×120 at 0.1 mm per pixel, 12 frames.
+const LETTERS: &str = r#"
+name = "letters-small"
+seed = 1
+effects = ["contact", "gel", "gray", "defocus", "background", "noise"]
+
+[object]
+kind = "letters"
+text = "TAC"
+height_mm = 1.0
+
+[sensor]
+roller_radius_mm = 12.0
+gel_thickness_mm = 1.5
+mm_per_px = 0.1
+width_px = 160
+height_px = 120
+press_depth_mm = 0.8
+frame_spacing_mm = 1.0
+frames = 12
+"#;
+
+/// The three spheres, smaller: 160×120 at 0.1 mm per pixel.
+const SPHERES: &str = r#"
+name = "spheres-small"
+seed = 3
+effects = ["contact", "gel", "rgb", "noise"]
+
+[object]
+kind = "spheres"
+diameter_mm = 4.0
+
+[sensor]
+roller_radius_mm = 12.0
+gel_thickness_mm = 1.5
+mm_per_px = 0.1
+width_px = 160
+height_px = 120
+press_depth_mm = 1.0
+frame_spacing_mm = 1.0
+frames = 16
+"#;
+
+fn rollfuse(args: &[&str]) {
+    let out = Command::new(env!("CARGO_BIN_EXE_rollfuse"))
+        .args(args)
+        .output()
+        .expect("run rollfuse");
+    assert!(
+        out.status.success(),
+        "rollfuse {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn read(path: &Path) -> String {
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+#[test]
+fn the_demo_writes_a_self_contained_report_with_sane_figures() {
+    let tmp = tempfile::tempdir().unwrap();
+    let letters = tmp.path().join("letters.toml");
+    let spheres = tmp.path().join("spheres.toml");
+    std::fs::write(&letters, LETTERS).unwrap();
+    std::fs::write(&spheres, SPHERES).unwrap();
+    let out = tmp.path().join("demo");
+    let opts = Options {
+        out: out.clone(),
+        letters: letters.clone(),
+        spheres: spheres.clone(),
+        bench: None,
+    };
+    let mut started = Vec::new();
+    let d = demo::run(&opts, |k, _| started.push(k)).unwrap();
+    assert_eq!(started, (0..STAGES.len()).collect::<Vec<_>>());
+
+    // Every artefact, non-empty.
+    let mut files = vec![
+        Files::STRIP,
+        Files::STREAM_MANIFEST,
+        Files::MOSAIC,
+        Files::SINGLE,
+        Files::FUSED_MIDDLE,
+        Files::EVAL_MD,
+        Files::EVAL_CSV,
+        Files::DEPTH_MD,
+        Files::DEPTH_CSV,
+        Files::TRADEOFF_MD,
+        Files::TRADEOFF_CSV,
+        Files::PARETO,
+        Files::REPORT,
+    ];
+    files.extend(Files::DEPTH_PNGS);
+    for f in files {
+        let len = std::fs::metadata(out.join(f)).map_or(0, |m| m.len());
+        assert!(len > 0, "{f} missing or empty");
+    }
+
+    // The device streamed the whole scene, with nothing lost.
+    assert!(d.stream.tiles_received > 0);
+    assert_eq!(d.stream.faults.total(), 0, "{:?}", d.stream.faults);
+    assert!(d.stream.gaps.is_empty());
+    // Template matching placed every frame where the belt's motion put it.
+    assert_eq!(d.alignment.placed, d.alignment.frames);
+    assert!(
+        d.alignment.max_motion_disagreement <= 1,
+        "{:?}",
+        d.alignment
+    );
+
+    // Figures finite and in range.
+    assert_eq!(d.eval.len(), 9);
+    for r in &d.eval {
+        let m = &r.report;
+        assert!(m.ie > 0.0 && m.ie <= 8.0, "{}: IE {}", r.method, m.ie);
+        assert!(m.ie_std.is_finite() && m.ie_std >= 0.0);
+        let ms = m.ms_ssim.unwrap();
+        assert!((0.0..=1.0).contains(&ms), "{}: MS-SSIM {ms}", r.method);
+        assert!(m.ms_ssim_std.unwrap().is_finite());
+    }
+    assert_eq!(d.depth.len(), 3);
+    for r in &d.depth {
+        assert_eq!(r.overlap.len(), 3);
+        assert!(r.overlap.iter().all(|o| (0.0..=1.0).contains(o)), "{r:?}");
+        assert!(
+            r.peak_mm.iter().all(|p| p.is_finite() && *p >= 0.0),
+            "{r:?}"
+        );
+        assert!(r.overlap_std.is_finite() && r.peak_std_mm.is_finite());
+    }
+    assert_eq!(d.tradeoff.len(), 72);
+    for m in &d.tradeoff {
+        assert!(m.accuracy.psnr_db.is_finite() && m.accuracy.psnr_db > 10.0);
+        assert!((0.0..=1.0).contains(&m.accuracy.ms_ssim));
+        assert!(m.host_ns_per_px.is_finite() && m.host_ns_per_px > 0.0);
+        assert!(m.mcu.is_none(), "no bench given");
+    }
+    assert_eq!(
+        d.stages.len(),
+        STAGES.len() - 1,
+        "the report's own stage is printed"
+    );
+    assert!(d.stages.iter().all(|s| s.secs.is_finite() && s.secs >= 0.0));
+
+    // The report: every section, every picture embedded, nothing fetched from elsewhere.
+    let html = read(&out.join(Files::REPORT));
+    assert!(html.starts_with("<!DOCTYPE html>") && html.trim_end().ends_with("</html>"));
+    for h in ["1. ", "2. ", "3. ", "4. ", "5. ", "6. ", "7. "] {
+        assert!(html.contains(&format!("<h2>{h}")), "section {h}");
+    }
+    let images = html.matches("<img src=\"data:image/png;base64,").count();
+    assert_eq!(
+        images,
+        6 + 1 + 3 + 3,
+        "frames, strip, mosaic pair, depth maps"
+    );
+    assert_eq!(html.matches("src=").count(), images, "only data URIs");
+    assert!(!html.contains("<script") && !html.contains("<link"));
+    assert!(html.contains("<svg"));
+    assert!(html.contains("max-|high|"), "escaped bars kept in the cell");
+
+    // The same figures as `rollfuse eval` (and `--depth`) on the same scenes.
+    let eval = tmp.path().join("eval");
+    let e = eval.to_str().unwrap();
+    rollfuse(&["eval", "--scene", letters.to_str().unwrap(), "--out", e]);
+    assert_eq!(
+        read(&eval.join("eval.csv")),
+        read(&out.join(Files::EVAL_CSV))
+    );
+    rollfuse(&[
+        "eval",
+        "--depth",
+        "--scene",
+        spheres.to_str().unwrap(),
+        "--out",
+        e,
+    ]);
+    assert_eq!(
+        read(&eval.join("depth.csv")),
+        read(&out.join(Files::DEPTH_CSV))
+    );
+}
