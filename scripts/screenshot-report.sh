@@ -36,5 +36,5 @@ fi
 grep -q "<h2>7. " "$log.dom" || { echo "the report did not render completely" >&2; exit 1; }
 rm -f "$log.dom"
 # The top of the page: title, frames, the strip and the start of the fusion section.
-"$browser" "${flags[@]}" --window-size=1200,2600 --screenshot="$(realpath -m "$png")" "$url" 2>/dev/null
+"$browser" "${flags[@]}" --window-size=1100,2000 --screenshot="$(realpath -m "$png")" "$url" 2>/dev/null
 echo "screenshot of $report → $png"
