@@ -32,20 +32,11 @@ pub fn report(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
     )?;
 
     body.push_str("<h2>1. The rolling acquisition</h2>\n<div class=row>");
-    let mut frames: Vec<String> = std::fs::read_dir(dir)
-        .with_context(|| format!("cannot list {}", dir.display()))?
-        .filter_map(|e| e.ok()?.file_name().into_string().ok())
-        .filter(|f| f.starts_with(Files::FRAME_PREFIX) && f.ends_with(".png"))
-        .collect();
-    frames.sort();
-    for f in &frames {
-        let k = f
-            .trim_start_matches(Files::FRAME_PREFIX)
-            .trim_end_matches(".png");
+    for &k in &demo.shown_frames {
         write!(
             body,
             "<figure>{}<figcaption>frame {k}</figcaption></figure>",
-            png(f, &format!("camera frame {k}"))?
+            png(&Files::frame(k), &format!("camera frame {k}"))?
         )?;
     }
     body.push_str("</div>\n");
@@ -132,8 +123,8 @@ pub fn report(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
     writeln!(
         body,
         "<h2>6. What accuracy costs in time</h2>\n<p>Each device configuration against the \
-         f64 full-resolution reference of the same tile schedule: PSNR against host time and \
-         {}.</p>\n<div class=plot>{svg}</div>\n<details><summary>the whole table</summary>{}\
+         f64 full-resolution reference of the same tile schedule: PSNR against host time \
+         (one run each, as <code>rollfuse tradeoff --repeats 1</code>) and {}.</p>\n<div class=plot>{svg}</div>\n<details><summary>the whole table</summary>{}\
          </details>",
         match &demo.mcu_build {
             Some(b) => format!(

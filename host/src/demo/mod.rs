@@ -8,8 +8,8 @@
 //!    `rollfuse stream --device sim` does.
 //! 3. **full-res fusion** — the raw frames aligned by template matching and fused at full
 //!    resolution on the host, as `rollfuse fuse` does.
-//! 4. **evaluation** — Tables II and III on the letters scene, as `rollfuse eval` computes
-//!    them.
+//! 4. **evaluation** — Tables II and III on the letters scene's frames from stage 1, as
+//!    `rollfuse eval` computes them.
 //! 5. **depth** — the three-sphere RGB scene: depth from single and fused frames (Table IV,
 //!    as `rollfuse eval --depth`).
 //! 6. **trade-off** — every device configuration against the f64 reference on the letters
@@ -22,7 +22,7 @@
 pub mod html;
 
 use crate::eval::depth::{self as depth_eval, DepthRow};
-use crate::eval::tables::{self, Row, acquire, evaluate_scene};
+use crate::eval::tables::{self, Row, acquire, evaluate_acquired};
 use crate::fullres::align::{Aligned, TemplateParams, align_chain};
 use crate::fullres::{Placed, Precision, fuse_mosaic};
 use crate::image::Planes;
@@ -80,6 +80,8 @@ pub struct Demo {
     pub letters_name: String,
     /// Frames in the letters sequence and their size.
     pub frames: (usize, usize, usize),
+    /// The frames shown in the report (indices; written as [`Files::frame`]).
+    pub shown_frames: Vec<usize>,
     /// The streaming session's manifest (tiles, bytes, faults, device counters).
     pub stream: Manifest,
     /// The stitched strip's size.
@@ -106,8 +108,6 @@ pub struct Demo {
 pub struct Files;
 
 impl Files {
-    /// Frames shown in the report, `frame_NN.png`.
-    pub const FRAME_PREFIX: &'static str = "frame_";
     /// The device-fused strip (in the stream session's folder).
     pub const STRIP: &'static str = "stream/strip.png";
     /// The streaming session's manifest.
@@ -137,6 +137,11 @@ impl Files {
     pub const PARETO: &'static str = "pareto.svg";
     /// The report.
     pub const REPORT: &'static str = "report.html";
+
+    /// Frame `k` of the sequence, as shown in the report.
+    pub fn frame(k: usize) -> String {
+        format!("frame_{k:02}.png")
+    }
 }
 
 /// Frames of the sequence shown in the report.
@@ -163,9 +168,12 @@ pub fn run(opts: &Options, mut stage: impl FnMut(usize, &str)) -> anyhow::Result
         letters.name
     );
     let (fw, fh) = (acq.frames[0].width, acq.frames[0].height);
-    for k in 0..SHOWN_FRAMES.min(n) {
-        let i = k * (n - 1) / (SHOWN_FRAMES - 1).max(1);
-        acq.frames[i].save_png(&out(&format!("{}{i:02}.png", Files::FRAME_PREFIX)))?;
+    // Evenly spread over the roll, first and last included.
+    let shown: Vec<usize> = (0..SHOWN_FRAMES)
+        .map(|k| k * (n - 1) / (SHOWN_FRAMES - 1))
+        .collect();
+    for &i in &shown {
+        acq.frames[i].save_png(&out(&Files::frame(i)))?;
     }
     clock.lap(
         STAGES[0],
@@ -207,7 +215,7 @@ pub fn run(opts: &Options, mut stage: impl FnMut(usize, &str)) -> anyhow::Result
     );
 
     stage(3, STAGES[3]);
-    let eval = evaluate_scene(&letters, &FuseConfig::default(), 10)?;
+    let eval = evaluate_acquired(&letters, &acq, &FuseConfig::default(), 10)?;
     write(&out(Files::EVAL_MD), &tables::markdown(&eval))?;
     write(&out(Files::EVAL_CSV), &tables::csv(&eval))?;
     clock.lap(
@@ -256,6 +264,7 @@ pub fn run(opts: &Options, mut stage: impl FnMut(usize, &str)) -> anyhow::Result
     let demo = Demo {
         letters_name: letters.name.clone(),
         frames: (n, fw, fh),
+        shown_frames: shown,
         strip_size: (strip.width, strip.height),
         stream: streamed.manifest,
         alignment,

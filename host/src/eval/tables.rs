@@ -77,7 +77,16 @@ pub(crate) fn crop_rows(img: &Planes, top: usize, h: usize) -> anyhow::Result<Pl
 
 /// The figures of the paper's evaluation for one scene.
 pub fn evaluate_scene(scene: &Scene, base: &FuseConfig, strips: usize) -> anyhow::Result<Vec<Row>> {
-    let acq = acquire(scene)?;
+    evaluate_acquired(scene, &acquire(scene)?, base, strips)
+}
+
+/// [`evaluate_scene`] on frames already rendered from `scene` by [`acquire`].
+pub(crate) fn evaluate_acquired(
+    scene: &Scene,
+    acq: &Acquisition,
+    base: &FuseConfig,
+    strips: usize,
+) -> anyhow::Result<Vec<Row>> {
     let n = acq.frames.len();
     ensure!(
         n >= 7,
