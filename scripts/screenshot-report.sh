@@ -35,6 +35,6 @@ if grep -E "CONSOLE|Uncaught|Failed to load|net::ERR" "$log" >&2; then
 fi
 grep -q "<h2>7. " "$log.dom" || { echo "the report did not render completely" >&2; exit 1; }
 rm -f "$log.dom"
-# The top of the page: title, frames, the strip and the start of the fusion section.
-"$browser" "${flags[@]}" --window-size=1100,2000 --screenshot="$(realpath -m "$png")" "$url" 2>/dev/null
+# The top of the page: frames, the strip, the fusion, Tables II–III and the depth maps.
+"$browser" "${flags[@]}" --window-size=1100,2700 --screenshot="$(realpath -m "$png")" "$url" 2>/dev/null
 echo "screenshot of $report → $png"
