@@ -109,6 +109,7 @@ fn the_demo_writes_a_self_contained_report_with_sane_figures() {
     assert!(d.stream.tiles_received > 0);
     assert_eq!(d.stream.faults.total(), 0, "{:?}", d.stream.faults);
     assert!(d.stream.gaps.is_empty());
+    assert_eq!(d.stream_stop, rollfuse::stream::StopReason::DeviceStopped);
     // Template matching placed every frame where the belt's motion put it.
     assert_eq!(d.alignment.placed, d.alignment.frames);
     assert!(

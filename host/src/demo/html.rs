@@ -5,6 +5,7 @@
 //! so the page shows the very figures `rollfuse eval` and `rollfuse tradeoff` print.
 
 use super::{Demo, Files};
+use crate::stream::StopReason;
 use anyhow::Context;
 use base64::Engine;
 use std::fmt::Write;
@@ -48,13 +49,19 @@ pub fn report(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
         "<h2>2. Fused on the device, streamed, stitched</h2>\n<p>The shared device pipeline \
          (downsample, refine offsets, integer wavelet fusion of each tile) ran in the virtual \
          device; its tiles crossed the link as real protocol messages: <b>{} tiles</b>, {} \
-         bytes, {} messages, {faults} link faults, {} missing tile ranges. The strip is {}×{} \
-         (downsampled).</p>\n<figure class=tall>{}<figcaption>the stitched strip \
+         bytes, {} messages, {faults} link faults, {} missing tile ranges; {}. The strip is \
+         {}×{} (downsampled).</p>\n<figure class=tall>{}<figcaption>the stitched strip \
          (stream/strip.png; manifest in stream/manifest.json)</figcaption></figure>",
         s.tiles_received,
         s.bytes,
         s.messages,
         s.gaps.len(),
+        match demo.stream_stop {
+            StopReason::DeviceStopped => "the device ended the stream when the scene ran out",
+            StopReason::LinkClosed => "the link closed before the device ended the stream",
+            StopReason::Silent => "the device fell silent and the session gave up",
+            StopReason::TileLimit | StopReason::TimeLimit => "the session stopped at its limit",
+        },
         demo.strip_size.0,
         demo.strip_size.1,
         png(Files::STRIP, "the device-fused strip")?

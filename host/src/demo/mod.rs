@@ -28,7 +28,7 @@ use crate::fullres::{Placed, Precision, fuse_mosaic};
 use crate::image::Planes;
 use crate::link::sim::SimDevice;
 use crate::sim::Scene;
-use crate::stream::{self, Manifest};
+use crate::stream::{self, Manifest, StopReason};
 use crate::tradeoff::{self, Measured, bench::McuTable, report as tradeoff_report};
 use anyhow::{Context, ensure};
 use rollfuse_core::FuseConfig;
@@ -84,6 +84,8 @@ pub struct Demo {
     pub shown_frames: Vec<usize>,
     /// The streaming session's manifest (tiles, bytes, faults, device counters).
     pub stream: Manifest,
+    /// Why the session ended ([`StopReason::DeviceStopped`] when the scene ran out).
+    pub stream_stop: StopReason,
     /// The stitched strip's size.
     pub strip_size: (usize, usize),
     /// The template alignment.
@@ -267,6 +269,7 @@ pub fn run(opts: &Options, mut stage: impl FnMut(usize, &str)) -> anyhow::Result
         shown_frames: shown,
         strip_size: (strip.width, strip.height),
         stream: streamed.manifest,
+        stream_stop: streamed.stop,
         alignment,
         mosaic_size: (mosaic.width, mosaic.height),
         frames_per_point: fh as f64 * (n - 1) as f64

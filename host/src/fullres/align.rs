@@ -190,7 +190,7 @@ pub fn align_chain(
                 });
             }
             Some(m) => out.push(Aligned::Skipped(format!(
-                "best match score {:.3} is below the minimum {}",
+                "best match score {:.3} is below the minimum score {} (--min-score)",
                 m.score, params.min_score
             ))),
             None => out.push(Aligned::Skipped(
