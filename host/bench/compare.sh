@@ -19,7 +19,7 @@ sed -e 's/^mm_per_px = .*/mm_per_px = 0.0125/' -e 's/^width_px = .*/width_px = 1
 "$bin" simulate "$work/letters_1280.toml" --out "$work/frames" > /dev/null
 frames=("$work"/frames/frame_000{0..5}.png)
 
-export RAYON_NUM_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
+source host/bench/common.sh
 best_rust=""
 best_py=""
 for _ in 1 2 3; do
@@ -27,9 +27,7 @@ for _ in 1 2 3; do
     rust=$("$bin" fuse "${frames[@]}" --out "$work/rust.png" --align none --levels 1 |
         sed -n 's/.*fusion took \([0-9.]*\) s.*/\1/p')
     py=$(python3 host/bench/ref_fusion.py "$work/py.png" "${frames[@]}" | tail -n 1)
-    if [ -z "$best_py" ] || (( $(echo "$py < $best_py" | bc -l) )); then best_py=$py; fi
-    if [ -z "$best_rust" ] || (( $(echo "$rust < $best_rust" | bc -l) )); then best_rust=$rust; fi
+    best_py=$(min_of "$best_py" "$py")
+    best_rust=$(min_of "$best_rust" "$rust")
 done
-printf 'rollfuse (fusion only):           %.3f s\n' "$best_rust"
-printf 'numpy + PyWavelets (fusion only): %.3f s\n' "$best_py"
-printf 'ratio (reference / rollfuse): %.2f×\n' "$(echo "$best_py / $best_rust" | bc -l)"
+print_ratio "rollfuse (fusion only)" "$best_rust" "numpy + PyWavelets (fusion only)" "$best_py"

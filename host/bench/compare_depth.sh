@@ -15,7 +15,7 @@ cargo build --release -q -p rollfuse
 bin=target/release/rollfuse
 python3 host/bench/ref_depth.py --make "$work"
 
-export RAYON_NUM_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
+source host/bench/common.sh
 best_rust=""
 best_py=""
 for _ in 1 2 3 4 5; do
@@ -24,12 +24,10 @@ for _ in 1 2 3 4 5; do
         sed -n 's/.*took \([0-9.]*\) s.*/\1/p')
     py=$(python3 host/bench/ref_depth.py "$work/ball.png" "$work/lights.toml" \
         "$work/background.png" "$work/py.npy" | tail -n 1)
-    if [ -z "$best_py" ] || (( $(echo "$py < $best_py" | bc -l) )); then best_py=$py; fi
-    if [ -z "$best_rust" ] || (( $(echo "$rust < $best_rust" | bc -l) )); then best_rust=$rust; fi
+    best_py=$(min_of "$best_py" "$py")
+    best_rust=$(min_of "$best_rust" "$rust")
 done
-printf 'rollfuse depth (one thread):     %.4f s\n' "$best_rust"
-printf 'numpy + scipy (one thread):      %.4f s\n' "$best_py"
-printf 'ratio (reference / rollfuse): %.2f×\n' "$(echo "$best_py / $best_rust" | bc -l)"
+print_ratio "rollfuse depth (one thread)" "$best_rust" "numpy + scipy (one thread)" "$best_py"
 python3 -c "
 import numpy as np
 a, b = np.load('$work/rust.npy'), np.load('$work/py.npy')
