@@ -51,6 +51,47 @@ fn add_row(sums: &mut [u32], seg: &[u8], format: PixelFormat, factor: usize) {
     }
 }
 
+/// One output row of a 2× downsampling (the product's default) straight from its two
+/// camera rows. The general path keeps per-box sums between rows; storing and reloading
+/// them was half its cost: 26 instructions per output pixel on the Cortex-M7 bench, 13
+/// here.
+#[inline(always)]
+fn halve_row(out: &mut [u8], r0: &[u8], r1: &[u8], format: PixelFormat) {
+    let mean = |s: u32| ((s + 2) >> 2) as u8;
+    match format {
+        PixelFormat::Gray8 => {
+            let pixels = out
+                .iter_mut()
+                .zip(r0.as_chunks::<2>().0.iter().zip(r1.as_chunks::<2>().0));
+            for (o, (&[a0, a1], &[b0, b1])) in pixels {
+                *o = mean(u32::from(a0) + u32::from(a1) + u32::from(b0) + u32::from(b1));
+            }
+        }
+        PixelFormat::Yuyv => {
+            // Y0 U Y1 V: two pixels' lumas per four bytes.
+            let pixels = out
+                .iter_mut()
+                .zip(r0.as_chunks::<4>().0.iter().zip(r1.as_chunks::<4>().0));
+            for (o, (&[a0, _, a1, _], &[b0, _, b1, _])) in pixels {
+                *o = mean(u32::from(a0) + u32::from(a1) + u32::from(b0) + u32::from(b1));
+            }
+        }
+        PixelFormat::Rgb565 => {
+            let pixels = out
+                .iter_mut()
+                .zip(r0.as_chunks::<4>().0.iter().zip(r1.as_chunks::<4>().0));
+            for (o, (&[a0, a1, a2, a3], &[b0, b1, b2, b3])) in pixels {
+                *o = mean(
+                    rgb565_luma([a0, a1])
+                        + rgb565_luma([a2, a3])
+                        + rgb565_luma([b0, b1])
+                        + rgb565_luma([b2, b3]),
+                );
+            }
+        }
+    }
+}
+
 /// The size of a `width × height` frame downsampled by `factor` (the last
 /// `width % factor` columns and `height % factor` rows are dropped).
 pub fn downsampled_dims(width: usize, height: usize, factor: usize) -> Result<Dims, Error> {
@@ -87,6 +128,13 @@ pub fn downsample(
     let w = dims.width();
     for (y, out_row) in out.chunks_exact_mut(w).take(dims.height()).enumerate() {
         let rows = src.chunks_exact(row_bytes).skip(y * factor).take(factor);
+        if factor == 2 {
+            let mut pair = rows.clone();
+            if let (Some(r0), Some(r1)) = (pair.next(), pair.next()) {
+                halve_row(out_row, r0, r1, format);
+                continue;
+            }
+        }
         // Sum each box's rows into the output row, a chunk at a time, then round once.
         let mut sums = [0u32; 64];
         for (x0, out_chunk) in (0..w)
