@@ -6,9 +6,20 @@ use rollfuse::demo::{self, Files, Options, STAGES};
 use std::path::Path;
 use std::process::Command;
 
-/// The letters scene, smaller: 160×120 at 0.1 mm per pixel, 12 frames.
-const LETTERS: &str = r#"
-name = "letters-small"
+/// The small camera both scenes use: 160×120 at 0.1 mm per pixel, frames 1 mm apart.
+const SMALL_SENSOR: &str = "
+roller_radius_mm = 12.0
+gel_thickness_mm = 1.5
+mm_per_px = 0.1
+width_px = 160
+height_px = 120
+frame_spacing_mm = 1.0
+";
+
+/// The letters scene, smaller: 12 frames of a shorter word.
+fn letters_scene() -> String {
+    format!(
+        r#"name = "letters-small"
 seed = 1
 effects = ["contact", "gel", "gray", "defocus", "background", "noise"]
 
@@ -17,20 +28,16 @@ kind = "letters"
 text = "TAC"
 height_mm = 1.0
 
-[sensor]
-roller_radius_mm = 12.0
-gel_thickness_mm = 1.5
-mm_per_px = 0.1
-width_px = 160
-height_px = 120
-press_depth_mm = 0.8
-frame_spacing_mm = 1.0
+[sensor]{SMALL_SENSOR}press_depth_mm = 0.8
 frames = 12
-"#;
+"#
+    )
+}
 
-/// The three spheres, smaller: 160×120 at 0.1 mm per pixel.
-const SPHERES: &str = r#"
-name = "spheres-small"
+/// The three spheres, smaller.
+fn spheres_scene() -> String {
+    format!(
+        r#"name = "spheres-small"
 seed = 3
 effects = ["contact", "gel", "rgb", "noise"]
 
@@ -38,16 +45,11 @@ effects = ["contact", "gel", "rgb", "noise"]
 kind = "spheres"
 diameter_mm = 4.0
 
-[sensor]
-roller_radius_mm = 12.0
-gel_thickness_mm = 1.5
-mm_per_px = 0.1
-width_px = 160
-height_px = 120
-press_depth_mm = 1.0
-frame_spacing_mm = 1.0
+[sensor]{SMALL_SENSOR}press_depth_mm = 1.0
 frames = 16
-"#;
+"#
+    )
+}
 
 fn rollfuse(args: &[&str]) {
     let out = Command::new(env!("CARGO_BIN_EXE_rollfuse"))
@@ -70,8 +72,8 @@ fn the_demo_writes_a_self_contained_report_with_sane_figures() {
     let tmp = tempfile::tempdir().unwrap();
     let letters = tmp.path().join("letters.toml");
     let spheres = tmp.path().join("spheres.toml");
-    std::fs::write(&letters, LETTERS).unwrap();
-    std::fs::write(&spheres, SPHERES).unwrap();
+    std::fs::write(&letters, letters_scene()).unwrap();
+    std::fs::write(&spheres, spheres_scene()).unwrap();
     let out = tmp.path().join("demo");
     let opts = Options {
         out: out.clone(),
