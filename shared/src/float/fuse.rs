@@ -203,24 +203,25 @@ fn max_of<T: Float>(values: &[T]) -> T {
     lanes.iter().chain(rest).fold(T::ZERO, |m, &v| max(m, v))
 }
 
-/// `eˣ − 1` for `x` in `0..=1`: its Taylor series to degree 9 in Horner form, exact to
-/// below 1e-6 there (the remainder is at most e/10! ≈ 7.5e-7; test
-/// `expm1_unit_matches_libm`). A per-pixel libm `exp` took a fifth of a fuse step.
+/// `eˣ − 1` for `x` in `0..=1`: `x·q(x)` with `q` a degree-5 polynomial fitted to the
+/// minimax error on `0..=1` (by iteratively reweighted least squares), in Horner form.
+/// Evaluated in `f32` it is within 2.3e-7 of the exact value there (test
+/// `expm1_unit_matches_libm`), as close as `f32` rounding of the sums allows. The Taylor
+/// series to the same accuracy needs degree 9 and twice the operations; a per-pixel libm
+/// `exp` took a fifth of a fuse step.
 #[inline(always)]
 fn expm1_unit(x: f32) -> f32 {
-    const INV: [f32; 8] = [
-        1.0 / 2.0,
-        1.0 / 3.0,
-        1.0 / 4.0,
-        1.0 / 5.0,
-        1.0 / 6.0,
-        1.0 / 7.0,
-        1.0 / 8.0,
-        1.0 / 9.0,
+    const Q: [f32; 6] = [
+        0.999_997_3,
+        0.500_051_04,
+        0.166_343_4,
+        0.042_600_867,
+        0.006_990_449,
+        0.002_298_695,
     ];
-    let mut acc = 1.0f32;
-    for c in INV.iter().rev() {
-        acc = 1.0 + x * c * acc;
+    let mut acc = 0.0f32;
+    for &c in Q.iter().rev() {
+        acc = acc * x + c;
     }
     x * acc
 }
@@ -276,6 +277,6 @@ mod tests {
                 (expm1_unit(x) as f64 - libm::expm1(x as f64)).abs()
             })
             .fold(0.0, f64::max);
-        assert!(worst < 1e-6, "max error {worst}");
+        assert!(worst < 3e-7, "max error {worst}");
     }
 }
