@@ -188,9 +188,28 @@ fn laplacian(c: i32, around: [i32; 4]) -> u32 {
         .min(u64::from(u32::MAX)) as u32
 }
 
-/// Calls `f(x, y, |∇²I|)` for every pixel of the region.
+/// `|∇²I|` of a sample of a fusion level's input, in `i32`: such samples lie within the
+/// level's input bound, below 2²⁸ (test `every_bound_fits_in_i32`), so the four
+/// neighbours' sum stays below 2³⁰ and the result below 2³¹. Wrapping arithmetic only
+/// spares the overflow checks; nothing wraps. On the Cortex-M7 this is a third of the
+/// 64-bit [`laplacian`]'s instructions.
+#[inline(always)]
+fn level_laplacian(c: i32, [up, down, left, right]: [i32; 4]) -> u32 {
+    up.wrapping_add(down)
+        .wrapping_add(left)
+        .wrapping_add(right)
+        .wrapping_sub(c.wrapping_mul(4))
+        .unsigned_abs()
+}
+
+/// Calls `f(x, y, |∇²I|)` for every pixel of the region, with `laplacian` the kernel.
 #[inline]
-fn for_each_laplacian(buf: &[i32], dims: Dims, mut f: impl FnMut(usize, usize, u32)) {
+fn for_each_laplacian(
+    buf: &[i32],
+    dims: Dims,
+    laplacian: impl Fn(i32, [i32; 4]) -> u32,
+    mut f: impl FnMut(usize, usize, u32),
+) {
     for_each_neighbourhood(buf, dims, |x, y, c, around| f(x, y, laplacian(c, around)));
 }
 
@@ -199,7 +218,8 @@ fn for_each_laplacian(buf: &[i32], dims: Dims, mut f: impl FnMut(usize, usize, u
 /// the region.
 pub fn laplacian_max(buf: &[i32], dims: Dims) -> Result<u32, crate::Error> {
     dims.check_buffer("image", buf.len())?;
-    Ok(laplacian_max_in(buf, dims))
+    // Any i32 samples: the 64-bit Laplacian.
+    Ok(laplacian_max_in(buf, dims, laplacian))
 }
 
 /// [`laplacian_max`] of a packed 8-bit image (a downsampled camera frame), for
@@ -218,31 +238,40 @@ pub fn laplacian_max_u8(buf: &[u8], dims: Dims) -> u32 {
 }
 
 /// The largest `|∇²I|` over the region (its buffer already checked).
-fn laplacian_max_in(buf: &[i32], dims: Dims) -> u32 {
+fn laplacian_max_in(buf: &[i32], dims: Dims, laplacian: impl Fn(i32, [i32; 4]) -> u32) -> u32 {
     let mut max = 0;
-    for_each_laplacian(buf, dims, |_, _, l| max = max.max(l));
+    for_each_laplacian(buf, dims, laplacian, |_, _, l| max = max.max(l));
     max
 }
 
 /// Maps `|∇²I|` to `Sal` in 0..=255 for a given maximum without a per-pixel division.
+///
+/// The Laplacian (capped at the maximum) is scaled by a power of two that brings the
+/// maximum into `2¹⁵..2¹⁶`, so the reciprocal fits in 25 bits and each pixel costs one
+/// 32 × 32 → 64-bit multiply (a single instruction on the Cortex-M7).
 #[derive(Clone, Copy)]
 struct Normalizer {
-    shift: u32,
-    max: u64,
-    recip: u64,
+    /// The unscaled maximum: larger Laplacians (Reference normalization) are capped to it.
+    cap: u32,
+    /// Right shift, then left shift, that bring `cap` into `2¹⁵..2¹⁶` (one is zero).
+    down: u32,
+    up: u32,
+    recip: u32,
 }
 
 impl Normalizer {
     fn new(max: u32) -> Self {
-        // Bring max below 2¹⁶ so that l · recip (l ≤ max) stays below 2⁵⁶.
-        let shift = 32 - max.leading_zeros().min(32);
-        let shift = shift.saturating_sub(16);
-        let m = u64::from(max >> shift).max(1);
-        // +1 makes l = max map to exactly 255; l ≤ max never exceeds it.
-        let recip = ((255u64 << 32) / m) + 1;
+        let cap = max.max(1);
+        let bits = 32 - cap.leading_zeros();
+        let (down, up) = (bits.saturating_sub(16), 16u32.saturating_sub(bits));
+        let m = (cap >> down) << up;
+        // m ≥ 2¹⁵ keeps the reciprocal below 2²⁵; +1 makes l = max map to exactly 255 and
+        // l ≤ max never beyond it.
+        let recip = (((255u64 << 32) / u64::from(m)) + 1) as u32;
         Self {
-            shift,
-            max: m,
+            cap,
+            down,
+            up,
             recip,
         }
     }
@@ -250,10 +279,10 @@ impl Normalizer {
     /// `Sal` in Q8 (0 ..= 255·256).
     #[inline(always)]
     fn sal_q8(self, lap: u32) -> u32 {
-        // Values above the maximum (Reference normalization) saturate at 255.
-        let l = u64::from(lap >> self.shift).min(self.max);
-        let v = (l * self.recip) >> 24;
-        v.min(255 << 8) as u32
+        // l ≤ m < 2¹⁶ and recip < 2²⁵: the product fits in 41 bits.
+        let l = (lap.min(self.cap) >> self.down) << self.up;
+        let v = ((u64::from(l) * u64::from(self.recip)) >> 24) as u32;
+        v.min(255 << 8)
     }
 
     /// `S = exp(Sal/255) − 1` in Q24, interpolated between table entries.
@@ -280,7 +309,7 @@ pub(crate) fn level_max(
     level: u8,
 ) -> u32 {
     match norm {
-        SaliencyNorm::Local => laplacian_max_in(buf, dims),
+        SaliencyNorm::Local => laplacian_max_in(buf, dims, level_laplacian),
         SaliencyNorm::Reference(r) => {
             let mut m = u64::from(r);
             for _ in 1..level {
@@ -311,7 +340,7 @@ pub(crate) fn saliency_rows(
     for y in 0..dims.height() {
         // S ≤ 1.7183 · 2²⁴ < 2³¹.
         map_neighbourhood_row(buf, dims, y, row, |c, around| {
-            norm.saliency(laplacian(c, around)) as i32
+            norm.saliency(level_laplacian(c, around)) as i32
         });
         f(y, row);
     }

@@ -2,10 +2,8 @@
 //! exact floating-point arithmetic, float saliency and float weights — in `f32` (the
 //! host's working path) or `f64` (the reference the trade-off study measures against).
 
-use crate::fusion::{
-    Arith, FuseConfig, Join, LlWeight, Sequential, fuse_pair_checked, level_sizes,
-};
-use crate::lifting::{self, LevelBounds, Lift};
+use crate::fusion::{Arith, FuseConfig, Join, LlWeight, Sequential, fuse_pair_checked};
+use crate::lifting::{self, Coefficients, LevelBounds, Lift};
 use crate::saliency::ll_gain_q16;
 use crate::saliency::{SaliencyNorm, map_neighbourhood_row};
 use crate::{Dims, Error, Wavelet};
@@ -103,10 +101,9 @@ impl<T: Float> Arith for T {
 
     fn inverse(wavelet: Wavelet, buf: &mut [T], dims: Dims, levels: u8, scratch: &mut [T]) {
         // Floats need no saturation: the bounds are only passed along.
-        let bounds = LevelBounds::default();
-        for &d in level_sizes(dims).iter().take(levels as usize).rev() {
-            lifting::inverse_level(wavelet, buf, d, scratch, &bounds);
-        }
+        let bounds = [LevelBounds::default(); crate::MAX_LEVELS as usize];
+        let inside = Coefficients::InBounds;
+        lifting::inverse_levels(wavelet, buf, dims, levels, scratch, &bounds, inside);
     }
 
     fn saliency_rows(

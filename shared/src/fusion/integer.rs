@@ -2,10 +2,10 @@
 //! [`crate::lifting`]. This is what the MCU runs.
 
 use super::{
-    Arith, FuseConfig, LlWeight, Sequential, fuse_generic, fuse_pair_checked, level_sizes,
-    maps_len, split_scratch,
+    Arith, FuseConfig, LlWeight, Sequential, fuse_generic, fuse_pair_checked, maps_len,
+    split_scratch,
 };
-use crate::lifting::{self, bounds::level_bounds};
+use crate::lifting::{self, Coefficients, bounds::level_bounds};
 use crate::saliency::{self, SaliencyNorm};
 use crate::{Dims, Error, Wavelet};
 
@@ -16,10 +16,10 @@ impl Arith for i32 {
 
     fn inverse(wavelet: Wavelet, buf: &mut [i32], dims: Dims, levels: u8, scratch: &mut [i32]) {
         let bounds = level_bounds(wavelet, levels);
-        let sizes = level_sizes(dims);
-        for (&d, b) in sizes.iter().zip(&bounds).take(levels as usize).rev() {
-            lifting::inverse_level(wavelet, buf, d, scratch, b);
-        }
+        // Fused coefficients are convex combinations of forward-transform outputs of the
+        // same band (weights and the LL mix lie in 0..=1), so within its bound.
+        let inside = Coefficients::InBounds;
+        lifting::inverse_levels(wavelet, buf, dims, levels, scratch, &bounds, inside);
     }
 
     fn saliency_rows(

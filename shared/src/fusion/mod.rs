@@ -18,7 +18,7 @@ pub(crate) mod integer;
 pub use cyclic::{CyclicBuffers, CyclicFuser};
 pub use integer::{GUARD_BITS, U8Work, fuse_pair, fuse_scratch_len, fuse_scratch_words, fuse_u8};
 
-use crate::{Dims, Error, MAX_LEVELS, Wavelet, saliency::SaliencyNorm};
+use crate::{Dims, Error, Wavelet, saliency::SaliencyNorm};
 
 /// The ablations of the paper's Table II: each removes one part of the method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -417,17 +417,6 @@ pub(crate) fn fuse_generic<T: Arith>(
     }
     T::inverse(cfg.wavelet, a, dims, cfg.levels, line);
     Ok(())
-}
-
-/// The region of each level, `dims` first, then the low band of the one before.
-pub(crate) fn level_sizes(dims: Dims) -> [Dims; MAX_LEVELS as usize] {
-    let mut sizes = [dims; MAX_LEVELS as usize];
-    let mut d = dims;
-    for s in &mut sizes {
-        *s = d;
-        d = d.low_band();
-    }
-    sizes
 }
 
 /// Sets `a = (1 − w)·a + w·b` over the `dims` region; `None` if a buffer does not hold it.

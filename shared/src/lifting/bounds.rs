@@ -224,6 +224,8 @@ mod tests {
             let b = level_bounds(w, 4);
             let peak = b.iter().map(|l| l.peak).max().unwrap();
             assert!(peak < i32::MAX / 2, "{w:?}: peak {peak}");
+            // The fusion's Laplacian of a level input sums five of them in i32.
+            assert!(b.iter().all(|l| l.input < 1 << 28), "{w:?}: {b:?}");
             // Each level's input is the previous level's LL bound.
             for k in 1..4 {
                 assert_eq!(b[k].input, b[k - 1].ll);

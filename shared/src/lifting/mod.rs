@@ -18,7 +18,7 @@ mod haar;
 
 #[cfg(test)]
 use crate::geometry::Line;
-use crate::{Dims, Error};
+use crate::{Dims, Error, MAX_LEVELS};
 pub use bounds::{LevelBounds, MAX_SAMPLE, level_bounds};
 
 /// The wavelet of a transform.
@@ -196,27 +196,35 @@ fn copy_block_row<T: Copy>(dst: &mut [T], src: &[T]) {
     }
 }
 
-/// One inverse 1-D pass over a row: loads low and high bands saturated to their proven
-/// bounds, undoes the lifting, and stores the interleaved signal saturated to `out_bound`.
+/// One inverse 1-D pass over a row: loads low and high bands (saturated to `load_bounds`
+/// when given), undoes the lifting, and stores the interleaved signal saturated to
+/// `out_bound`.
 fn inverse_row<T: Lift>(
     wavelet: Wavelet,
     row: &mut [T],
     scratch: &mut [T],
-    (low_bound, high_bound, out_bound): (i32, i32, i32),
+    load_bounds: Option<(i32, i32)>,
+    out_bound: i32,
 ) {
     let n = row.len();
     let nl = n.div_ceil(2);
     let Some(work) = scratch.get_mut(..n) else {
         return;
     };
+    match load_bounds {
+        Some((low_bound, high_bound)) => {
+            let (low, high) = work.split_at_mut(nl);
+            let (row_low, row_high) = row.split_at(nl);
+            for (d, &v) in low.iter_mut().zip(row_low) {
+                *d = v.saturate(low_bound);
+            }
+            for (d, &v) in high.iter_mut().zip(row_high) {
+                *d = v.saturate(high_bound);
+            }
+        }
+        None => work.copy_from_slice(row),
+    }
     let (low, high) = work.split_at_mut(nl);
-    let (row_low, row_high) = row.split_at(nl);
-    for (d, &v) in low.iter_mut().zip(row_low) {
-        *d = v.saturate(low_bound);
-    }
-    for (d, &v) in high.iter_mut().zip(row_high) {
-        *d = v.saturate(high_bound);
-    }
     wavelet.inverse_split(low, high, 1);
     let (pairs, odd_end) = row.as_chunks_mut::<2>();
     for ([e, o], (&l, &h)) in pairs.iter_mut().zip(low.iter().zip(high.iter())) {
@@ -315,13 +323,15 @@ fn forward_columns<T: Lift>(wavelet: Wavelet, buf: &mut [T], dims: Dims, scratch
 
 /// The inverse column pass: `bounds_of(x)` gives column `x`'s (low band, high band,
 /// output) saturation bounds (left of the row pass's split the columns hold row-low
-/// coefficients); each block's rows are saturated on the way in, lifted back, and the
-/// interleaved rows saturated on the way out.
+/// coefficients); each block's rows are saturated on the way in (unless the coefficients
+/// are [`Coefficients::InBounds`]), lifted back, and the interleaved rows saturated on the
+/// way out.
 fn inverse_columns<T: Lift>(
     wavelet: Wavelet,
     buf: &mut [T],
     dims: Dims,
     scratch: &mut [T],
+    coefficients: Coefficients,
     bounds_of: impl Fn(usize) -> (i32, i32, i32),
 ) {
     let (w, h) = (dims.width(), dims.height());
@@ -336,8 +346,13 @@ fn inverse_columns<T: Lift>(
         for (y, dst) in block.chunks_exact_mut(bw).enumerate() {
             let start = dims.at(x0, y);
             let src = buf.get(start..start + bw).unwrap_or_default();
-            for ((d, &v), b) in dst.iter_mut().zip(src).zip(&bounds) {
-                *d = v.saturate(if y < nl { b.0 } else { b.1 });
+            match coefficients {
+                Coefficients::Any => {
+                    for ((d, &v), b) in dst.iter_mut().zip(src).zip(&bounds) {
+                        *d = v.saturate(if y < nl { b.0 } else { b.1 });
+                    }
+                }
+                Coefficients::InBounds => copy_block_row(dst, src),
             }
         }
         let (low, high) = block.split_at_mut(nl * bw);
@@ -358,6 +373,19 @@ fn inverse_columns<T: Lift>(
     }
 }
 
+/// What an inverse transform may assume about the coefficients it is given.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Coefficients {
+    /// Anything: every coefficient is saturated to its band's bound as it is loaded.
+    Any,
+    /// Each coefficient already lies within its band's bound: it came from the forward
+    /// transform of samples within `±MAX_SAMPLE`, or is a convex combination of such
+    /// coefficients of the same band (what fusion makes of them). Loads skip the
+    /// saturation; stores still saturate, since such coefficients need not be the
+    /// transform of any image in range.
+    InBounds,
+}
+
 /// One inverse 2-D level (columns, then rows), saturating to `bounds` of that level.
 pub(crate) fn inverse_level<T: Lift>(
     wavelet: Wavelet,
@@ -365,13 +393,14 @@ pub(crate) fn inverse_level<T: Lift>(
     dims: Dims,
     scratch: &mut [T],
     bounds: &LevelBounds,
+    coefficients: Coefficients,
 ) {
     let (w, h) = (dims.width(), dims.height());
     let nlx = w.div_ceil(2);
     if h > 1 {
         // Columns left of nlx came from the rows' low band, the rest from the high band;
         // a one-column region had no row pass, so its columns are the level's input.
-        inverse_columns(wavelet, buf, dims, scratch, |x| {
+        inverse_columns(wavelet, buf, dims, scratch, coefficients, |x| {
             if w == 1 {
                 (bounds.ll, bounds.lh, bounds.input)
             } else if x < nlx {
@@ -382,10 +411,15 @@ pub(crate) fn inverse_level<T: Lift>(
         });
     }
     if w > 1 {
+        // After a column pass the rows hold its output, already saturated to the row
+        // bands' bounds: loading them saturates nothing more.
+        let load_bounds = match (h > 1, coefficients) {
+            (true, _) | (false, Coefficients::InBounds) => None,
+            (false, Coefficients::Any) => Some((bounds.row_low, bounds.row_high)),
+        };
         for y in 0..h {
-            let clamp = (bounds.row_low, bounds.row_high, bounds.input);
             if let Some(row) = dims.row_mut(buf, y) {
-                inverse_row(wavelet, row, scratch, clamp);
+                inverse_row(wavelet, row, scratch, load_bounds, bounds.input);
             }
         }
     }
@@ -406,7 +440,14 @@ pub fn inverse_1d(wavelet: Wavelet, line: &mut [i32], scratch: &mut [i32]) -> Re
     let dims = Dims::new(line.len(), 1)?;
     check_args(line, dims, None, scratch)?;
     // A single row has no column pass: its row bands are its final bands.
-    inverse_level(wavelet, line, dims, scratch, &level_bounds(wavelet, 1)[0]);
+    inverse_level(
+        wavelet,
+        line,
+        dims,
+        scratch,
+        &level_bounds(wavelet, 1)[0],
+        Coefficients::Any,
+    );
     Ok(())
 }
 
@@ -442,14 +483,44 @@ pub fn inverse_2d(
 ) -> Result<(), Error> {
     check_args(buf, dims, Some(levels), scratch)?;
     let bounds = level_bounds(wavelet, levels);
-    for (level, b) in bounds.iter().enumerate().take(levels as usize).rev() {
-        let mut d = dims;
-        for _ in 0..level {
-            d = d.low_band();
-        }
-        inverse_level(wavelet, buf, d, scratch, b);
-    }
+    inverse_levels(
+        wavelet,
+        buf,
+        dims,
+        levels,
+        scratch,
+        &bounds,
+        Coefficients::Any,
+    );
     Ok(())
+}
+
+/// All inverse levels of a `levels`-deep transform of `dims`, deepest first, each
+/// saturating to its entry of `bounds` (floats ignore them).
+pub(crate) fn inverse_levels<T: Lift>(
+    wavelet: Wavelet,
+    buf: &mut [T],
+    dims: Dims,
+    levels: u8,
+    scratch: &mut [T],
+    bounds: &[LevelBounds; MAX_LEVELS as usize],
+    coefficients: Coefficients,
+) {
+    let sizes = level_sizes(dims);
+    for (&d, b) in sizes.iter().zip(bounds).take(usize::from(levels)).rev() {
+        inverse_level(wavelet, buf, d, scratch, b, coefficients);
+    }
+}
+
+/// The region of each level, `dims` first, then the low band of the one before.
+pub(crate) fn level_sizes(dims: Dims) -> [Dims; MAX_LEVELS as usize] {
+    let mut sizes = [dims; MAX_LEVELS as usize];
+    let mut d = dims;
+    for s in &mut sizes {
+        *s = d;
+        d = d.low_band();
+    }
+    sizes
 }
 
 #[cfg(test)]
@@ -615,6 +686,41 @@ mod tests {
             forward_1d(wavelet, &mut y, &mut scratch).unwrap();
             inverse_1d(wavelet, &mut y, &mut scratch).unwrap();
             prop_assert_eq!(y, x);
+        }
+
+        #[test]
+        fn blended_coefficients_need_no_saturation_on_load(
+            w in 1usize..=40,
+            h in 1usize..=40,
+            seeds in any::<(u64, u64, u64)>(),
+            db2 in any::<bool>(),
+        ) {
+            // What fusion hands the inverse: per coefficient, a Q15 blend of two images'
+            // coefficients. Skipping the load saturation must change nothing, even for
+            // the largest inputs.
+            use crate::fusion::Arith;
+            let dims = Dims::new(w, h).unwrap();
+            prop_assume!(dims.max_levels() >= 1);
+            let levels = dims.max_levels();
+            let wavelet = if db2 { Wavelet::Db2 } else { Wavelet::Haar };
+            let m = MAX_SAMPLE as i32;
+            let signed = |seed| -> Vec<i32> {
+                render(Content::Random(seed), w, h, 2 * m).iter().map(|v| v - m).collect()
+            };
+            let (mut a, mut b) = (signed(seeds.0), signed(seeds.1));
+            let mut scratch = vec![0; scratch_len(dims)];
+            forward_2d(wavelet, &mut a, dims, levels, &mut scratch).unwrap();
+            forward_2d(wavelet, &mut b, dims, levels, &mut scratch).unwrap();
+            let weights = render(Content::Random(seeds.2), w, h, 1 << 15);
+            for ((x, &y), &w1) in a.iter_mut().zip(&b).zip(&weights) {
+                *x = i32::blend(*x, y, w1);
+            }
+            let bounds = level_bounds(wavelet, levels);
+            let mut trusted = a.clone();
+            inverse_levels(wavelet, &mut a, dims, levels, &mut scratch, &bounds, Coefficients::Any);
+            let inside = Coefficients::InBounds;
+            inverse_levels(wavelet, &mut trusted, dims, levels, &mut scratch, &bounds, inside);
+            prop_assert_eq!(trusted, a);
         }
 
         #[test]
