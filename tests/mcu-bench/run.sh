@@ -9,15 +9,16 @@
 #
 # Needs the thumbv7em-none-eabihf target and qemu-system-arm (Debian: qemu-system-arm).
 set -euo pipefail
-cd "$(dirname "$0")"
-root="$(cd ../.. && pwd)"
-
 check=false
 if [ "${1:-}" = "--check" ]; then
     check=true
     shift
 fi
-out="${1:-$root/target/mcu-bench/mcu-bench.csv}"
+# OUT is relative to the caller's directory, resolved before changing to this one.
+out="${1:+$(realpath -m "$1")}"
+cd "$(dirname "$0")"
+root="$(cd ../.. && pwd)"
+out="${out:-$root/target/mcu-bench/mcu-bench.csv}"
 mkdir -p "$(dirname "$out")"
 
 cargo build -q --release --target thumbv7em-none-eabihf --target-dir "$root/target"
