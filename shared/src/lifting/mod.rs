@@ -7,10 +7,10 @@
 //!
 //! Overflow is ruled out by construction, not hoped against: the forward transform accepts
 //! samples with `|x| ≤` [`MAX_SAMPLE`], and [`bounds`] proves how far every band can grow
-//! from there. The inverse saturates every value it loads and stores to those same proven
-//! bounds. Coefficients that came from the forward transform are always inside them, so
-//! reconstruction stays exact; edited coefficients (fusion) can never push a value past
-//! them.
+//! from there. The inverse saturates to those same bounds every value it stores and every
+//! coefficient it loads (fused ones, convex combinations of in-bound ones, skip that:
+//! `Coefficients`). Forward-transform output is always inside them, so reconstruction
+//! stays exact; edited coefficients can never push a value past them.
 
 pub mod bounds;
 mod db2;
