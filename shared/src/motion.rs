@@ -5,7 +5,7 @@
 //! interval before step `n + 1` is `t(n+1) − t(n)`, in timer ticks computed exactly from
 //! the integer square root of `2n·f²/a` (no accumulated rounding: each step's time is
 //! rounded on its own). At the target speed `v` the interval is `f/v`; slowing down walks
-//! the same ramp back. [`Ramp::next`] gives the interval before each step and whether that
+//! the same ramp back. [`Ramp::next_step`] gives the interval before each step and whether that
 //! step triggers a frame (every `steps_per_frame` steps).
 
 /// How the belt and the stepper relate, and the timer's clock.

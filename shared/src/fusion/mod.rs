@@ -10,7 +10,7 @@
 //! - the inverse transform of the result (eq. 7).
 //!
 //! The same driver runs the integer path ([`fuse_pair`], what the MCU runs) and the `f32`
-//! path ([`crate::float`]); the [`Arith`] trait is the seam between them.
+//! path ([`crate::float`]); the crate-private `Arith` trait is the seam between them.
 
 mod cyclic;
 pub(crate) mod integer;
