@@ -45,8 +45,8 @@ pub(crate) trait Lift:
 {
     /// Whether to lift step by step, one pass per step over the split channels, rather than
     /// in one sweep over sample pairs. Floats do: each pass vectorizes, and on x86-64 the
-    /// `f32` fuse step ran 10–13 % slower in one sweep (`cargo bench -p rollfuse-core
-    /// --bench kernels -- fuse_step/f32`). Integers sweep once: it saves the Cortex-M7 a
+    /// `f32` db2 fuse step ran 8–20 % slower in one sweep (head to head, docs/numerics.md:
+    /// `cargo bench -p rollfuse-core --bench kernels -- fuse_step/f32`). Integers sweep once: it saves the Cortex-M7 a
     /// load and a store per sample and step (the device pipeline, `tests/mcu-bench`), and
     /// their rounded 64-bit products do not vectorize anyway.
     const STEPWISE: bool;
@@ -466,8 +466,9 @@ pub(crate) enum Coefficients {
     /// Each coefficient already lies within its band's bound: it came from the forward
     /// transform of samples within `±MAX_SAMPLE`, or is a convex combination of such
     /// coefficients of the same band (what fusion makes of them). Loads skip the
-    /// saturation; stores still saturate, since such coefficients need not be the
-    /// transform of any image in range.
+    /// saturation, except on levels one row high (their low band is the deeper level's
+    /// output, not a coefficient); stores still saturate, since such coefficients need
+    /// not be the transform of any image in range.
     InBounds,
 }
 
@@ -497,11 +498,10 @@ pub(crate) fn inverse_level<T: Lift>(
     }
     if w > 1 {
         // After a column pass the rows hold its output, already saturated to the row
-        // bands' bounds: loading them saturates nothing more.
-        let load_bounds = match (h > 1, coefficients) {
-            (true, _) | (false, Coefficients::InBounds) => None,
-            (false, Coefficients::Any) => Some((bounds.row_low, bounds.row_high)),
-        };
+        // bands' bounds: loading them saturates nothing more. Without one, loads always
+        // saturate: a one-row level's low band holds the deeper level's reconstruction,
+        // which fused coefficients can push past the row-low bound (up to LL's).
+        let load_bounds = (h == 1).then_some((bounds.row_low, bounds.row_high));
         for y in 0..h {
             if let Some(row) = dims.row_mut(buf, y) {
                 inverse_row(wavelet, row, scratch, load_bounds, bounds.input);
