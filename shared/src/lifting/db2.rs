@@ -455,10 +455,10 @@ fn update2<T: Lift>(low: &mut [T], high: &[T], w: usize, (nl, nh): (usize, usize
     }
 }
 
-/// Step-by-step forward lifting (float lines; the reference the one-sweep forms are
-/// tested against) of the split channels, in place, on rows of `width` samples lifted side by side (`width` 1 for a single line; a block of columns on the column pass). `low` has
-/// `nl` rows, `high` `nh` rows, `nl` = `nh` or `nh + 1`. A length-1 signal (no odd
-/// sample) is left as it is.
+/// Step-by-step forward lifting of the split channels, in place (the float path; the
+/// reference the one-sweep forms are tested against), on rows of `width` samples lifted
+/// side by side (`width` 1 for a line, a block's width on the column pass). `low` has `nl`
+/// rows, `high` `nh` rows, `nl` = `nh` or `nh + 1`; a length-1 signal is left as it is.
 pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T], width: usize) {
     let w = width.max(1);
     let n = (low.len() / w, high.len() / w);

@@ -115,7 +115,7 @@ pub(crate) fn inverse_block<T: Lift>(
     }
 }
 
-/// Forward S-transform of the split channels, in place (float lines; the reference the
+/// Forward S-transform of the split channels, in place (the float path; the reference the
 /// line and block forms are tested against). Rows of any width lifted side by
 /// side pair up element by element, so the flattened channels are all it needs.
 pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T]) {

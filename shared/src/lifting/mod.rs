@@ -159,7 +159,7 @@ impl Wavelet {
     }
 
     /// Forward lifting of split channels made of rows of `width` samples side by side,
-    /// step by step (float lines; the reference the one-sweep forms are tested against).
+    /// step by step (the float path; the reference the one-sweep forms are tested against).
     fn forward_split<T: Lift>(self, low: &mut [T], high: &mut [T], width: usize) {
         match self {
             Wavelet::Haar => haar::forward(low, high),
@@ -239,7 +239,7 @@ fn forward_row<T: Lift>(wavelet: Wavelet, row: &mut [T], scratch: &mut [T]) {
 /// One forward 1-D pass over a strided `line`, element by element: the reference the
 /// row and column-block passes are tested against.
 #[cfg(test)]
-fn forward_line<T: Lift>(wavelet: Wavelet, buf: &mut [T], line: Line, scratch: &mut [T]) {
+fn forward_line_reference<T: Lift>(wavelet: Wavelet, buf: &mut [T], line: Line, scratch: &mut [T]) {
     let nl = line.len.div_ceil(2);
     let work = &mut scratch[..line.len];
     for (k, p) in line.positions().enumerate() {
@@ -695,7 +695,7 @@ mod tests {
             assert!(region_within(&buf, w, 0, 0, lw, lh, b.input));
             if lw > 1 {
                 for y in 0..lh {
-                    forward_line(wavelet, &mut buf, Line::row(d, y), &mut scratch);
+                    forward_line_reference(wavelet, &mut buf, Line::row(d, y), &mut scratch);
                 }
                 assert!(region_within(&buf, w, 0, 0, nlx, lh, b.row_low), "row low");
                 assert!(
@@ -705,7 +705,7 @@ mod tests {
             }
             if lh > 1 {
                 for x in 0..lw {
-                    forward_line(wavelet, &mut buf, Line::column(d, x), &mut scratch);
+                    forward_line_reference(wavelet, &mut buf, Line::column(d, x), &mut scratch);
                 }
             }
             assert!(region_within(&buf, w, 0, 0, nlx, nly, b.ll), "LL");
