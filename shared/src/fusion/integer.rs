@@ -28,6 +28,8 @@ impl Arith for i32 {
         norm: SaliencyNorm,
         wavelet: Wavelet,
         level: u8,
+        // Never given: `check_and_max` leaves the scan to this function.
+        _known_max: Option<i32>,
         row: &mut [i32],
         f: impl FnMut(usize, &[i32]),
     ) {
@@ -150,7 +152,16 @@ pub fn fuse_u8(
         },
         ..*cfg
     };
-    fuse_generic(work.a, work.b, packed, cfg, ll_weight, parts, &Sequential)?;
+    fuse_generic(
+        work.a,
+        work.b,
+        packed,
+        cfg,
+        ll_weight,
+        parts,
+        [None; 2],
+        &Sequential,
+    )?;
     let half = 1 << (GUARD_BITS - 1);
     for v in work.a.iter_mut().take(packed.pixels()) {
         *v = ((*v + half) >> GUARD_BITS).clamp(0, 255);

@@ -62,6 +62,14 @@ pub struct FuseConfig {
     pub ll_weighting: LlWeighting,
 }
 
+impl Ablation {
+    /// Whether the high bands take saliency weights (not so without the wavelet, or
+    /// with max-|coefficient| selection).
+    pub(crate) fn uses_saliency(self) -> bool {
+        !matches!(self, Ablation::NoWavelet | Ablation::MaxHigh)
+    }
+}
+
 impl Default for FuseConfig {
     /// db2, one level (the paper's setting), full method, per-image normalization.
     fn default() -> Self {
@@ -152,13 +160,16 @@ pub(crate) trait Arith: Copy + Default + Send + Sync + core::ops::AddAssign {
     fn inverse(wavelet: Wavelet, buf: &mut [Self], dims: Dims, levels: u8, scratch: &mut [Self]);
     /// Calls `f(y, S)` with the row of saliencies `S = exp(Sal/255) − 1` of every row `y`
     /// of the level input, built in `row` (nothing at all for a flat region, whose `S` is 0
-    /// everywhere).
+    /// everywhere). `known_max`, where given, is the level input's largest `|∇²I|` under
+    /// [`SaliencyNorm::Local`], found by [`Arith::check_and_max`]: no scan for it then.
+    #[allow(clippy::too_many_arguments)]
     fn saliency_rows(
         buf: &[Self],
         dims: Dims,
         norm: SaliencyNorm,
         wavelet: Wavelet,
         level: u8,
+        known_max: Option<Self>,
         row: &mut [Self],
         f: impl FnMut(usize, &[Self]),
     );
@@ -172,6 +183,19 @@ pub(crate) trait Arith: Copy + Default + Send + Sync + core::ops::AddAssign {
     fn abs_ge(a: Self, b: Self) -> bool;
     /// Refuses samples this path cannot take (out of the proven range, or not finite).
     fn check_samples(buf: &[Self], dims: Dims) -> Result<(), Error>;
+    /// [`Arith::check_samples`], and with `local_max` the image's largest `|∇²I|` (what
+    /// [`SaliencyNorm::Local`] normalizes level 1 by) where this path finds it in the same
+    /// pass over the image; `None` leaves that scan to [`Arith::saliency_rows`]. `row` is
+    /// a line of scratch.
+    fn check_and_max(
+        buf: &[Self],
+        dims: Dims,
+        local_max: bool,
+        row: &mut [Self],
+    ) -> Result<Option<Self>, Error> {
+        let _ = (local_max, row);
+        Self::check_samples(buf, dims).map(|()| None)
+    }
 }
 
 /// Runs the two independent halves of a fuse step level (each image's saliency and
@@ -212,10 +236,12 @@ pub(crate) fn fuse_pair_checked<T: Arith>(
     if ll_weight.0 > 1 << 15 {
         return Err(Error::InvalidParameter { name: "ll_weight" });
     }
-    T::check_samples(a, dims)?;
-    T::check_samples(b, dims)?;
     let work = split_scratch(scratch, crate::lifting::scratch_len(dims), lines, dims)?;
-    fuse_generic(a, b, dims, cfg, ll_weight, work, join)
+    // Both images are checked before either is touched; the level-1 maxima come along.
+    let local_max = cfg.norm == SaliencyNorm::Local && cfg.ablation.uses_saliency();
+    let max_a = T::check_and_max(a, dims, local_max, work.line)?;
+    let max_b = T::check_and_max(b, dims, local_max, work.line)?;
+    fuse_generic(a, b, dims, cfg, ll_weight, work, [max_a, max_b], join)
 }
 
 /// Scratch a fuse step needs besides its transform line: one window map per image, each
@@ -267,47 +293,60 @@ pub(crate) fn split_scratch<T>(
 }
 
 /// Fills `map` (`layout.map_dims(dims)`, row-major) with the 2×2 window sums of the
-/// level input's saliency, a row at a time (`row` is a line of scratch).
+/// level input's saliency, a row at a time (`row` is a line of scratch; `known_max` as
+/// for [`Arith::saliency_rows`]).
+#[allow(clippy::too_many_arguments)]
 fn window_saliency<T: Arith>(
     buf: &[T],
     dims: Dims,
     cfg: &FuseConfig,
     level: u8,
+    known_max: Option<T>,
     layout: WindowLayout,
     map: &mut [T],
     row: &mut [T],
 ) {
     let (mw, _) = layout.map_dims(dims);
     map.fill(T::default());
-    T::saliency_rows(buf, dims, cfg.norm, cfg.wavelet, level, row, |y, srow| {
-        let m = (y + layout.phase) / 2;
-        // The map has `map_dims(dims)` rows; a short `map` just loses the row.
-        let Some(map_row) = map.get_mut(m * mw..(m + 1) * mw) else {
-            return;
-        };
-        // With phase 1, entry 0 holds pixel 0 alone and entry m ≥ 1 pixels 2m − 1, 2m.
-        let (map_row, srow) = if layout.phase == 1 {
-            let (Some((first, map_rest)), Some((&s0, s_rest))) =
-                (map_row.split_first_mut(), srow.split_first())
-            else {
+    let (norm, wavelet) = (cfg.norm, cfg.wavelet);
+    T::saliency_rows(
+        buf,
+        dims,
+        norm,
+        wavelet,
+        level,
+        known_max,
+        row,
+        |y, srow| {
+            let m = (y + layout.phase) / 2;
+            // The map has `map_dims(dims)` rows; a short `map` just loses the row.
+            let Some(map_row) = map.get_mut(m * mw..(m + 1) * mw) else {
                 return;
             };
-            *first += s0;
-            (map_rest, s_rest)
-        } else {
-            (map_row, srow)
-        };
-        let (pairs, odd_end) = srow.as_chunks::<2>();
-        let odd_end = odd_end.first().copied();
-        let full = pairs.len();
-        for (acc, &[p0, p1]) in map_row.iter_mut().zip(pairs) {
-            *acc += p0;
-            *acc += p1;
-        }
-        if let (Some(v), Some(acc)) = (odd_end, map_row.get_mut(full)) {
-            *acc += v;
-        }
-    });
+            // With phase 1, entry 0 holds pixel 0 alone and entry m ≥ 1 pixels 2m − 1, 2m.
+            let (map_row, srow) = if layout.phase == 1 {
+                let (Some((first, map_rest)), Some((&s0, s_rest))) =
+                    (map_row.split_first_mut(), srow.split_first())
+                else {
+                    return;
+                };
+                *first += s0;
+                (map_rest, s_rest)
+            } else {
+                (map_row, srow)
+            };
+            let (pairs, odd_end) = srow.as_chunks::<2>();
+            let odd_end = odd_end.first().copied();
+            let full = pairs.len();
+            for (acc, &[p0, p1]) in map_row.iter_mut().zip(pairs) {
+                *acc += p0;
+                *acc += p1;
+            }
+            if let (Some(v), Some(acc)) = (odd_end, map_row.get_mut(full)) {
+                *acc += v;
+            }
+        },
+    );
 }
 
 /// Fuses one row of a high band: `a = W₁·a + (1 − W₁)·b` with `w` the row of `W₁`, or with
@@ -328,9 +367,10 @@ fn fuse_band_row<T: Arith>(a: &mut [T], b: &[T], w: &[T], weights: bool) {
 }
 
 /// The fuse step, generic over the path. `a` and `b` hold the two images on `dims`
-/// (already validated); the fused image replaces `a`, `b` is consumed. The errors cannot
-/// happen after the callers' checks: they stand in for the panics of slicing past a
-/// buffer's end.
+/// (already validated, with their level-1 `|∇²I|` maxima where the check found them);
+/// the fused image replaces `a`, `b` is consumed. The errors cannot happen after the
+/// callers' checks: they stand in for the panics of slicing past a buffer's end.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn fuse_generic<T: Arith>(
     a: &mut [T],
     b: &mut [T],
@@ -338,6 +378,7 @@ pub(crate) fn fuse_generic<T: Arith>(
     cfg: &FuseConfig,
     ll_weight: LlWeight,
     work: Work<'_, T>,
+    [max_a, max_b]: [Option<T>; 2],
     join: &impl Join,
 ) -> Result<(), Error> {
     let Work {
@@ -349,7 +390,7 @@ pub(crate) fn fuse_generic<T: Arith>(
     if cfg.ablation == Ablation::NoWavelet {
         return mix_region(a, b, dims, ll_weight).ok_or(image_error);
     }
-    let with_weights = cfg.ablation != Ablation::MaxHigh;
+    let with_weights = cfg.ablation.uses_saliency();
     let layout = WindowLayout::of(cfg.wavelet);
     let [hl_shift, lh_shift, hh_shift] = layout.shifts;
     let mut d = dims;
@@ -364,17 +405,18 @@ pub(crate) fn fuse_generic<T: Arith>(
         let map_b = rest.get_mut(..mw * mh).ok_or(maps_error)?;
         // Each image's saliency (read before its transform overwrites it), then its
         // transform: the two images are independent until the weights.
-        let side = |img: &mut [T], map: &mut [T], line: &mut [T]| {
+        let side = |img: &mut [T], max: Option<T>, map: &mut [T], line: &mut [T]| {
             if with_weights {
-                window_saliency(img, d, cfg, level, layout, map, line);
+                let known_max = if level == 1 { max } else { None };
+                window_saliency(img, d, cfg, level, known_max, layout, map, line);
             }
             T::forward_level(cfg.wavelet, img, d, line);
         };
         match line_b.as_deref_mut() {
-            Some(lb) => join.join(|| side(a, map_a, line), || side(b, map_b, lb)),
+            Some(lb) => join.join(|| side(a, max_a, map_a, line), || side(b, max_b, map_b, lb)),
             None => {
-                side(a, map_a, line);
-                side(b, map_b, line);
+                side(a, max_a, map_a, line);
+                side(b, max_b, map_b, line);
             }
         }
         if with_weights {
