@@ -176,8 +176,7 @@ impl<T: Float> Arith for T {
     }
 
     /// One pass for both: each row is checked while it is in cache for its Laplacian,
-    /// which saves a read of each image (at 1280×960 the check alone read for about 4 %
-    /// of a fuse step).
+    /// which saves a read of each image from memory.
     fn check_and_max(
         buf: &[T],
         dims: Dims,
