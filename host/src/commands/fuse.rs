@@ -2,7 +2,7 @@
 
 use super::{AblationArg, LlWeightingArg, WaveletArg, check_writable, simulate::progress};
 use crate::fullres::align::{Aligned, Match, Offset, TemplateParams, align_chain};
-use crate::fullres::{Placed, Precision, fuse_mosaic};
+use crate::fullres::{Precision, fuse_mosaic_mut};
 use crate::image::Planes;
 use anyhow::{Context, bail};
 use rollfuse_core::{FuseConfig, SaliencyNorm};
@@ -223,11 +223,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     match args.align {
         AlignArg::None => {
             record.align = "none";
-            for (p, f) in args.frames.iter().zip(&frames) {
-                placed.push(Placed {
-                    image: f,
-                    at: Offset { dy: 0, dx: 0 },
-                });
+            for (k, p) in args.frames.iter().enumerate() {
+                placed.push((k, Offset { dy: 0, dx: 0 }));
                 record.frames.push(FrameOffset {
                     file: p,
                     at: Offset { dy: 0, dx: 0 },
@@ -239,8 +236,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             record.align = "motion";
             let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
             let offsets = motion_offsets(&manifest, &args.frames)?;
-            for ((p, f), at) in args.frames.iter().zip(&frames).zip(offsets) {
-                placed.push(Placed { image: f, at });
+            for ((k, p), at) in args.frames.iter().enumerate().zip(offsets) {
+                placed.push((k, at));
                 record.frames.push(FrameOffset {
                     file: p,
                     at,
@@ -258,7 +255,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             };
             let bar = progress(frames.len(), "frames", "aligning".into());
             let chain = align_chain(&frames, &params, |k| bar.set_position(k as u64));
-            for ((file, frame), aligned) in args.frames.iter().zip(&frames).zip(chain) {
+            for ((k, file), aligned) in args.frames.iter().enumerate().zip(chain) {
                 match aligned {
                     Aligned::Placed { at, matched } => {
                         if let Some(m) = matched.filter(Match::is_ambiguous) {
@@ -269,7 +266,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                                 m.runner_up
                             );
                         }
-                        placed.push(Placed { image: frame, at });
+                        placed.push((k, at));
                         record.frames.push(FrameOffset { file, at, matched });
                     }
                     Aligned::Skipped(reason) => {
@@ -285,8 +282,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
 
+    // Fusion may work in the frames (they are not needed afterwards): no copies.
+    let mut frames: Vec<Option<Planes>> = frames.into_iter().map(Some).collect();
+    let mut placed: Vec<(Planes, Offset)> = placed
+        .into_iter()
+        .filter_map(|(k, at)| Some((frames.get_mut(k)?.take()?, at)))
+        .collect();
     let started = std::time::Instant::now();
-    let fused = fuse_mosaic(&placed, &cfg, args.precision)?;
+    let fused = fuse_mosaic_mut(&mut placed, &cfg, args.precision)?;
     let took = started.elapsed().as_secs_f64();
     let bits = match args.out_bits {
         OutBits::Eight => 8,
