@@ -259,8 +259,11 @@ fn expm1_unit(x: f32) -> f32 {
         0.006_990_449,
         0.002_298_695,
     ];
-    let mut acc = 0.0f32;
-    for &c in Q.iter().rev() {
+    // Horner from the top coefficient (0·x + c is c for every finite x, but the
+    // compiler may not assume that of floats and would keep the product).
+    let (&top, rest) = Q.split_last().unwrap_or((&0.0, &[]));
+    let mut acc = top;
+    for &c in rest.iter().rev() {
         acc = acc * x + c;
     }
     x * acc
