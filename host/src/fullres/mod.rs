@@ -184,25 +184,14 @@ fn fuse_channel(
     let mut frames = planes.into_iter().zip(starts).enumerate();
     // When every frame covers the whole canvas the first passes through as the mosaic
     // (what the general case below makes of it) and no pixel needs tracking.
-    let (mut mosaic, mut seen) = match frames.next() {
-        Some((_, (first, _))) if (cw, ch) == (w, h) => {
-            let mosaic = match first {
-                FrameRef::Kept(plane) => plane.clone(),
-                FrameRef::Spent(plane) => std::mem::take(plane),
-            };
-            (mosaic, None)
-        }
-        first => {
-            let mut mosaic = vec![0f32; cw * ch];
-            let mut seen = vec![false; cw * ch];
-            if let Some((_, (frame, &start))) = first {
-                for (y, row) in frame.chunks_exact(w).enumerate() {
-                    let span = start + y * cw..start + y * cw + w;
-                    fill_holes(&mut mosaic[span.clone()], &mut seen[span], row);
-                }
-            }
-            (mosaic, Some(seen))
-        }
+    let (mut mosaic, mut seen) = if (cw, ch) == (w, h) {
+        let first = frames.next().map(|(_, (plane, _))| match plane {
+            FrameRef::Kept(plane) => plane.clone(),
+            FrameRef::Spent(plane) => std::mem::take(plane),
+        });
+        (first.unwrap_or_default(), None)
+    } else {
+        (vec![0f32; cw * ch], Some(vec![false; cw * ch]))
     };
     for (k, (frame, &start)) in frames {
         // The footprint's holes take the frame's own values: fusing them with themselves
