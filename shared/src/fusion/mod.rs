@@ -308,12 +308,11 @@ fn window_saliency<T: Arith>(
 ) {
     let (mw, _) = layout.map_dims(dims);
     map.fill(T::default());
-    let (norm, wavelet) = (cfg.norm, cfg.wavelet);
     T::saliency_rows(
         buf,
         dims,
-        norm,
-        wavelet,
+        cfg.norm,
+        cfg.wavelet,
         level,
         known_max,
         row,

@@ -195,7 +195,7 @@ pub fn scratch_len(dims: Dims) -> usize {
 }
 
 /// [`scratch_len`] for a `width × height` image, usable in constants:
-/// `max(w, min(w, 16)·h)`.
+/// `max(w, min(w, COLUMN_BLOCK)·h)`.
 pub const fn scratch_words(width: usize, height: usize) -> usize {
     let block = if width < COLUMN_BLOCK {
         width
