@@ -70,7 +70,7 @@ pub fn fuse_scratch_len(dims: Dims) -> usize {
 }
 
 /// [`fuse_scratch_len`] for a `width × height` image, usable in constants (array sizes):
-/// `max(w, min(w, 16)·h)` for the transform ([`lifting::scratch_len`]) plus
+/// `max(w, min(w, COLUMN_BLOCK)·h)` for the transform ([`lifting::scratch_len`]) plus
 /// `2·(⌈w/2⌉ + 1)·(⌈h/2⌉ + 1)` for the two saliency maps.
 pub const fn fuse_scratch_words(width: usize, height: usize) -> usize {
     lifting::scratch_words(width, height) + maps_len(width, height)
