@@ -425,10 +425,9 @@ pub(crate) fn fuse_generic<T: Arith>(
             }
         }
         let nlx = d.width().div_ceil(2);
-        let nly = d.height().div_ceil(2);
-        // Row y of the transformed level: HL right of the low columns for y < nly; LH and
-        // HH below. `weights((sx, sy), j, len)` is row j of W₁ for the band whose map
-        // entries are shifted by `(sx, sy)`.
+        // Row y of the transformed level: HL right of the low columns for even y; LH and
+        // HH for odd y, each band's row y / 2 (`crate::geometry`). `weights((sx, sy), j,
+        // len)` is row j of W₁ for the band whose map entries are shifted by `(sx, sy)`.
         let weights = |(sx, sy): (usize, usize), j: usize, len: usize| {
             let start = (j + sy) * mw + sx;
             map_a.get(start..start + len).ok_or(maps_error)
@@ -440,11 +439,11 @@ pub(crate) fn fuse_generic<T: Arith>(
             // nlx = ⌈w/2⌉ ≤ w, the rows' length.
             let (low_a, high_a) = ra.split_at_mut(nlx);
             let (low_b, high_b) = rb.split_at(nlx);
-            if y < nly {
-                let w_hl = weights(hl_shift, y, high_a.len())?;
+            let j = y / 2;
+            if y % 2 == 0 {
+                let w_hl = weights(hl_shift, j, high_a.len())?;
                 fuse_band_row(high_a, high_b, w_hl, with_weights);
             } else {
-                let j = y - nly;
                 let w_lh = weights(lh_shift, j, low_a.len())?;
                 fuse_band_row(low_a, low_b, w_lh, with_weights);
                 let w_hh = weights(hh_shift, j, high_a.len())?;

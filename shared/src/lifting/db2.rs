@@ -15,7 +15,7 @@
 //! channel, so the inverse applies the same extension to the same values and undoes each
 //! step exactly, for every length ≥ 1.
 
-use super::{Lift, block_row};
+use super::{ColumnBounds, Lift, row_pair, rows_at, segment};
 use crate::geometry::mirror;
 
 /// Fraction bits of the lifting constants.
@@ -187,196 +187,175 @@ pub(crate) fn inverse_line<T: Lift>(src: &[T], dst: &mut [T], out_bound: i32) {
     }
 }
 
-/// `dst[j] = f(a[j], b[j])` over a block row.
-#[inline(always)]
-fn lanes<T: Copy>(dst: &mut [T], a: &[T], b: &[T], f: impl Fn(T, T) -> T) {
-    for (d, (&x, &y)) in dst.iter_mut().zip(a.iter().zip(b)) {
-        *d = f(x, y);
-    }
-}
-
-/// Forward lifting of a block of `w` columns, `n` rows long, lifted side by side: row `k`
-/// of the input starts at `k·stride` in `src`; `dst` gets `n` contiguous rows of `w`, the
-/// low band's first. Low rows hold `s¹` until the next row's `d¹` turns them into `s²`.
-pub(crate) fn forward_block<T: Lift>(src: &[T], stride: usize, w: usize, n: usize, dst: &mut [T]) {
+/// Forward lifting of the columns of a region, in place, in one sweep down its rows: `buf`
+/// holds `n` rows of `w` samples, `stride` apart. On return row `2l` holds row `l` of the
+/// low band and row `2l + 1` row `l` of the high band (the layout of
+/// [`crate::geometry`]). Each step works on whole rows, so the sweep reads and writes the
+/// region once, front to back.
+pub(crate) fn forward_columns<T: Lift>(buf: &mut [T], stride: usize, w: usize, n: usize) {
     let (nl, nh) = (n.div_ceil(2), n / 2);
-    let Some(dst) = dst.get_mut(..n * w) else {
-        return;
-    };
-    let row = |k: usize| block_row(src, k, stride, w);
     if nh == 0 {
-        lanes(dst, row(0), row(0), |v, _| v);
         return;
     }
-    let (low, high) = dst.split_at_mut(nl * w);
-    let s1_into = |low: &mut [T], l: usize| {
-        let o = row(2 * odd_index(l, nh) + 1);
-        lanes(
-            low.get_mut(l * w..(l + 1) * w).unwrap_or_default(),
-            row(2 * l),
-            o,
-            lift_s1,
-        );
-    };
-    // The first pair's d¹ reads s¹ of its mirrored left neighbour (pair 1, or itself).
-    s1_into(low, 0);
-    if nl > 1 {
-        s1_into(low, 1);
-    }
-    {
-        let (s0, rest) = low.split_at(w);
-        let s_prev = if nl > 1 {
-            rest.get(..w).unwrap_or_default()
-        } else {
-            s0
-        };
-        let lanes0 = high.iter_mut().zip(s0.iter().zip(s_prev)).zip(row(1));
-        for ((d, (&s, &sp)), &o) in lanes0 {
-            *d = lift_d1(o, s, sp);
-        }
-    }
-    let mut low_rows = low.chunks_exact_mut(w);
-    if let Some(mut cur) = low_rows.next() {
-        for (l, (next, hi)) in (1..nh).zip(low_rows.zip(high.chunks_exact_mut(w).skip(1))) {
-            let (e_row, o_row) = (row(2 * l), row(2 * l + 1));
-            let lanes = cur.iter_mut().zip(next.iter_mut()).zip(hi.iter_mut());
-            for (((s, s_next), d_next), (&e, &o)) in lanes.zip(e_row.iter().zip(o_row)) {
-                *s_next = lift_s1(e, o);
-                *d_next = lift_d1(o, *s_next, *s);
-                *s -= *d_next;
+    // s¹ first where the sweep needs it before reaching it: pair 0, pair 1 (d¹₀'s mirrored
+    // left neighbour), and an odd length's last even row, whose mirrored odd partner the
+    // sweep overwrites before it gets there.
+    let early = |l: usize| l <= 1 || l >= nh;
+    for l in (0..nl).filter(|&l| early(l)) {
+        if let Some([e, o]) = row_pair(buf, stride, w, 2 * l, 2 * odd_index(l, nh) + 1) {
+            for (e, &o) in e.iter_mut().zip(o.iter()) {
+                *e = lift_s1(*e, o);
             }
-            cur = next;
         }
     }
-    // Row nh − 1 holds s¹; an odd length's last row gets its s¹ now. Both read mirrored d¹.
-    if nl > nh {
-        s1_into(low, nh);
+    // d¹₀ reads its mirrored left neighbour: s¹₁, or s¹₀ itself.
+    if nl > 1 {
+        if let Some([s, o, sp]) = rows_at(buf, stride, w, [0, 1, 2]) {
+            for ((o, &s), &sp) in o.iter_mut().zip(s.iter()).zip(sp.iter()) {
+                *o = lift_d1(*o, s, sp);
+            }
+        }
+    } else if let Some([s, o]) = rows_at(buf, stride, w, [0, 1]) {
+        for (o, &s) in o.iter_mut().zip(s.iter()) {
+            *o = lift_d1(*o, s, s);
+        }
     }
+    // Pair l's s¹ and d¹, and with them pair l − 1's s².
+    for l in 1..nh {
+        let Some([s_prev, s, o]) = rows_at(buf, stride, w, [2 * l - 2, 2 * l, 2 * l + 1]) else {
+            return;
+        };
+        let lanes = s_prev.iter_mut().zip(s.iter_mut()).zip(o.iter_mut());
+        if early(l) {
+            for ((sp, s), o) in lanes {
+                *o = lift_d1(*o, *s, *sp);
+                *sp -= *o;
+            }
+        } else {
+            for ((sp, s), o) in lanes {
+                *s = lift_s1(*s, *o);
+                *o = lift_d1(*o, *s, *sp);
+                *sp -= *o;
+            }
+        }
+    }
+    // The last low rows' s² read mirrored d¹.
     for l in nh - 1..nl {
-        let d = block_row(high, next_index(l, nh), w, w);
-        for (s, &d) in low
-            .get_mut(l * w..(l + 1) * w)
-            .unwrap_or_default()
-            .iter_mut()
-            .zip(d)
-        {
-            *s -= d;
+        if let Some([s, d]) = row_pair(buf, stride, w, 2 * l, 2 * next_index(l, nh) + 1) {
+            for (s, &d) in s.iter_mut().zip(d.iter()) {
+                *s -= d;
+            }
         }
     }
 }
 
-/// Turns a pair's `s¹` row and odd row into its even and odd samples, saturated.
-#[inline(always)]
-fn finish_pair<T: Lift>(even_row: &mut [T], odd_row: &mut [T], out_bounds: &[i32]) {
-    for ((s, o), &b) in even_row.iter_mut().zip(odd_row.iter_mut()).zip(out_bounds) {
-        *s = unlift_even(*s, *o).saturate(b);
-        *o = o.saturate(b);
-    }
-}
-
-/// Inverse of [`forward_block`]: `src` holds `n` contiguous rows of `w` (low band first);
-/// the samples go to rows `stride` apart in `dst`, column `j` saturated to
-/// `±out_bounds[j]`. Even output rows hold `s¹` and odd ones the unsaturated odd samples
-/// until the next row pair is known.
-pub(crate) fn inverse_block<T: Lift>(
-    src: &[T],
+/// Inverse of [`forward_columns`], in place: each output sample is saturated to its
+/// column's bound. Even rows hold `s¹` and odd ones the unsaturated odd samples until the
+/// next row pair is known.
+pub(crate) fn inverse_columns<T: Lift>(
+    buf: &mut [T],
+    stride: usize,
     w: usize,
     n: usize,
-    dst: &mut [T],
-    stride: usize,
-    out_bounds: &[i32],
+    bounds: ColumnBounds,
 ) {
     let (nl, nh) = (n.div_ceil(2), n / 2);
-    let (low, high) = src.split_at(nl * w);
-    let lo = |l: usize| block_row(low, l, w, w);
-    let hi = |l: usize| block_row(high, l, w, w);
-    let s1_into = |out: &mut [T], l: usize| lanes(out, lo(l), hi(next_index(l, nh)), |a, b| a + b);
-    let mut rows = dst
-        .chunks_mut(stride)
-        .map(|r| r.get_mut(..w).unwrap_or_default());
-    let Some(mut even_row) = rows.next() else {
-        return;
-    };
     if nh == 0 {
-        for ((e, &v), &b) in even_row.iter_mut().zip(lo(0)).zip(out_bounds) {
-            *e = v.saturate(b);
+        if let Some([row]) = rows_at(buf, stride, w, [0]) {
+            bounds.saturate(row);
         }
         return;
     }
-    let Some(mut odd_row) = rows.next() else {
-        return;
-    };
-    // Pair 0: s¹ and the odd sample, whose mirrored left neighbour is s¹ of pair 1 (or
-    // itself), made in the next even row.
-    s1_into(even_row, 0);
-    let mut rows = rows.peekable();
-    match rows.peek_mut() {
-        Some(next_even) if nl > 1 => s1_into(next_even, 1),
+    // s¹ = s² + d¹[l + 1] first where the sweep needs it before reaching it (pairs 0 and
+    // 1) or would by then have turned the mirrored d¹ into odd samples (the last pairs).
+    let early = |l: usize| l <= 1 || l + 1 >= nh;
+    for l in (0..nl).filter(|&l| early(l)) {
+        if let Some([s, d]) = row_pair(buf, stride, w, 2 * l, 2 * next_index(l, nh) + 1) {
+            for (s, &d) in s.iter_mut().zip(d.iter()) {
+                *s += d;
+            }
+        }
+    }
+    if nl > 1 {
+        if let Some([s, o, sp]) = rows_at(buf, stride, w, [0, 1, 2]) {
+            for ((o, &s), &sp) in o.iter_mut().zip(s.iter()).zip(sp.iter()) {
+                *o = unlift_odd(*o, s, sp);
+            }
+        }
+    } else if let Some([s, o]) = rows_at(buf, stride, w, [0, 1]) {
+        for (o, &s) in o.iter_mut().zip(s.iter()) {
+            *o = unlift_odd(*o, s, s);
+        }
+    }
+    // An odd length's last even row reads the odd sample of a mirrored pair: made while
+    // that sample is not yet saturated, i.e. before its pair is finished.
+    let last_even = (nl > nh).then(|| (nh, odd_index(nh, nh)));
+    let finish_last_even = |buf: &mut [T], l: usize| match last_even {
+        Some((last, m)) if m == l => {
+            if let Some([o, s]) = rows_at(buf, stride, w, [2 * m + 1, 2 * last]) {
+                for (cols, b) in bounds.segments() {
+                    let lanes = segment(s, &cols).iter_mut().zip(segment(o, &cols).iter());
+                    for (s, &o) in lanes {
+                        *s = unlift_even(*s, o).saturate(b);
+                    }
+                }
+            }
+        }
         _ => {}
-    }
-    {
-        let s_prev: &[T] = match rows.peek() {
-            Some(next_even) if nl > 1 => next_even,
-            _ => even_row,
-        };
-        let lanes0 = odd_row
-            .iter_mut()
-            .zip(even_row.iter().zip(s_prev))
-            .zip(hi(0));
-        for ((o, (&s, &sp)), &d) in lanes0 {
-            *o = unlift_odd(d, s, sp);
-        }
-    }
-    let inner = nh.saturating_sub(2);
-    for l in 0..nl {
-        // The next pair, with mirrored neighbours past the interior.
-        let next_even = if l + 1 < nl { rows.next() } else { None };
-        let next_odd = if l + 1 < nh { rows.next() } else { None };
-        match (next_even, next_odd) {
-            (Some(s_next_row), Some(o_next_row)) if l < inner => {
-                let here = even_row.iter_mut().zip(odd_row.iter_mut()).zip(out_bounds);
-                let ahead = lo(l + 1).iter().zip(hi(l + 1)).zip(hi(l + 2));
-                let next = s_next_row.iter_mut().zip(o_next_row.iter_mut());
-                for (((s, o), &b), ((s_next, o_next), ((&l_next, &h_next), &h_after))) in
-                    here.zip(next.zip(ahead))
-                {
-                    *s_next = l_next + h_after;
-                    *o_next = unlift_odd(h_next, *s_next, *s);
+    };
+    // Pair l + 1's s¹ and odd sample, and pair l's output.
+    for l in 0..nh - 1 {
+        finish_last_even(buf, l);
+        if early(l + 1) {
+            let Some([s, o, s_next, o_next]) =
+                rows_at(buf, stride, w, [2 * l, 2 * l + 1, 2 * l + 2, 2 * l + 3])
+            else {
+                return;
+            };
+            for (cols, b) in bounds.segments() {
+                let lanes = segment(s, &cols)
+                    .iter_mut()
+                    .zip(segment(o, &cols).iter_mut());
+                let next = segment(s_next, &cols)
+                    .iter()
+                    .zip(segment(o_next, &cols).iter_mut());
+                for ((s, o), (&s_next, o_next)) in lanes.zip(next) {
+                    *o_next = unlift_odd(*o_next, s_next, *s);
                     *s = unlift_even(*s, *o).saturate(b);
                     *o = o.saturate(b);
                 }
-                (even_row, odd_row) = (s_next_row, o_next_row);
             }
-            (Some(s_next_row), next_odd) => {
-                s1_into(s_next_row, l + 1);
-                if let Some(o_next_row) = next_odd {
-                    let lanes1 = o_next_row.iter_mut().zip(s_next_row.iter().zip(&*even_row));
-                    for ((o, (&s, &sp)), &d) in lanes1.zip(hi(l + 1)) {
-                        *o = unlift_odd(d, s, sp);
-                    }
-                    finish_pair(even_row, odd_row, out_bounds);
-                    (even_row, odd_row) = (s_next_row, o_next_row);
-                } else {
-                    // Pair l is the last full one; the odd length's last row follows.
-                    finish_pair(even_row, odd_row, out_bounds);
-                    let m = odd_index(l + 1, nh);
-                    let o_m = |j: usize| {
-                        let s1 = |k: usize| {
-                            let (a, b) = (lo(k).get(j), hi(next_index(k, nh)).get(j));
-                            a.copied().unwrap_or_default() + b.copied().unwrap_or_default()
-                        };
-                        let d = hi(m).get(j).copied().unwrap_or_default();
-                        unlift_odd(d, s1(m), s1(prev_index(m, nl)))
-                    };
-                    for (j, (s, &b)) in s_next_row.iter_mut().zip(out_bounds).enumerate() {
-                        *s = unlift_even(*s, o_m(j)).saturate(b);
-                    }
-                    return;
+        } else {
+            let at = [2 * l, 2 * l + 1, 2 * l + 2, 2 * l + 3, 2 * l + 5];
+            let Some([s, o, s_next, o_next, d_after]) = rows_at(buf, stride, w, at) else {
+                return;
+            };
+            for (cols, b) in bounds.segments() {
+                let lanes = segment(s, &cols)
+                    .iter_mut()
+                    .zip(segment(o, &cols).iter_mut());
+                let next = segment(s_next, &cols)
+                    .iter_mut()
+                    .zip(segment(o_next, &cols).iter_mut());
+                let ahead = segment(d_after, &cols).iter();
+                for (((s, o), (s_next, o_next)), &d_after) in lanes.zip(next).zip(ahead) {
+                    *s_next += d_after;
+                    *o_next = unlift_odd(*o_next, *s_next, *s);
+                    *s = unlift_even(*s, *o).saturate(b);
+                    *o = o.saturate(b);
                 }
             }
-            _ => {
-                finish_pair(even_row, odd_row, out_bounds);
-                return;
+        }
+    }
+    finish_last_even(buf, nh - 1);
+    if let Some([s, o]) = rows_at(buf, stride, w, [2 * nh - 2, 2 * nh - 1]) {
+        for (cols, b) in bounds.segments() {
+            let lanes = segment(s, &cols)
+                .iter_mut()
+                .zip(segment(o, &cols).iter_mut());
+            for (s, o) in lanes {
+                *s = unlift_even(*s, *o).saturate(b);
+                *o = o.saturate(b);
             }
         }
     }

@@ -5,7 +5,7 @@
 //! the low and high bands on exit). For an odd length, `low` has one more element than
 //! `high`; the unpaired last sample passes to the low band unchanged.
 
-use super::{Lift, block_row};
+use super::{ColumnBounds, Lift, rows_at, segment};
 
 /// Forward S-transform of one line: `src` holds the samples, `dst` (as long) gets the low
 /// band then the high band.
@@ -43,80 +43,54 @@ pub(crate) fn inverse_line<T: Lift>(src: &[T], dst: &mut [T], out_bound: i32) {
     }
 }
 
-/// Forward S-transform of a block of `w` columns, `n` rows long: row `k` of the input starts
-/// at `k·stride` in `src`; `dst` gets `n` contiguous rows of `w`, the low band's first.
-pub(crate) fn forward_block<T: Lift>(src: &[T], stride: usize, w: usize, n: usize, dst: &mut [T]) {
-    let Some(dst) = dst.get_mut(..n * w) else {
-        return;
-    };
-    let (low, high) = dst.split_at_mut(n.div_ceil(2) * w);
-    for (l, (s_row, d_row)) in low
-        .chunks_exact_mut(w)
-        .zip(high.chunks_exact_mut(w))
-        .enumerate()
-    {
-        let (e_row, o_row) = (
-            block_row(src, 2 * l, stride, w),
-            block_row(src, 2 * l + 1, stride, w),
-        );
-        for ((s, d), (&e, &o)) in s_row
-            .iter_mut()
-            .zip(d_row.iter_mut())
-            .zip(e_row.iter().zip(o_row))
-        {
-            let diff = o - e;
-            *d = diff;
-            *s = e + diff.half();
-        }
-    }
-    if n % 2 == 1 {
-        let last = block_row(src, n - 1, stride, w);
-        if let Some(s_row) = low.get_mut((n / 2) * w..) {
-            for (s, &v) in s_row.iter_mut().zip(last) {
-                *s = v;
+/// Forward S-transform of the columns of a region, in place: `buf` holds `n` rows of `w`
+/// samples, `stride` apart; row pair `(2l, 2l + 1)` becomes low-band row `l` and
+/// high-band row `l` in its place (an odd length's last row is low already).
+pub(crate) fn forward_columns<T: Lift>(buf: &mut [T], stride: usize, w: usize, n: usize) {
+    for l in 0..n / 2 {
+        if let Some([e_row, o_row]) = rows_at(buf, stride, w, [2 * l, 2 * l + 1]) {
+            for (e, o) in e_row.iter_mut().zip(o_row.iter_mut()) {
+                let diff = *o - *e;
+                *o = diff;
+                *e += diff.half();
             }
         }
     }
 }
 
-/// Inverse of [`forward_block`]: `src` holds `n` contiguous rows of `w` (low band first);
-/// the samples go to rows `stride` apart in `dst`, column `j` saturated to `±out_bounds[j]`.
-pub(crate) fn inverse_block<T: Lift>(
-    src: &[T],
+/// Inverse of [`forward_columns`], in place, each output sample saturated to its column's
+/// bound.
+pub(crate) fn inverse_columns<T: Lift>(
+    buf: &mut [T],
+    stride: usize,
     w: usize,
     n: usize,
-    dst: &mut [T],
-    stride: usize,
-    out_bounds: &[i32],
+    bounds: ColumnBounds,
 ) {
-    let nl = n.div_ceil(2);
-    let (low, high) = src.split_at(nl * w);
-    let mut rows = dst
-        .chunks_mut(stride)
-        .map(|r| r.get_mut(..w).unwrap_or_default());
-    for (s_row, d_row) in low.chunks_exact(w).zip(high.chunks_exact(w)) {
-        let (Some(e_row), Some(o_row)) = (rows.next(), rows.next()) else {
+    for l in 0..n / 2 {
+        let Some([s_row, d_row]) = rows_at(buf, stride, w, [2 * l, 2 * l + 1]) else {
             return;
         };
-        let lanes = e_row.iter_mut().zip(o_row.iter_mut()).zip(out_bounds);
-        for (((e, o), &b), (&s, &d)) in lanes.zip(s_row.iter().zip(d_row)) {
-            let even = s - d.half();
-            *e = even.saturate(b);
-            *o = (d + even).saturate(b);
-        }
-    }
-    if n % 2 == 1 {
-        let last = block_row(low, nl - 1, w, w);
-        if let Some(e_row) = rows.next() {
-            for ((e, &s), &b) in e_row.iter_mut().zip(last).zip(out_bounds) {
-                *e = s.saturate(b);
+        for (cols, b) in bounds.segments() {
+            let lanes = segment(s_row, &cols)
+                .iter_mut()
+                .zip(segment(d_row, &cols).iter_mut());
+            for (s, d) in lanes {
+                let even = *s - d.half();
+                *s = even.saturate(b);
+                *d = (*d + even).saturate(b);
             }
         }
+    }
+    if n % 2 == 1
+        && let Some([last]) = rows_at(buf, stride, w, [n - 1])
+    {
+        bounds.saturate(last);
     }
 }
 
 /// Forward S-transform of the split channels, in place (the float path; the reference the
-/// line and block forms are tested against). Rows of any width lifted side by
+/// line and column forms are tested against). Rows of any width lifted side by
 /// side pair up element by element, so the flattened channels are all it needs.
 pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T]) {
     for (s, d) in low.iter_mut().zip(high.iter_mut()) {
