@@ -15,7 +15,7 @@
 //! channel, so the inverse applies the same extension to the same values and undoes each
 //! step exactly, for every length ≥ 1.
 
-use super::{ColumnBounds, Lift, row_pair, rows_at, segment};
+use super::{ColumnBounds, Lift, RowsReady, row_pair, rows_at, segment};
 use crate::geometry::mirror;
 
 /// Fraction bits of the lifting constants.
@@ -191,9 +191,15 @@ pub(crate) fn inverse_line<T: Lift>(src: &[T], dst: &mut [T], out_bound: i32) {
 /// holds `n` rows of `w` samples, `stride` apart. On return row `2l` holds row `l` of the
 /// low band and row `2l + 1` row `l` of the high band (the layout of
 /// [`crate::geometry`]). Each step works on whole rows, so the sweep reads and writes the
-/// region once, front to back.
-pub(crate) fn forward_columns<T: Lift>(buf: &mut [T], stride: usize, w: usize, n: usize) {
+/// region once, front to back; `ready` runs the row pass on each row before the sweep
+/// first reads it.
+pub(crate) fn forward_columns<T: Lift, F: FnMut(&mut [T])>(
+    buf: &mut [T],
+    (stride, w, n): (usize, usize, usize),
+    ready: &mut RowsReady<'_, F>,
+) {
     let (nl, nh) = (n.div_ceil(2), n / 2);
+    ready.through(buf, (stride, w), n.min(4).saturating_sub(1));
     if nh == 0 {
         return;
     }
@@ -201,6 +207,10 @@ pub(crate) fn forward_columns<T: Lift>(buf: &mut [T], stride: usize, w: usize, n
     // left neighbour), and an odd length's last even row, whose mirrored odd partner the
     // sweep overwrites before it gets there.
     let early = |l: usize| l <= 1 || l >= nh;
+    if nl > nh {
+        ready.early(buf, (stride, w), 2 * nh);
+        ready.early(buf, (stride, w), 2 * odd_index(nh, nh) + 1);
+    }
     for l in (0..nl).filter(|&l| early(l)) {
         if let Some([e, o]) = row_pair(buf, stride, w, 2 * l, 2 * odd_index(l, nh) + 1) {
             for (e, &o) in e.iter_mut().zip(o.iter()) {
@@ -222,6 +232,7 @@ pub(crate) fn forward_columns<T: Lift>(buf: &mut [T], stride: usize, w: usize, n
     }
     // Pair l's s¹ and d¹, and with them pair l − 1's s².
     for l in 1..nh {
+        ready.through(buf, (stride, w), 2 * l + 1);
         let Some([s_prev, s, o]) = rows_at(buf, stride, w, [2 * l - 2, 2 * l, 2 * l + 1]) else {
             return;
         };
@@ -240,6 +251,7 @@ pub(crate) fn forward_columns<T: Lift>(buf: &mut [T], stride: usize, w: usize, n
         }
     }
     // The last low rows' s² read mirrored d¹.
+    ready.through(buf, (stride, w), n - 1);
     for l in nh - 1..nl {
         if let Some([s, d]) = row_pair(buf, stride, w, 2 * l, 2 * next_index(l, nh) + 1) {
             for (s, &d) in s.iter_mut().zip(d.iter()) {
@@ -250,19 +262,19 @@ pub(crate) fn forward_columns<T: Lift>(buf: &mut [T], stride: usize, w: usize, n
 }
 
 /// Inverse of [`forward_columns`], in place: each output sample is saturated to its
-/// column's bound. Even rows hold `s¹` and odd ones the unsaturated odd samples until the
-/// next row pair is known.
-pub(crate) fn inverse_columns<T: Lift>(
+/// column's bound, and `done` runs on each row as soon as it is final. Even rows hold `s¹`
+/// and odd ones the unsaturated odd samples until the next row pair is known.
+pub(crate) fn inverse_columns<T: Lift, D: FnMut(&mut [T])>(
     buf: &mut [T],
-    stride: usize,
-    w: usize,
-    n: usize,
+    (stride, w, n): (usize, usize, usize),
     bounds: ColumnBounds,
+    done: &mut D,
 ) {
     let (nl, nh) = (n.div_ceil(2), n / 2);
     if nh == 0 {
         if let Some([row]) = rows_at(buf, stride, w, [0]) {
             bounds.saturate(row);
+            done(row);
         }
         return;
     }
@@ -290,7 +302,7 @@ pub(crate) fn inverse_columns<T: Lift>(
     // An odd length's last even row reads the odd sample of a mirrored pair: made while
     // that sample is not yet saturated, i.e. before its pair is finished.
     let last_even = (nl > nh).then(|| (nh, odd_index(nh, nh)));
-    let finish_last_even = |buf: &mut [T], l: usize| match last_even {
+    let finish_last_even = |buf: &mut [T], l: usize, done: &mut D| match last_even {
         Some((last, m)) if m == l => {
             if let Some([o, s]) = rows_at(buf, stride, w, [2 * m + 1, 2 * last]) {
                 for (cols, b) in bounds.segments() {
@@ -299,13 +311,14 @@ pub(crate) fn inverse_columns<T: Lift>(
                         *s = unlift_even(*s, o).saturate(b);
                     }
                 }
+                done(s);
             }
         }
         _ => {}
     };
     // Pair l + 1's s¹ and odd sample, and pair l's output.
     for l in 0..nh - 1 {
-        finish_last_even(buf, l);
+        finish_last_even(buf, l, done);
         if early(l + 1) {
             let Some([s, o, s_next, o_next]) =
                 rows_at(buf, stride, w, [2 * l, 2 * l + 1, 2 * l + 2, 2 * l + 3])
@@ -325,6 +338,8 @@ pub(crate) fn inverse_columns<T: Lift>(
                     *o = o.saturate(b);
                 }
             }
+            done(s);
+            done(o);
         } else {
             let at = [2 * l, 2 * l + 1, 2 * l + 2, 2 * l + 3, 2 * l + 5];
             let Some([s, o, s_next, o_next, d_after]) = rows_at(buf, stride, w, at) else {
@@ -345,9 +360,11 @@ pub(crate) fn inverse_columns<T: Lift>(
                     *o = o.saturate(b);
                 }
             }
+            done(s);
+            done(o);
         }
     }
-    finish_last_even(buf, nh - 1);
+    finish_last_even(buf, nh - 1, done);
     if let Some([s, o]) = rows_at(buf, stride, w, [2 * nh - 2, 2 * nh - 1]) {
         for (cols, b) in bounds.segments() {
             let lanes = segment(s, &cols)
@@ -358,6 +375,8 @@ pub(crate) fn inverse_columns<T: Lift>(
                 *o = o.saturate(b);
             }
         }
+        done(s);
+        done(o);
     }
 }
 

@@ -5,7 +5,7 @@
 //! the low and high bands on exit). For an odd length, `low` has one more element than
 //! `high`; the unpaired last sample passes to the low band unchanged.
 
-use super::{ColumnBounds, Lift, rows_at, segment};
+use super::{ColumnBounds, Lift, RowsReady, rows_at, segment};
 
 /// Forward S-transform of one line: `src` holds the samples, `dst` (as long) gets the low
 /// band then the high band.
@@ -46,8 +46,14 @@ pub(crate) fn inverse_line<T: Lift>(src: &[T], dst: &mut [T], out_bound: i32) {
 /// Forward S-transform of the columns of a region, in place: `buf` holds `n` rows of `w`
 /// samples, `stride` apart; row pair `(2l, 2l + 1)` becomes low-band row `l` and
 /// high-band row `l` in its place (an odd length's last row is low already).
-pub(crate) fn forward_columns<T: Lift>(buf: &mut [T], stride: usize, w: usize, n: usize) {
+/// `ready` runs the row pass on each row before it is read.
+pub(crate) fn forward_columns<T: Lift, F: FnMut(&mut [T])>(
+    buf: &mut [T],
+    (stride, w, n): (usize, usize, usize),
+    ready: &mut RowsReady<'_, F>,
+) {
     for l in 0..n / 2 {
+        ready.through(buf, (stride, w), 2 * l + 1);
         if let Some([e_row, o_row]) = rows_at(buf, stride, w, [2 * l, 2 * l + 1]) {
             for (e, o) in e_row.iter_mut().zip(o_row.iter_mut()) {
                 let diff = *o - *e;
@@ -56,16 +62,17 @@ pub(crate) fn forward_columns<T: Lift>(buf: &mut [T], stride: usize, w: usize, n
             }
         }
     }
+    // An odd length's last row.
+    ready.through(buf, (stride, w), n.saturating_sub(1));
 }
 
 /// Inverse of [`forward_columns`], in place, each output sample saturated to its column's
-/// bound.
+/// bound; `done` runs on each row once it is final.
 pub(crate) fn inverse_columns<T: Lift>(
     buf: &mut [T],
-    stride: usize,
-    w: usize,
-    n: usize,
+    (stride, w, n): (usize, usize, usize),
     bounds: ColumnBounds,
+    done: &mut impl FnMut(&mut [T]),
 ) {
     for l in 0..n / 2 {
         let Some([s_row, d_row]) = rows_at(buf, stride, w, [2 * l, 2 * l + 1]) else {
@@ -81,11 +88,14 @@ pub(crate) fn inverse_columns<T: Lift>(
                 *d = (*d + even).saturate(b);
             }
         }
+        done(s_row);
+        done(d_row);
     }
     if n % 2 == 1
         && let Some([last]) = rows_at(buf, stride, w, [n - 1])
     {
         bounds.saturate(last);
+        done(last);
     }
 }
 

@@ -136,25 +136,32 @@ impl Wavelet {
     }
 
     /// Forward lifting of the columns of a region in place: `n` rows of `w` samples,
-    /// `stride` apart, from the start of `buf` (layout in [`crate::geometry`]).
-    fn forward_columns<T: Lift>(self, buf: &mut [T], stride: usize, w: usize, n: usize) {
+    /// `stride` apart, from the start of `buf` (layout in [`crate::geometry`]). `ready`
+    /// runs the row pass on each row before the sweep first reads it.
+    fn forward_columns<T: Lift, F: FnMut(&mut [T])>(
+        self,
+        buf: &mut [T],
+        (stride, w, n): (usize, usize, usize),
+        ready: &mut RowsReady<'_, F>,
+    ) {
         match self {
-            Wavelet::Haar => haar::forward_columns(buf, stride, w, n),
-            Wavelet::Db2 => db2::forward_columns(buf, stride, w, n),
+            Wavelet::Haar => haar::forward_columns(buf, (stride, w, n), ready),
+            Wavelet::Db2 => db2::forward_columns(buf, (stride, w, n), ready),
         }
     }
 
     /// Inverse of [`Self::forward_columns`], each output sample saturated to its column's
-    /// bound.
+    /// bound; `done` runs on each row as soon as it is final.
     fn inverse_columns<T: Lift>(
         self,
         buf: &mut [T],
         (stride, w, n): (usize, usize, usize),
         bounds: ColumnBounds,
+        done: &mut impl FnMut(&mut [T]),
     ) {
         match self {
-            Wavelet::Haar => haar::inverse_columns(buf, stride, w, n, bounds),
-            Wavelet::Db2 => db2::inverse_columns(buf, stride, w, n, bounds),
+            Wavelet::Haar => haar::inverse_columns(buf, (stride, w, n), bounds, done),
+            Wavelet::Db2 => db2::inverse_columns(buf, (stride, w, n), bounds, done),
         }
     }
 
@@ -413,35 +420,89 @@ pub(crate) fn forward_level<T: Lift>(
     scratch: &mut [T],
 ) {
     let (w, h) = (dims.width(), dims.height());
-    if w > 1 {
-        for y in 0..h {
-            if let Some(row) = dims.row_mut(buf, y) {
-                forward_row(wavelet, row, scratch);
-            }
+    let mut row_pass = |row: &mut [T]| {
+        if w > 1 {
+            forward_row(wavelet, row, scratch);
         }
-    }
+    };
     if h > 1 {
-        forward_columns(wavelet, buf, dims);
+        // Each row is lifted just before the column sweep first reads it, while the
+        // sweep's rows are in cache: the level reads and writes the region once.
+        let mut ready = RowsReady::new(&mut row_pass);
+        wavelet.forward_columns(buf, (dims.stride(), w, h), &mut ready);
+    } else if let Some(row) = dims.row_mut(buf, 0) {
+        row_pass(row);
     }
 }
 
-/// The forward column pass, in place (one sweep down the region, whole rows at a time).
-fn forward_columns<T: Lift>(wavelet: Wavelet, buf: &mut [T], dims: Dims) {
-    wavelet.forward_columns(buf, dims.stride(), dims.width(), dims.height());
+/// Runs a row pass once on every row of a region, each before the forward column sweep
+/// first reads it: in order, but for the rows an odd length's mirrored boundary reads
+/// first ([`Self::early`]).
+pub(crate) struct RowsReady<'f, F> {
+    row_pass: &'f mut F,
+    /// Rows below this one are done.
+    next: usize,
+    /// Rows at or past `next` done early.
+    early: [Option<usize>; 2],
+}
+
+impl<'f, F> RowsReady<'f, F> {
+    /// Nothing done yet.
+    pub fn new(row_pass: &'f mut F) -> Self {
+        Self {
+            row_pass,
+            next: 0,
+            early: [None; 2],
+        }
+    }
+
+    /// Runs the pass on every row up to `last` not done yet (rows of `w` samples,
+    /// `stride` apart, from the start of `buf`).
+    #[inline(always)]
+    pub fn through<T>(&mut self, buf: &mut [T], (stride, w): (usize, usize), last: usize)
+    where
+        F: FnMut(&mut [T]),
+    {
+        while self.next <= last {
+            let k = self.next;
+            self.next += 1;
+            if !self.early.contains(&Some(k))
+                && let Some([row]) = rows_at(buf, stride, w, [k])
+            {
+                (self.row_pass)(row);
+            }
+        }
+    }
+
+    /// Runs the pass on row `k` now, out of order, unless it is done. A sweep has at most
+    /// two such rows (an odd length's last row and its mirrored odd partner).
+    pub fn early<T>(&mut self, buf: &mut [T], (stride, w): (usize, usize), k: usize)
+    where
+        F: FnMut(&mut [T]),
+    {
+        if k < self.next || self.early.contains(&Some(k)) {
+            return;
+        }
+        let free = self.early.iter_mut().find(|slot| slot.is_none());
+        if let (Some(slot), Some([row])) = (free, rows_at(buf, stride, w, [k])) {
+            *slot = Some(k);
+            (self.row_pass)(row);
+        }
+    }
 }
 
 /// The inverse column pass: loads saturated to each band's bound (unless the
 /// coefficients are [`Coefficients::InBounds`]) and the columns lifted back in place,
-/// saturated on the way out. `low_high_out` gives the (low band, high band, output)
-/// bounds of the columns left of `split` and of the others: left of the row pass's split
-/// the columns hold its low band.
+/// saturated on the way out; `done` runs on each row as soon as it is final. `left` and
+/// `right` are the (low band, high band, output) bounds of the columns left of `split`
+/// and of the others: left of the row pass's split the columns hold its low band.
 fn inverse_columns<T: Lift>(
     wavelet: Wavelet,
     buf: &mut [T],
     dims: Dims,
-    coefficients: Coefficients,
-    split: usize,
+    (coefficients, split): (Coefficients, usize),
     [left, right]: [(i32, i32, i32); 2],
+    done: &mut impl FnMut(&mut [T]),
 ) {
     let (w, h) = (dims.width(), dims.height());
     let band = |low: bool| {
@@ -467,7 +528,7 @@ fn inverse_columns<T: Lift>(
         left: left.2,
         right: right.2,
     };
-    wavelet.inverse_columns(buf, (dims.stride(), w, h), out);
+    wavelet.inverse_columns(buf, (dims.stride(), w, h), out, done);
 }
 
 /// What an inverse transform may assume about the coefficients it is given.
@@ -504,19 +565,24 @@ pub(crate) fn inverse_level<T: Lift>(
             (bounds.ll, bounds.lh, bounds.row_low)
         };
         let right = (bounds.hl, bounds.hh, bounds.row_high);
-        inverse_columns(wavelet, buf, dims, coefficients, nlx, [left, right]);
-    }
-    if w > 1 {
-        // After a column pass the rows hold its output, already saturated to the row
-        // bands' bounds: loading them saturates nothing more. Without one, loads always
-        // saturate: a one-row level's low band holds the deeper level's reconstruction,
-        // which fused coefficients can push past the row-low bound (up to LL's).
-        let load_bounds = (h == 1).then_some((bounds.row_low, bounds.row_high));
-        for y in 0..h {
-            if let Some(row) = dims.row_mut(buf, y) {
-                inverse_row(wavelet, row, scratch, load_bounds, bounds.input);
+        // Each row is lifted back as soon as the column sweep has finished it, while it
+        // is in cache. The column pass's output is already saturated to the row bands'
+        // bounds: loading it saturates nothing more.
+        let mut row_pass = |row: &mut [T]| {
+            if w > 1 {
+                inverse_row(wavelet, row, scratch, None, bounds.input);
             }
-        }
+        };
+        let how = (coefficients, nlx);
+        inverse_columns(wavelet, buf, dims, how, [left, right], &mut row_pass);
+    } else if w > 1
+        && let Some(row) = dims.row_mut(buf, 0)
+    {
+        // Without a column pass loads always saturate: a one-row level's low band holds
+        // the deeper level's reconstruction, which fused coefficients can push past the
+        // row-low bound (up to LL's).
+        let load_bounds = Some((bounds.row_low, bounds.row_high));
+        inverse_row(wavelet, row, scratch, load_bounds, bounds.input);
     }
 }
 
@@ -767,8 +833,14 @@ mod tests {
             }
             buf
         };
+        // The row hooks must run exactly once on every row (the round-trip tests check
+        // that the row pass runs before the sweep reads a row: the 2-D result is exact).
         let mut fwd = strided(&|k| k);
-        wavelet.forward_columns(&mut fwd, stride, w, n);
+        let mut rows_seen = 0;
+        let mut count = |_: &mut [T]| rows_seen += 1;
+        let mut ready = RowsReady::new(&mut count);
+        wavelet.forward_columns(&mut fwd, (stride, w, n), &mut ready);
+        assert_eq!(rows_seen, n, "forward row hook calls, {wavelet:?}, n {n}");
         // The inverse reads each column's values as low band then high band.
         let mut inv = strided(&interleaved);
         let bounds = ColumnBounds {
@@ -777,7 +849,10 @@ mod tests {
             left,
             right,
         };
-        wavelet.inverse_columns(&mut inv, (stride, w, n), bounds);
+        let mut rows_seen = 0;
+        let mut count = |_: &mut [T]| rows_seen += 1;
+        wavelet.inverse_columns(&mut inv, (stride, w, n), bounds, &mut count);
+        assert_eq!(rows_seen, n, "inverse row hook calls, {wavelet:?}, n {n}");
         for j in 0..w {
             let x = column(j);
             let bound = if j < w / 2 { left } else { right };
