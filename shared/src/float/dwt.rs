@@ -197,8 +197,9 @@ fn synthesize_columns(
     copy_rows_back(buf, dims, tmp);
 }
 
-/// One forward 2-D level on an even-sized region, in place: rows then columns, Mallat
-/// layout as in [`crate::geometry`]. `scratch` holds [`level_scratch_len`].
+/// One forward 2-D level on an even-sized region, in place: rows then columns, in
+/// Mallat's layout (PyWavelets' subbands as four quadrants, LL over LH; not the lifting's
+/// interleaved rows of [`crate::geometry`]). `scratch` holds [`level_scratch_len`].
 pub(crate) fn forward_level(
     wavelet: Wavelet,
     phase: Phase,
