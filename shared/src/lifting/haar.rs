@@ -55,11 +55,7 @@ pub(crate) fn forward_columns<T: Lift, F: FnMut(&mut [T])>(
     for l in 0..n / 2 {
         ready.through(buf, (stride, w), 2 * l + 1);
         if let Some([e_row, o_row]) = rows_at(buf, stride, w, [2 * l, 2 * l + 1]) {
-            for (e, o) in e_row.iter_mut().zip(o_row.iter_mut()) {
-                let diff = *o - *e;
-                *o = diff;
-                *e += diff.half();
-            }
+            forward_rows(e_row, o_row);
         }
     }
     // An odd length's last row.
@@ -79,14 +75,7 @@ pub(crate) fn inverse_columns<T: Lift>(
             return;
         };
         for (cols, b) in bounds.segments() {
-            let lanes = segment(s_row, &cols)
-                .iter_mut()
-                .zip(segment(d_row, &cols).iter_mut());
-            for (s, d) in lanes {
-                let even = *s - d.half();
-                *s = even.saturate(b);
-                *d = (*d + even).saturate(b);
-            }
+            inverse_rows(segment(s_row, &cols), segment(d_row, &cols), b);
         }
         done(s_row);
         done(d_row);
@@ -96,6 +85,31 @@ pub(crate) fn inverse_columns<T: Lift>(
     {
         bounds.saturate(last);
         done(last);
+    }
+}
+
+/// One row pair of the forward column pass: the even row becomes the low band, the odd
+/// row the high band. Not inlined where there are vector units, for the reason given at
+/// `db2::forward_rows`: distinct `&mut` arguments let the loop vectorize.
+#[cfg_attr(target_arch = "arm", inline(always))]
+#[cfg_attr(not(target_arch = "arm"), inline(never))]
+fn forward_rows<T: Lift>(e_row: &mut [T], o_row: &mut [T]) {
+    for (e, o) in e_row.iter_mut().zip(o_row.iter_mut()) {
+        let diff = *o - *e;
+        *o = diff;
+        *e += diff.half();
+    }
+}
+
+/// One row pair of the inverse column pass, each output saturated to `±bound` (not
+/// inlined where there are vector units, as [`forward_rows`]).
+#[cfg_attr(target_arch = "arm", inline(always))]
+#[cfg_attr(not(target_arch = "arm"), inline(never))]
+fn inverse_rows<T: Lift>(s_row: &mut [T], d_row: &mut [T], bound: i32) {
+    for (s, d) in s_row.iter_mut().zip(d_row.iter_mut()) {
+        let even = *s - d.half();
+        *s = even.saturate(bound);
+        *d = (*d + even).saturate(bound);
     }
 }
 
