@@ -219,17 +219,7 @@ pub(crate) fn forward_columns<T: Lift, F: FnMut(&mut [T])>(
         }
     }
     // d¹₀ reads its mirrored left neighbour: s¹₁, or s¹₀ itself.
-    if nl > 1 {
-        if let Some([s, o, sp]) = rows_at(buf, stride, w, [0, 1, 2]) {
-            for ((o, &s), &sp) in o.iter_mut().zip(s.iter()).zip(sp.iter()) {
-                *o = lift_d1(*o, s, sp);
-            }
-        }
-    } else if let Some([s, o]) = rows_at(buf, stride, w, [0, 1]) {
-        for (o, &s) in o.iter_mut().zip(s.iter()) {
-            *o = lift_d1(*o, s, s);
-        }
-    }
+    first_odd_row(buf, (stride, w, nl), lift_d1);
     // Pair l's s¹ and d¹, and with them pair l − 1's s².
     for l in 1..nh {
         ready.through(buf, (stride, w), 2 * l + 1);
@@ -245,6 +235,28 @@ pub(crate) fn forward_columns<T: Lift, F: FnMut(&mut [T])>(
             for (s, &d) in s.iter_mut().zip(d.iter()) {
                 *s -= d;
             }
+        }
+    }
+}
+
+/// Row 1 (pair 0's odd row) through `step(o, s¹₀, s¹₋₁)`, the predict step forward
+/// ([`lift_d1`]) or back ([`unlift_odd`]); `s¹₋₁` is mirrored: `s¹₁` (row 2), or `s¹₀`
+/// itself when there is one low row (`nl` is 1).
+#[inline(always)]
+fn first_odd_row<T: Lift>(
+    buf: &mut [T],
+    (stride, w, nl): (usize, usize, usize),
+    step: impl Fn(T, T, T) -> T,
+) {
+    if nl > 1 {
+        if let Some([s, o, sp]) = rows_at(buf, stride, w, [0, 1, 2]) {
+            for ((o, &s), &sp) in o.iter_mut().zip(s.iter()).zip(sp.iter()) {
+                *o = step(*o, s, sp);
+            }
+        }
+    } else if let Some([s, o]) = rows_at(buf, stride, w, [0, 1]) {
+        for (o, &s) in o.iter_mut().zip(s.iter()) {
+            *o = step(*o, s, s);
         }
     }
 }
@@ -301,17 +313,7 @@ pub(crate) fn inverse_columns<T: Lift, D: FnMut(&mut [T])>(
             }
         }
     }
-    if nl > 1 {
-        if let Some([s, o, sp]) = rows_at(buf, stride, w, [0, 1, 2]) {
-            for ((o, &s), &sp) in o.iter_mut().zip(s.iter()).zip(sp.iter()) {
-                *o = unlift_odd(*o, s, sp);
-            }
-        }
-    } else if let Some([s, o]) = rows_at(buf, stride, w, [0, 1]) {
-        for (o, &s) in o.iter_mut().zip(s.iter()) {
-            *o = unlift_odd(*o, s, s);
-        }
-    }
+    first_odd_row(buf, (stride, w, nl), unlift_odd);
     // An odd length's last even row reads the odd sample of a mirrored pair: made while
     // that sample is not yet saturated, i.e. before its pair is finished.
     let last_even = (nl > nh).then(|| (nh, odd_index(nh, nh)));
