@@ -5,8 +5,10 @@
 //! the frames' wavelet subbands — low band averaged, high bands weighted by a Laplacian
 //! saliency — keeps the deepest, sharpest contact of every frame.
 //!
-//! `#![no_std]`, no allocation, no `unsafe`, and no panics on any input: bad sizes and
-//! parameters come back as [`Error`] values. Buffers are the caller's.
+//! `#![no_std]`, no allocation, and no panics on any input: bad sizes and parameters come
+//! back as [`Error`] values. Buffers are the caller's. No `unsafe` either, but for one
+//! kind of call on x86-64 hosts: a hot loop's AVX2 copy, run where the CPU has AVX2
+//! ([`simd`]); elsewhere, the firmware included, the crate forbids `unsafe`.
 //!
 //! # Layers
 //!
@@ -22,8 +24,10 @@
 //!   model) and the device's command handling.
 //! - [`protocol`]: the messages of the USB link, their framing, CRC and limits.
 //! - [`motion`]: the roller's trapezoidal step profile and frame triggers.
+//! - [`simd`]: the run-time choice between baseline and AVX2 copies of the hot loops.
 #![no_std]
-#![forbid(unsafe_code)]
+#![cfg_attr(not(target_arch = "x86_64"), forbid(unsafe_code))]
+#![cfg_attr(target_arch = "x86_64", deny(unsafe_code))]
 // The core must never panic: public entry points validate sizes and return `Error`s.
 #![cfg_attr(
     not(test),
@@ -39,6 +43,7 @@ pub mod lifting;
 pub mod motion;
 pub mod protocol;
 pub mod saliency;
+pub mod simd;
 
 pub use error::Error;
 pub use fusion::{Ablation, CyclicFuser, FuseConfig, LlWeighting};

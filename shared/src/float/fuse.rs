@@ -6,7 +6,7 @@ use crate::fusion::{Arith, FuseConfig, Join, LlWeight, Sequential, fuse_pair_che
 use crate::lifting::{self, Coefficients, LevelBounds, Lift};
 use crate::saliency::ll_gain_q16;
 use crate::saliency::{SaliencyNorm, map_neighbourhood_row};
-use crate::{Dims, Error, Wavelet};
+use crate::{Dims, Error, Wavelet, simd};
 
 mod sealed {
     pub trait Sealed {}
@@ -106,6 +106,7 @@ impl<T: Float> Arith for T {
         lifting::inverse_levels(wavelet, buf, dims, levels, scratch, &bounds, inside);
     }
 
+    #[inline(always)]
     fn saliency_rows(
         buf: &[T],
         dims: Dims,
@@ -149,6 +150,7 @@ impl<T: Float> Arith for T {
         }
     }
 
+    #[inline(always)]
     fn weight(s1: T, s2: T) -> T {
         let total = s1 + s2;
         if total > T::ZERO { s1 / total } else { T::HALF }
@@ -188,6 +190,14 @@ impl<T: Float> Arith for T {
             _ => return Self::check_samples(buf, dims).map(|()| None),
         };
         dims.check_buffer("image", buf.len())?;
+        checked_laplacian_max(buf, dims, row).map(Some)
+    }
+}
+
+simd::kernel! {
+    /// Checks every row of the region (its buffer checked) and returns its largest
+    /// `|∇²I|`, each row's Laplacian built in `row`.
+    fn checked_laplacian_max<T: Float>(buf: &[T], dims: Dims, row: &mut [T]) -> Result<T, Error> {
         let mut max = T::ZERO;
         for (y, samples) in dims.rows(buf).enumerate() {
             check_row(samples)?;
@@ -198,11 +208,12 @@ impl<T: Float> Arith for T {
                 max = r;
             }
         }
-        Ok(Some(max))
+        Ok(max)
     }
 }
 
 /// Refuses a row holding a sample the float paths cannot take.
+#[inline(always)]
 fn check_row<T: Float>(row: &[T]) -> Result<(), Error> {
     // No early exit, so the scan vectorizes; NaN fails the comparison.
     let in_range = row
@@ -224,12 +235,14 @@ fn laplacian<T: Float>(c: T, [up, down, left, right]: [T; 4]) -> T {
 }
 
 /// The largest `|∇²I|` of row `y`, built in `row` on the way.
+#[inline(always)]
 fn laplacian_row_max<T: Float>(buf: &[T], dims: Dims, y: usize, row: &mut [T]) -> T {
     map_neighbourhood_row(buf, dims, y, row, laplacian);
     max_of(row)
 }
 
 /// The largest of `values` (all finite and ≥ 0), over eight lanes so that it vectorizes.
+#[inline(always)]
 fn max_of<T: Float>(values: &[T]) -> T {
     let max = |m: T, v: T| if v > m { v } else { m };
     let mut lanes = [T::ZERO; 8];

@@ -18,7 +18,7 @@ pub(crate) mod integer;
 pub use cyclic::{CyclicBuffers, CyclicFuser};
 pub use integer::{GUARD_BITS, U8Work, fuse_pair, fuse_scratch_len, fuse_scratch_words, fuse_u8};
 
-use crate::{Dims, Error, Wavelet, saliency::SaliencyNorm};
+use crate::{Dims, Error, Wavelet, saliency::SaliencyNorm, simd};
 
 /// The ablations of the paper's Table II: each removes one part of the method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -292,74 +292,87 @@ pub(crate) fn split_scratch<T>(
     })
 }
 
-/// Fills `map` (`layout.map_dims(dims)`, row-major) with the 2×2 window sums of the
-/// level input's saliency, a row at a time (`row` is a line of scratch; `known_max` as
-/// for [`Arith::saliency_rows`]).
-#[allow(clippy::too_many_arguments)]
-fn window_saliency<T: Arith>(
-    buf: &[T],
-    dims: Dims,
-    cfg: &FuseConfig,
-    level: u8,
-    known_max: Option<T>,
-    layout: WindowLayout,
-    map: &mut [T],
-    row: &mut [T],
-) {
-    let (mw, _) = layout.map_dims(dims);
-    map.fill(T::default());
-    T::saliency_rows(
-        buf,
-        dims,
-        cfg.norm,
-        cfg.wavelet,
-        level,
-        known_max,
-        row,
-        |y, srow| {
-            let m = (y + layout.phase) / 2;
-            // The map has `map_dims(dims)` rows; a short `map` just loses the row.
-            let Some(map_row) = map.get_mut(m * mw..(m + 1) * mw) else {
-                return;
-            };
-            // With phase 1, entry 0 holds pixel 0 alone and entry m ≥ 1 pixels 2m − 1, 2m.
-            let (map_row, srow) = if layout.phase == 1 {
-                let (Some((first, map_rest)), Some((&s0, s_rest))) =
-                    (map_row.split_first_mut(), srow.split_first())
-                else {
+simd::kernel! {
+    /// Fills `map` (`layout.map_dims(dims)`, row-major) with the 2×2 window sums of the
+    /// level input's saliency, a row at a time (`row` is a line of scratch; `known_max` as
+    /// for [`Arith::saliency_rows`]).
+    #[allow(clippy::too_many_arguments)]
+    fn window_saliency<T: Arith>(
+        buf: &[T],
+        dims: Dims,
+        cfg: &FuseConfig,
+        level: u8,
+        known_max: Option<T>,
+        layout: WindowLayout,
+        map: &mut [T],
+        row: &mut [T],
+    ) {
+        let (mw, _) = layout.map_dims(dims);
+        map.fill(T::default());
+        T::saliency_rows(
+            buf,
+            dims,
+            cfg.norm,
+            cfg.wavelet,
+            level,
+            known_max,
+            row,
+            |y, srow| {
+                let m = (y + layout.phase) / 2;
+                // The map has `map_dims(dims)` rows; a short `map` just loses the row.
+                let Some(map_row) = map.get_mut(m * mw..(m + 1) * mw) else {
                     return;
                 };
-                *first += s0;
-                (map_rest, s_rest)
-            } else {
-                (map_row, srow)
-            };
-            let (pairs, odd_end) = srow.as_chunks::<2>();
-            let odd_end = odd_end.first().copied();
-            let full = pairs.len();
-            for (acc, &[p0, p1]) in map_row.iter_mut().zip(pairs) {
-                *acc += p0;
-                *acc += p1;
-            }
-            if let (Some(v), Some(acc)) = (odd_end, map_row.get_mut(full)) {
-                *acc += v;
-            }
-        },
-    );
+                // With phase 1, entry 0 holds pixel 0 alone and entry m ≥ 1 pixels 2m − 1, 2m.
+                let (map_row, srow) = if layout.phase == 1 {
+                    let (Some((first, map_rest)), Some((&s0, s_rest))) =
+                        (map_row.split_first_mut(), srow.split_first())
+                    else {
+                        return;
+                    };
+                    *first += s0;
+                    (map_rest, s_rest)
+                } else {
+                    (map_row, srow)
+                };
+                let (pairs, odd_end) = srow.as_chunks::<2>();
+                let odd_end = odd_end.first().copied();
+                let full = pairs.len();
+                for (acc, &[p0, p1]) in map_row.iter_mut().zip(pairs) {
+                    *acc += p0;
+                    *acc += p1;
+                }
+                if let (Some(v), Some(acc)) = (odd_end, map_row.get_mut(full)) {
+                    *acc += v;
+                }
+            },
+        );
+    }
 }
 
-/// Fuses one row of a high band: `a = W₁·a + (1 − W₁)·b` with `w` the row of `W₁`, or with
-/// `weights` off (the max-high ablation) the larger magnitude.
-#[inline(always)]
-fn fuse_band_row<T: Arith>(a: &mut [T], b: &[T], w: &[T], weights: bool) {
-    if weights {
-        for ((x, &y), &w1) in a.iter_mut().zip(b).zip(w) {
-            *x = T::blend(*x, y, w1);
+simd::kernel! {
+    /// Turns image A's map of saliency sums into `W₁` per window, with image B's.
+    fn weight_map<T: Arith>(map_a: &mut [T], map_b: &[T]) {
+        for (s1, &s2) in map_a.iter_mut().zip(map_b) {
+            *s1 = T::weight(*s1, s2);
         }
-    } else {
-        for (x, &y) in a.iter_mut().zip(b) {
-            if !T::abs_ge(*x, y) {
-                *x = y;
+    }
+}
+
+simd::kernel! {
+    /// Fuses one row of a high band: `a = W₁·a + (1 − W₁)·b` with `w` the row of `W₁`, or with
+    /// `weights` off (the max-high ablation) the larger magnitude.
+    #[inline(always)]
+    fn fuse_band_row<T: Arith>(a: &mut [T], b: &[T], w: &[T], weights: bool) {
+        if weights {
+            for ((x, &y), &w1) in a.iter_mut().zip(b).zip(w) {
+                *x = T::blend(*x, y, w1);
+            }
+        } else {
+            for (x, &y) in a.iter_mut().zip(b) {
+                if !T::abs_ge(*x, y) {
+                    *x = y;
+                }
             }
         }
     }
@@ -419,10 +432,7 @@ pub(crate) fn fuse_generic<T: Arith>(
             }
         }
         if with_weights {
-            // Image A's map becomes W₁ per window.
-            for (s1, &s2) in map_a.iter_mut().zip(map_b.iter()) {
-                *s1 = T::weight(*s1, s2);
-            }
+            weight_map(map_a, map_b);
         }
         let nlx = d.width().div_ceil(2);
         // Row y of the transformed level: HL right of the low columns for even y; LH and
@@ -459,13 +469,15 @@ pub(crate) fn fuse_generic<T: Arith>(
     Ok(())
 }
 
-/// Sets `a = (1 − w)·a + w·b` over the `dims` region; `None` if a buffer does not hold it.
-fn mix_region<T: Arith>(a: &mut [T], b: &[T], dims: Dims, ll_weight: LlWeight) -> Option<()> {
-    for y in 0..dims.height() {
-        let (ra, rb) = (dims.row_mut(a, y)?, dims.row(b, y)?);
-        for (x, &v) in ra.iter_mut().zip(rb) {
-            *x = T::mix(*x, v, ll_weight);
+simd::kernel! {
+    /// Sets `a = (1 − w)·a + w·b` over the `dims` region; `None` if a buffer does not hold it.
+    fn mix_region<T: Arith>(a: &mut [T], b: &[T], dims: Dims, ll_weight: LlWeight) -> Option<()> {
+        for y in 0..dims.height() {
+            let (ra, rb) = (dims.row_mut(a, y)?, dims.row(b, y)?);
+            for (x, &v) in ra.iter_mut().zip(rb) {
+                *x = T::mix(*x, v, ll_weight);
+            }
         }
+        Some(())
     }
-    Some(())
 }

@@ -17,6 +17,7 @@
 
 use super::{ColumnBounds, Lift, RowsReady, row_pair, rows_at, segment};
 use crate::geometry::mirror;
+use crate::simd;
 
 /// Fraction bits of the lifting constants.
 pub(crate) const Q: u32 = 16;
@@ -261,116 +262,135 @@ fn first_odd_row<T: Lift>(
     }
 }
 
-/// One step of the forward column sweep on whole rows: pair `l`'s `s¹` (unless
-/// `with_s1` is off: done early) and `d¹`, and pair `l − 1`'s `s²`. Not inlined where
-/// there are vector units, so that the rows arrive as distinct `&mut` arguments: the
-/// compiler then knows they do not overlap and vectorizes the loop (split off one buffer
-/// inside the sweep, they kept it scalar, each row reloaded after every store to
-/// another: 13 % of `rollfuse fuse`'s time). The Cortex-M7 has no vector unit; there the
-/// call cost 5 % more instructions in the forward transform (`tests/mcu-bench`).
-#[cfg_attr(target_arch = "arm", inline(always))]
-#[cfg_attr(not(target_arch = "arm"), inline(never))]
-fn forward_rows<T: Lift>(s_prev: &mut [T], s: &mut [T], o: &mut [T], with_s1: bool) {
-    let lanes = s_prev.iter_mut().zip(s.iter_mut()).zip(o.iter_mut());
-    if with_s1 {
-        for ((sp, s), o) in lanes {
-            *s = lift_s1(*s, *o);
-            *o = lift_d1(*o, *s, *sp);
-            *sp -= *o;
-        }
-    } else {
-        for ((sp, s), o) in lanes {
-            *o = lift_d1(*o, *s, *sp);
-            *sp -= *o;
+simd::kernel! {
+    /// One step of the forward column sweep on whole rows: pair `l`'s `s¹` (unless
+    /// `with_s1` is off: done early) and `d¹`, and pair `l − 1`'s `s²`. Not inlined where
+    /// there are vector units, so that the rows arrive as distinct `&mut` arguments: the
+    /// compiler then knows they do not overlap and vectorizes the loop (split off one buffer
+    /// inside the sweep, they kept it scalar, each row reloaded after every store to
+    /// another: 13 % of `rollfuse fuse`'s time). The Cortex-M7 has no vector unit; there the
+    /// call cost 5 % more instructions in the forward transform (`tests/mcu-bench`).
+    #[cfg_attr(target_arch = "arm", inline(always))]
+    #[cfg_attr(not(target_arch = "arm"), inline(never))]
+    fn forward_rows<T: Lift>(s_prev: &mut [T], s: &mut [T], o: &mut [T], with_s1: bool) {
+        let lanes = s_prev.iter_mut().zip(s.iter_mut()).zip(o.iter_mut());
+        if with_s1 {
+            for ((sp, s), o) in lanes {
+                *s = lift_s1(*s, *o);
+                *o = lift_d1(*o, *s, *sp);
+                *sp -= *o;
+            }
+        } else {
+            for ((sp, s), o) in lanes {
+                *o = lift_d1(*o, *s, *sp);
+                *sp -= *o;
+            }
         }
     }
 }
 
-/// Inverse of [`forward_columns`], in place: each output sample is saturated to its
-/// column's bound, and `done` runs on each row as soon as it is final. Even rows hold `s¹`
-/// and odd ones the unsaturated odd samples until the next row pair is known.
-pub(crate) fn inverse_columns<T: Lift, D: FnMut(&mut [T])>(
-    buf: &mut [T],
-    (stride, w, n): (usize, usize, usize),
-    bounds: ColumnBounds,
-    done: &mut D,
-) {
-    let (nl, nh) = (n.div_ceil(2), n / 2);
-    if nh == 0 {
-        if let Some([row]) = rows_at(buf, stride, w, [0]) {
-            bounds.saturate(row);
-            done(row);
+simd::kernel! {
+    /// Inverse of [`forward_columns`], in place: each output sample is saturated to its
+    /// column's bound, and `done` runs on each row as soon as it is final. Even rows hold `s¹`
+    /// and odd ones the unsaturated odd samples until the next row pair is known.
+    pub(crate) fn inverse_columns<T: Lift, D: FnMut(&mut [T])>(
+        buf: &mut [T],
+        region: (usize, usize, usize),
+        bounds: ColumnBounds,
+        done: &mut D,
+    ) {
+        let (stride, w, n) = region;
+        let (nl, nh) = (n.div_ceil(2), n / 2);
+        if nh == 0 {
+            if let Some([row]) = rows_at(buf, stride, w, [0]) {
+                bounds.saturate(row);
+                done(row);
+            }
+            return;
         }
-        return;
-    }
-    // s¹ = s² + d¹[l + 1] first where the sweep needs it before reaching it (pairs 0 and
-    // 1) or would by then have turned the mirrored d¹ into odd samples (the last pairs).
-    let early = |l: usize| l <= 1 || l + 1 >= nh;
-    for l in (0..nl).filter(|&l| early(l)) {
-        if let Some([s, d]) = row_pair(buf, stride, w, 2 * l, 2 * next_index(l, nh) + 1) {
-            for (s, &d) in s.iter_mut().zip(d.iter()) {
-                *s += d;
+        // s¹ = s² + d¹[l + 1] first where the sweep needs it before reaching it (pairs 0 and
+        // 1) or would by then have turned the mirrored d¹ into odd samples (the last pairs).
+        let early = |l: usize| l <= 1 || l + 1 >= nh;
+        for l in (0..nl).filter(|&l| early(l)) {
+            if let Some([s, d]) = row_pair(buf, stride, w, 2 * l, 2 * next_index(l, nh) + 1) {
+                for (s, &d) in s.iter_mut().zip(d.iter()) {
+                    *s += d;
+                }
             }
         }
-    }
-    first_odd_row(buf, (stride, w, nl), unlift_odd);
-    // An odd length's last even row reads the odd sample of a mirrored pair: made while
-    // that sample is not yet saturated, i.e. before its pair is finished.
-    let last_even = (nl > nh).then(|| (nh, odd_index(nh, nh)));
-    let finish_last_even = |buf: &mut [T], l: usize, done: &mut D| match last_even {
-        Some((last, m)) if m == l => {
-            if let Some([o, s]) = rows_at(buf, stride, w, [2 * m + 1, 2 * last]) {
+        first_odd_row(buf, (stride, w, nl), unlift_odd);
+        // An odd length's last even row reads the odd sample of a mirrored pair: made while
+        // that sample is not yet saturated, i.e. before its pair is finished.
+        let last_even = (nl > nh).then(|| (nh, odd_index(nh, nh)));
+        let finish_last_even = |buf: &mut [T], l: usize, done: &mut D| match last_even {
+            Some((last, m)) if m == l => {
+                if let Some([o, s]) = rows_at(buf, stride, w, [2 * m + 1, 2 * last]) {
+                    for (cols, b) in bounds.segments() {
+                        let lanes = segment(s, &cols).iter_mut().zip(segment(o, &cols).iter());
+                        for (s, &o) in lanes {
+                            *s = unlift_even(*s, o).saturate(b);
+                        }
+                    }
+                    done(s);
+                }
+            }
+            _ => {}
+        };
+        // Pair l + 1's s¹ and odd sample, and pair l's output.
+        for l in 0..nh - 1 {
+            finish_last_even(buf, l, done);
+            if early(l + 1) {
+                let Some([s, o, s_next, o_next]) =
+                    rows_at(buf, stride, w, [2 * l, 2 * l + 1, 2 * l + 2, 2 * l + 3])
+                else {
+                    return;
+                };
                 for (cols, b) in bounds.segments() {
-                    let lanes = segment(s, &cols).iter_mut().zip(segment(o, &cols).iter());
-                    for (s, &o) in lanes {
-                        *s = unlift_even(*s, o).saturate(b);
+                    let lanes = segment(s, &cols)
+                        .iter_mut()
+                        .zip(segment(o, &cols).iter_mut());
+                    let next = segment(s_next, &cols)
+                        .iter()
+                        .zip(segment(o_next, &cols).iter_mut());
+                    for ((s, o), (&s_next, o_next)) in lanes.zip(next) {
+                        *o_next = unlift_odd(*o_next, s_next, *s);
+                        *s = unlift_even(*s, *o).saturate(b);
+                        *o = o.saturate(b);
                     }
                 }
                 done(s);
+                done(o);
+            } else {
+                let at = [2 * l, 2 * l + 1, 2 * l + 2, 2 * l + 3, 2 * l + 5];
+                let Some([s, o, s_next, o_next, d_after]) = rows_at(buf, stride, w, at) else {
+                    return;
+                };
+                for (cols, b) in bounds.segments() {
+                    let lanes = segment(s, &cols)
+                        .iter_mut()
+                        .zip(segment(o, &cols).iter_mut());
+                    let next = segment(s_next, &cols)
+                        .iter_mut()
+                        .zip(segment(o_next, &cols).iter_mut());
+                    let ahead = segment(d_after, &cols).iter();
+                    for (((s, o), (s_next, o_next)), &d_after) in lanes.zip(next).zip(ahead) {
+                        *s_next += d_after;
+                        *o_next = unlift_odd(*o_next, *s_next, *s);
+                        *s = unlift_even(*s, *o).saturate(b);
+                        *o = o.saturate(b);
+                    }
+                }
+                done(s);
+                done(o);
             }
         }
-        _ => {}
-    };
-    // Pair l + 1's s¹ and odd sample, and pair l's output.
-    for l in 0..nh - 1 {
-        finish_last_even(buf, l, done);
-        if early(l + 1) {
-            let Some([s, o, s_next, o_next]) =
-                rows_at(buf, stride, w, [2 * l, 2 * l + 1, 2 * l + 2, 2 * l + 3])
-            else {
-                return;
-            };
+        finish_last_even(buf, nh - 1, done);
+        if let Some([s, o]) = rows_at(buf, stride, w, [2 * nh - 2, 2 * nh - 1]) {
             for (cols, b) in bounds.segments() {
                 let lanes = segment(s, &cols)
                     .iter_mut()
                     .zip(segment(o, &cols).iter_mut());
-                let next = segment(s_next, &cols)
-                    .iter()
-                    .zip(segment(o_next, &cols).iter_mut());
-                for ((s, o), (&s_next, o_next)) in lanes.zip(next) {
-                    *o_next = unlift_odd(*o_next, s_next, *s);
-                    *s = unlift_even(*s, *o).saturate(b);
-                    *o = o.saturate(b);
-                }
-            }
-            done(s);
-            done(o);
-        } else {
-            let at = [2 * l, 2 * l + 1, 2 * l + 2, 2 * l + 3, 2 * l + 5];
-            let Some([s, o, s_next, o_next, d_after]) = rows_at(buf, stride, w, at) else {
-                return;
-            };
-            for (cols, b) in bounds.segments() {
-                let lanes = segment(s, &cols)
-                    .iter_mut()
-                    .zip(segment(o, &cols).iter_mut());
-                let next = segment(s_next, &cols)
-                    .iter_mut()
-                    .zip(segment(o_next, &cols).iter_mut());
-                let ahead = segment(d_after, &cols).iter();
-                for (((s, o), (s_next, o_next)), &d_after) in lanes.zip(next).zip(ahead) {
-                    *s_next += d_after;
-                    *o_next = unlift_odd(*o_next, *s_next, *s);
+                for (s, o) in lanes {
                     *s = unlift_even(*s, *o).saturate(b);
                     *o = o.saturate(b);
                 }
@@ -378,20 +398,6 @@ pub(crate) fn inverse_columns<T: Lift, D: FnMut(&mut [T])>(
             done(s);
             done(o);
         }
-    }
-    finish_last_even(buf, nh - 1, done);
-    if let Some([s, o]) = rows_at(buf, stride, w, [2 * nh - 2, 2 * nh - 1]) {
-        for (cols, b) in bounds.segments() {
-            let lanes = segment(s, &cols)
-                .iter_mut()
-                .zip(segment(o, &cols).iter_mut());
-            for (s, o) in lanes {
-                *s = unlift_even(*s, *o).saturate(b);
-                *o = o.saturate(b);
-            }
-        }
-        done(s);
-        done(o);
     }
 }
 
@@ -424,6 +430,7 @@ fn rows_mut<T>(c: &mut [T], r0: usize, r1: usize, w: usize) -> &mut [T] {
 
 /// Step 1, `s¹[l] = e[l] ± R(√3·o[l])`: rows below `nh` read their own odd row, the last
 /// even row of an odd length reads a mirrored one.
+#[inline(always)]
 fn update1<T: Lift>(low: &mut [T], high: &[T], w: usize, (nl, nh): (usize, usize), add: bool) {
     let o = rows(high, 0, nh, w);
     apply(rows_mut(low, 0, nh, w), o, o, add, |v, _| v.sqrt3());
@@ -436,6 +443,7 @@ fn update1<T: Lift>(low: &mut [T], high: &[T], w: usize, (nl, nh): (usize, usize
 
 /// Step 2, `d¹[l] = o[l] ∓ R(√3/4·s¹[l] + (√3−2)/4·s¹[l−1])`: row 0 reads a mirrored
 /// `s¹[−1]`.
+#[inline(always)]
 fn predict<T: Lift>(high: &mut [T], low: &[T], w: usize, (nl, nh): (usize, usize), add: bool) {
     let p = prev_index(0, nl);
     apply(
@@ -457,6 +465,7 @@ fn predict<T: Lift>(high: &mut [T], low: &[T], w: usize, (nl, nh): (usize, usize
 }
 
 /// Step 3, `s²[l] = s¹[l] ∓ d¹[l + 1]`: the last rows read mirrored `d¹` rows.
+#[inline(always)]
 fn update2<T: Lift>(low: &mut [T], high: &[T], w: usize, (nl, nh): (usize, usize), add: bool) {
     let inner = nh - 1;
     let d = rows(high, 1, nh, w);
@@ -472,6 +481,7 @@ fn update2<T: Lift>(low: &mut [T], high: &[T], w: usize, (nl, nh): (usize, usize
 /// reference the one-sweep forms are tested against), on rows of `width` samples lifted
 /// side by side (`width` 1 for a line, a block's width on the column pass). `low` has `nl`
 /// rows, `high` `nh` rows, `nl` = `nh` or `nh + 1`; a length-1 signal is left as it is.
+#[inline(always)]
 pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T], width: usize) {
     let w = width.max(1);
     let n = (low.len() / w, high.len() / w);
@@ -484,6 +494,7 @@ pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T], width: usize) {
 }
 
 /// Inverse lifting, exactly undoing [`forward`].
+#[inline(always)]
 pub(crate) fn inverse<T: Lift>(low: &mut [T], high: &mut [T], width: usize) {
     let w = width.max(1);
     let n = (low.len() / w, high.len() / w);

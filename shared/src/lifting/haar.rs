@@ -6,6 +6,7 @@
 //! `high`; the unpaired last sample passes to the low band unchanged.
 
 use super::{ColumnBounds, Lift, RowsReady, rows_at, segment};
+use crate::simd;
 
 /// Forward S-transform of one line: `src` holds the samples, `dst` (as long) gets the low
 /// band then the high band.
@@ -62,60 +63,68 @@ pub(crate) fn forward_columns<T: Lift, F: FnMut(&mut [T])>(
     ready.through(buf, (stride, w), n.saturating_sub(1));
 }
 
-/// Inverse of [`forward_columns`], in place, each output sample saturated to its column's
-/// bound; `done` runs on each row once it is final.
-pub(crate) fn inverse_columns<T: Lift>(
-    buf: &mut [T],
-    (stride, w, n): (usize, usize, usize),
-    bounds: ColumnBounds,
-    done: &mut impl FnMut(&mut [T]),
-) {
-    for l in 0..n / 2 {
-        let Some([s_row, d_row]) = rows_at(buf, stride, w, [2 * l, 2 * l + 1]) else {
-            return;
-        };
-        for (cols, b) in bounds.segments() {
-            inverse_rows(segment(s_row, &cols), segment(d_row, &cols), b);
+simd::kernel! {
+    /// Inverse of [`forward_columns`], in place, each output sample saturated to its column's
+    /// bound; `done` runs on each row once it is final.
+    pub(crate) fn inverse_columns<T: Lift, D: FnMut(&mut [T])>(
+        buf: &mut [T],
+        region: (usize, usize, usize),
+        bounds: ColumnBounds,
+        done: &mut D,
+    ) {
+        let (stride, w, n) = region;
+        for l in 0..n / 2 {
+            let Some([s_row, d_row]) = rows_at(buf, stride, w, [2 * l, 2 * l + 1]) else {
+                return;
+            };
+            for (cols, b) in bounds.segments() {
+                inverse_rows(segment(s_row, &cols), segment(d_row, &cols), b);
+            }
+            done(s_row);
+            done(d_row);
         }
-        done(s_row);
-        done(d_row);
-    }
-    if n % 2 == 1
-        && let Some([last]) = rows_at(buf, stride, w, [n - 1])
-    {
-        bounds.saturate(last);
-        done(last);
+        if n % 2 == 1
+            && let Some([last]) = rows_at(buf, stride, w, [n - 1])
+        {
+            bounds.saturate(last);
+            done(last);
+        }
     }
 }
 
-/// One row pair of the forward column pass: the even row becomes the low band, the odd
-/// row the high band. Not inlined where there are vector units, for the reason given at
-/// `db2::forward_rows`: distinct `&mut` arguments let the loop vectorize.
-#[cfg_attr(target_arch = "arm", inline(always))]
-#[cfg_attr(not(target_arch = "arm"), inline(never))]
-fn forward_rows<T: Lift>(e_row: &mut [T], o_row: &mut [T]) {
-    for (e, o) in e_row.iter_mut().zip(o_row.iter_mut()) {
-        let diff = *o - *e;
-        *o = diff;
-        *e += diff.half();
+simd::kernel! {
+    /// One row pair of the forward column pass: the even row becomes the low band, the odd
+    /// row the high band. Not inlined where there are vector units, for the reason given at
+    /// `db2::forward_rows`: distinct `&mut` arguments let the loop vectorize.
+    #[cfg_attr(target_arch = "arm", inline(always))]
+    #[cfg_attr(not(target_arch = "arm"), inline(never))]
+    fn forward_rows<T: Lift>(e_row: &mut [T], o_row: &mut [T]) {
+        for (e, o) in e_row.iter_mut().zip(o_row.iter_mut()) {
+            let diff = *o - *e;
+            *o = diff;
+            *e += diff.half();
+        }
     }
 }
 
-/// One row pair of the inverse column pass, each output saturated to `±bound` (not
-/// inlined where there are vector units, as [`forward_rows`]).
-#[cfg_attr(target_arch = "arm", inline(always))]
-#[cfg_attr(not(target_arch = "arm"), inline(never))]
-fn inverse_rows<T: Lift>(s_row: &mut [T], d_row: &mut [T], bound: i32) {
-    for (s, d) in s_row.iter_mut().zip(d_row.iter_mut()) {
-        let even = *s - d.half();
-        *s = even.saturate(bound);
-        *d = (*d + even).saturate(bound);
+simd::kernel! {
+    /// One row pair of the inverse column pass, each output saturated to `±bound` (not
+    /// inlined where there are vector units, as [`forward_rows`]).
+    #[cfg_attr(target_arch = "arm", inline(always))]
+    #[cfg_attr(not(target_arch = "arm"), inline(never))]
+    fn inverse_rows<T: Lift>(s_row: &mut [T], d_row: &mut [T], bound: i32) {
+        for (s, d) in s_row.iter_mut().zip(d_row.iter_mut()) {
+            let even = *s - d.half();
+            *s = even.saturate(bound);
+            *d = (*d + even).saturate(bound);
+        }
     }
 }
 
 /// Forward S-transform of the split channels, in place (the float path; the reference the
 /// line and column forms are tested against). Rows of any width lifted side by
 /// side pair up element by element, so the flattened channels are all it needs.
+#[inline(always)]
 pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T]) {
     for (s, d) in low.iter_mut().zip(high.iter_mut()) {
         *d -= *s;
@@ -124,6 +133,7 @@ pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T]) {
 }
 
 /// Inverse S-transform, exactly undoing [`forward`].
+#[inline(always)]
 pub(crate) fn inverse<T: Lift>(low: &mut [T], high: &mut [T]) {
     for (s, d) in low.iter_mut().zip(high.iter_mut()) {
         *s -= d.half();

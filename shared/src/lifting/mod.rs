@@ -22,7 +22,7 @@ mod haar;
 
 #[cfg(test)]
 use crate::geometry::Line;
-use crate::{Dims, Error, MAX_LEVELS};
+use crate::{Dims, Error, MAX_LEVELS, simd};
 pub use bounds::{LevelBounds, MAX_SAMPLE, level_bounds};
 
 /// The wavelet of a transform.
@@ -167,6 +167,7 @@ impl Wavelet {
 
     /// Forward lifting of split channels made of rows of `width` samples side by side,
     /// step by step (the float path; the reference the one-sweep forms are tested against).
+    #[inline(always)]
     fn forward_split<T: Lift>(self, low: &mut [T], high: &mut [T], width: usize) {
         match self {
             Wavelet::Haar => haar::forward(low, high),
@@ -175,6 +176,7 @@ impl Wavelet {
     }
 
     /// Inverse of [`Self::forward_split`].
+    #[inline(always)]
     fn inverse_split<T: Lift>(self, low: &mut [T], high: &mut [T], width: usize) {
         match self {
             Wavelet::Haar => haar::inverse(low, high),
@@ -278,31 +280,33 @@ pub const fn scratch_words(width: usize, _height: usize) -> usize {
     width
 }
 
-/// One forward 1-D pass over a row: lifted into `scratch` (low band first) and copied
-/// back. A `scratch` shorter than the row leaves it as it is (the public entry points
-/// check its length first).
-fn forward_row<T: Lift>(wavelet: Wavelet, row: &mut [T], scratch: &mut [T]) {
-    let n = row.len();
-    let Some(work) = scratch.get_mut(..n) else {
-        return;
-    };
-    if T::STEPWISE {
-        let (low, high) = work.split_at_mut(n.div_ceil(2));
-        // Even samples to the low half, odd to the high half.
-        let (pairs, odd_end) = row.as_chunks::<2>();
-        for (&[e, o], (l, h)) in pairs.iter().zip(low.iter_mut().zip(high.iter_mut())) {
-            *l = e;
-            *h = o;
+simd::kernel! {
+    /// One forward 1-D pass over a row: lifted into `scratch` (low band first) and copied
+    /// back. A `scratch` shorter than the row leaves it as it is (the public entry points
+    /// check its length first).
+    fn forward_row<T: Lift>(wavelet: Wavelet, row: &mut [T], scratch: &mut [T]) {
+        let n = row.len();
+        let Some(work) = scratch.get_mut(..n) else {
+            return;
+        };
+        if T::STEPWISE {
+            let (low, high) = work.split_at_mut(n.div_ceil(2));
+            // Even samples to the low half, odd to the high half.
+            let (pairs, odd_end) = row.as_chunks::<2>();
+            for (&[e, o], (l, h)) in pairs.iter().zip(low.iter_mut().zip(high.iter_mut())) {
+                *l = e;
+                *h = o;
+            }
+            // An odd length's last sample goes to the low band's last slot.
+            if let ([last], Some(l)) = (odd_end, low.last_mut()) {
+                *l = *last;
+            }
+            wavelet.forward_split(low, high, 1);
+        } else {
+            wavelet.forward_line(row, work);
         }
-        // An odd length's last sample goes to the low band's last slot.
-        if let ([last], Some(l)) = (odd_end, low.last_mut()) {
-            *l = *last;
-        }
-        wavelet.forward_split(low, high, 1);
-    } else {
-        wavelet.forward_line(row, work);
+        row.copy_from_slice(work);
     }
-    row.copy_from_slice(work);
 }
 
 /// One forward 1-D pass over a strided `line`, element by element: the reference the row
@@ -336,47 +340,49 @@ fn forward_line_reference<T: Lift>(
     }
 }
 
-/// One inverse 1-D pass over a row: copies low and high bands to `scratch` (saturated to
-/// `load_bounds` when given) and lifts them back into the row, saturated to `out_bound`.
-fn inverse_row<T: Lift>(
-    wavelet: Wavelet,
-    row: &mut [T],
-    scratch: &mut [T],
-    load_bounds: Option<(i32, i32)>,
-    out_bound: i32,
-) {
-    let n = row.len();
-    let nl = n.div_ceil(2);
-    let Some(work) = scratch.get_mut(..n) else {
-        return;
-    };
-    match load_bounds {
-        Some((low_bound, high_bound)) => {
-            let (low, high) = work.split_at_mut(nl);
-            let (row_low, row_high) = row.split_at(nl);
-            for (d, &v) in low.iter_mut().zip(row_low) {
-                *d = v.saturate(low_bound);
+simd::kernel! {
+    /// One inverse 1-D pass over a row: copies low and high bands to `scratch` (saturated to
+    /// `load_bounds` when given) and lifts them back into the row, saturated to `out_bound`.
+    fn inverse_row<T: Lift>(
+        wavelet: Wavelet,
+        row: &mut [T],
+        scratch: &mut [T],
+        load_bounds: Option<(i32, i32)>,
+        out_bound: i32,
+    ) {
+        let n = row.len();
+        let nl = n.div_ceil(2);
+        let Some(work) = scratch.get_mut(..n) else {
+            return;
+        };
+        match load_bounds {
+            Some((low_bound, high_bound)) => {
+                let (low, high) = work.split_at_mut(nl);
+                let (row_low, row_high) = row.split_at(nl);
+                for (d, &v) in low.iter_mut().zip(row_low) {
+                    *d = v.saturate(low_bound);
+                }
+                for (d, &v) in high.iter_mut().zip(row_high) {
+                    *d = v.saturate(high_bound);
+                }
             }
-            for (d, &v) in high.iter_mut().zip(row_high) {
-                *d = v.saturate(high_bound);
-            }
+            None => work.copy_from_slice(row),
         }
-        None => work.copy_from_slice(row),
-    }
-    if !T::STEPWISE {
-        wavelet.inverse_line(work, row, out_bound);
-        return;
-    }
-    let (low, high) = work.split_at_mut(nl);
-    wavelet.inverse_split(low, high, 1);
-    let (pairs, odd_end) = row.as_chunks_mut::<2>();
-    for ([e, o], (&l, &h)) in pairs.iter_mut().zip(low.iter().zip(high.iter())) {
-        *e = l.saturate(out_bound);
-        *o = h.saturate(out_bound);
-    }
-    // An odd length's last sample comes from the low band's last slot.
-    if let ([last], Some(&l)) = (odd_end, low.last()) {
-        *last = l.saturate(out_bound);
+        if !T::STEPWISE {
+            wavelet.inverse_line(work, row, out_bound);
+            return;
+        }
+        let (low, high) = work.split_at_mut(nl);
+        wavelet.inverse_split(low, high, 1);
+        let (pairs, odd_end) = row.as_chunks_mut::<2>();
+        for ([e, o], (&l, &h)) in pairs.iter_mut().zip(low.iter().zip(high.iter())) {
+            *e = l.saturate(out_bound);
+            *o = h.saturate(out_bound);
+        }
+        // An odd length's last sample comes from the low band's last slot.
+        if let ([last], Some(&l)) = (odd_end, low.last()) {
+            *last = l.saturate(out_bound);
+        }
     }
 }
 
