@@ -13,7 +13,13 @@ fn configs() -> Vec<FuseConfig> {
     let mut out = Vec::new();
     for wavelet in [Wavelet::Haar, Wavelet::Db2] {
         for levels in 1..=3 {
-            for ablation in [Ablation::None, Ablation::MaxHigh, Ablation::SingleLl] {
+            let ablations = [
+                Ablation::None,
+                Ablation::MaxHigh,
+                Ablation::SingleLl,
+                Ablation::NoWavelet,
+            ];
+            for ablation in ablations {
                 out.push(FuseConfig {
                     wavelet,
                     levels,
