@@ -434,6 +434,9 @@ pub(crate) fn fuse_generic<T: Arith>(
         if with_weights {
             weight_map(map_a, map_b);
         }
+        // The deepest LL band is mixed in the same sweep as the high bands, while its rows
+        // are in cache (the even rows' low halves, on the last level).
+        let mix_ll = level == cfg.levels && cfg.ablation != Ablation::SingleLl;
         let nlx = d.width().div_ceil(2);
         // Row y of the transformed level: HL right of the low columns for even y; LH and
         // HH for odd y, each band's row y / 2 (`crate::geometry`). `weights((sx, sy), j,
@@ -451,6 +454,9 @@ pub(crate) fn fuse_generic<T: Arith>(
             let (low_b, high_b) = rb.split_at(nlx);
             let j = y / 2;
             if y % 2 == 0 {
+                if mix_ll {
+                    mix_row(low_a, low_b, ll_weight);
+                }
                 let w_hl = weights(hl_shift, j, high_a.len())?;
                 fuse_band_row(high_a, high_b, w_hl, with_weights);
             } else {
@@ -462,22 +468,24 @@ pub(crate) fn fuse_generic<T: Arith>(
         }
         d = d.low_band();
     }
-    if cfg.ablation != Ablation::SingleLl {
-        mix_region(a, b, d, ll_weight).ok_or(image_error)?;
-    }
     T::inverse(cfg.wavelet, a, dims, cfg.levels, line);
     Ok(())
 }
 
+/// Sets `a = (1 − w)·a + w·b` over the `dims` region; `None` if a buffer does not hold it.
+fn mix_region<T: Arith>(a: &mut [T], b: &[T], dims: Dims, ll_weight: LlWeight) -> Option<()> {
+    for y in 0..dims.height() {
+        mix_row(dims.row_mut(a, y)?, dims.row(b, y)?, ll_weight);
+    }
+    Some(())
+}
+
 simd::kernel! {
-    /// Sets `a = (1 − w)·a + w·b` over the `dims` region; `None` if a buffer does not hold it.
-    fn mix_region<T: Arith>(a: &mut [T], b: &[T], dims: Dims, ll_weight: LlWeight) -> Option<()> {
-        for y in 0..dims.height() {
-            let (ra, rb) = (dims.row_mut(a, y)?, dims.row(b, y)?);
-            for (x, &v) in ra.iter_mut().zip(rb) {
-                *x = T::mix(*x, v, ll_weight);
-            }
+    /// Sets `a = (1 − w)·a + w·b` along a row.
+    #[inline(always)]
+    fn mix_row<T: Arith>(a: &mut [T], b: &[T], ll_weight: LlWeight) {
+        for (x, &v) in a.iter_mut().zip(b) {
+            *x = T::mix(*x, v, ll_weight);
         }
-        Some(())
     }
 }
