@@ -188,6 +188,126 @@ pub(crate) fn inverse_line<T: Lift>(src: &[T], dst: &mut [T], out_bound: i32) {
     }
 }
 
+/// Forward lifting of one row in two passes that vectorize (the float path): the samples
+/// split into `work` (as long) with step 1 on the way (`s¹` low, the odd samples high),
+/// then steps 2 and 3 from there back into `row`, low band then high band. Each value is
+/// computed by the same operations as in [`forward_line`], so the results are the same;
+/// unlike that sweep, no pass carries a value from one sample pair to the next, and no
+/// pass copies. A row of one sample is left as it is.
+#[inline(always)]
+pub(crate) fn forward_row_two_pass<T: Lift>(row: &mut [T], work: &mut [T]) {
+    let n = row.len();
+    let (nl, nh) = (n.div_ceil(2), n / 2);
+    let Some(work) = work.get_mut(..n) else {
+        return;
+    };
+    if nh == 0 {
+        return;
+    }
+    let (s1, odd) = work.split_at_mut(nl);
+    let (pairs, odd_end) = row.as_chunks::<2>();
+    for ((&[e, o], s), h) in pairs.iter().zip(s1.iter_mut()).zip(odd.iter_mut()) {
+        *s = lift_s1(e, o);
+        *h = o;
+    }
+    // An odd length's last even sample reads a mirrored odd one.
+    if let ([last], Some(&o)) = (odd_end, odd.get(odd_index(nh, nh)))
+        && let Some(s) = s1.get_mut(nh)
+    {
+        *s = lift_s1(*last, o);
+    }
+    let (s1, odd) = (&*s1, &*odd);
+    let s_at = |l: usize| s1.get(l).copied().unwrap_or_default();
+    let (low, high) = row.split_at_mut(nl);
+    if let (Some(d0), Some(&o0)) = (high.first_mut(), odd.first()) {
+        *d0 = lift_d1(o0, s_at(0), s_at(prev_index(0, nl)));
+    }
+    // d¹[l + 1] and, from it, s²[l], for l + 1 < nh.
+    let (high_first, high_rest) = high.split_at_mut(1);
+    for ((((lo, hi), &o), &s_next), &s) in low
+        .iter_mut()
+        .zip(high_rest.iter_mut())
+        .zip(from(odd, 1))
+        .zip(from(s1, 1))
+        .zip(s1)
+    {
+        let d = lift_d1(o, s_next, s);
+        *hi = d;
+        *lo = s - d;
+    }
+    // The last s² (two for an odd length) read mirrored d¹.
+    for l in nh - 1..nl {
+        let n = next_index(l, nh);
+        let d = if n == 0 {
+            high_first.first()
+        } else {
+            high_rest.get(n - 1)
+        };
+        if let (Some(lo), Some(&d)) = (low.get_mut(l), d) {
+            *lo = s_at(l) - d;
+        }
+    }
+}
+
+/// Inverse of [`forward_row_two_pass`], each sample saturated to `±out_bound`: `s¹` (and a
+/// copy of `d¹`) into `work`, then steps 2 and 1 back into `row`, interleaved. The same
+/// values as [`inverse_line`].
+#[inline(always)]
+pub(crate) fn inverse_row_two_pass<T: Lift>(row: &mut [T], work: &mut [T], out_bound: i32) {
+    let n = row.len();
+    let (nl, nh) = (n.div_ceil(2), n / 2);
+    let Some(work) = work.get_mut(..n) else {
+        return;
+    };
+    if nh == 0 {
+        if let Some(v) = row.first_mut() {
+            *v = v.saturate(out_bound);
+        }
+        return;
+    }
+    let (s1, d1) = work.split_at_mut(nl);
+    {
+        let (low, high) = row.split_at(nl);
+        d1.copy_from_slice(high);
+        for ((s, &lo), &d_next) in s1.iter_mut().zip(low).zip(from(high, 1)) {
+            *s = lo + d_next;
+        }
+        // The last s¹ (two for an odd length) read mirrored d¹.
+        for l in nh - 1..nl {
+            if let (Some(s), Some(&lo), Some(&d)) =
+                (s1.get_mut(l), low.get(l), high.get(next_index(l, nh)))
+            {
+                *s = lo + d;
+            }
+        }
+    }
+    let (s1, d1) = (&*s1, &*d1);
+    let s_at = |l: usize| s1.get(l).copied().unwrap_or_default();
+    let odd_at = |l: usize| {
+        let d = d1.get(l).copied().unwrap_or_default();
+        unlift_odd(d, s_at(l), s_at(prev_index(l, nl)))
+    };
+    let (pairs, odd_end) = row.as_chunks_mut::<2>();
+    let Some(([first_e, first_o], rest)) = pairs.split_first_mut() else {
+        return;
+    };
+    let o0 = odd_at(0);
+    *first_e = unlift_even(s_at(0), o0).saturate(out_bound);
+    *first_o = o0.saturate(out_bound);
+    for ([e_out, o_out], ((&d, &s), &s_prev)) in rest
+        .iter_mut()
+        .zip(from(d1, 1).iter().zip(from(s1, 1)).zip(s1))
+    {
+        let o = unlift_odd(d, s, s_prev);
+        *e_out = unlift_even(s, o).saturate(out_bound);
+        *o_out = o.saturate(out_bound);
+    }
+    // An odd length's last even sample reads a mirrored odd one.
+    if let [last] = odd_end {
+        *last = unlift_even(s_at(nh), odd_at(odd_index(nh, nh))).saturate(out_bound);
+    }
+}
+
 /// Forward lifting of the columns of a region, in place, in one sweep down its rows: `buf`
 /// holds `n` rows of `w` samples, `stride` apart. On return row `2l` holds row `l` of the
 /// low band and row `2l + 1` row `l` of the high band (the layout of
@@ -404,6 +524,7 @@ simd::kernel! {
 /// `dst[i] += f(a[i], b[i])` (or `-=`) over equal-length runs: each step's rows as one
 /// flat loop the compiler can vectorize.
 #[inline(always)]
+#[cfg(test)]
 fn apply<T: Lift>(dst: &mut [T], a: &[T], b: &[T], add: bool, f: impl Fn(T, T) -> T) {
     for ((d, &x), &y) in dst.iter_mut().zip(a).zip(b) {
         if add {
@@ -418,12 +539,14 @@ fn apply<T: Lift>(dst: &mut [T], a: &[T], b: &[T], add: bool, f: impl Fn(T, T) -
 /// channel (`r1 ≤ nl` or `nh`); rows past its end would read as empty, so the step
 /// touches nothing there.
 #[inline(always)]
+#[cfg(test)]
 fn rows<T>(c: &[T], r0: usize, r1: usize, w: usize) -> &[T] {
     c.get(r0 * w..r1 * w).unwrap_or_default()
 }
 
 /// Rows `r0..r1`, mutable (empty past the channel's end, as [`rows`]).
 #[inline(always)]
+#[cfg(test)]
 fn rows_mut<T>(c: &mut [T], r0: usize, r1: usize, w: usize) -> &mut [T] {
     c.get_mut(r0 * w..r1 * w).unwrap_or_default()
 }
@@ -431,6 +554,7 @@ fn rows_mut<T>(c: &mut [T], r0: usize, r1: usize, w: usize) -> &mut [T] {
 /// Step 1, `s¹[l] = e[l] ± R(√3·o[l])`: rows below `nh` read their own odd row, the last
 /// even row of an odd length reads a mirrored one.
 #[inline(always)]
+#[cfg(test)]
 fn update1<T: Lift>(low: &mut [T], high: &[T], w: usize, (nl, nh): (usize, usize), add: bool) {
     let o = rows(high, 0, nh, w);
     apply(rows_mut(low, 0, nh, w), o, o, add, |v, _| v.sqrt3());
@@ -444,6 +568,7 @@ fn update1<T: Lift>(low: &mut [T], high: &[T], w: usize, (nl, nh): (usize, usize
 /// Step 2, `d¹[l] = o[l] ∓ R(√3/4·s¹[l] + (√3−2)/4·s¹[l−1])`: row 0 reads a mirrored
 /// `s¹[−1]`.
 #[inline(always)]
+#[cfg(test)]
 fn predict<T: Lift>(high: &mut [T], low: &[T], w: usize, (nl, nh): (usize, usize), add: bool) {
     let p = prev_index(0, nl);
     apply(
@@ -466,6 +591,7 @@ fn predict<T: Lift>(high: &mut [T], low: &[T], w: usize, (nl, nh): (usize, usize
 
 /// Step 3, `s²[l] = s¹[l] ∓ d¹[l + 1]`: the last rows read mirrored `d¹` rows.
 #[inline(always)]
+#[cfg(test)]
 fn update2<T: Lift>(low: &mut [T], high: &[T], w: usize, (nl, nh): (usize, usize), add: bool) {
     let inner = nh - 1;
     let d = rows(high, 1, nh, w);
@@ -477,11 +603,12 @@ fn update2<T: Lift>(low: &mut [T], high: &[T], w: usize, (nl, nh): (usize, usize
     }
 }
 
-/// Step-by-step forward lifting of the split channels, in place (the float path; the
-/// reference the one-sweep forms are tested against), on rows of `width` samples lifted
+/// Step-by-step forward lifting of the split channels, in place (the reference the
+/// one-sweep and two-pass forms are tested against), on rows of `width` samples lifted
 /// side by side (`width` 1 for a line, a block's width on the column pass). `low` has `nl`
 /// rows, `high` `nh` rows, `nl` = `nh` or `nh + 1`; a length-1 signal is left as it is.
 #[inline(always)]
+#[cfg(test)]
 pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T], width: usize) {
     let w = width.max(1);
     let n = (low.len() / w, high.len() / w);
@@ -495,6 +622,7 @@ pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T], width: usize) {
 
 /// Inverse lifting, exactly undoing [`forward`].
 #[inline(always)]
+#[cfg(test)]
 pub(crate) fn inverse<T: Lift>(low: &mut [T], high: &mut [T], width: usize) {
     let w = width.max(1);
     let n = (low.len() / w, high.len() / w);

@@ -121,10 +121,11 @@ simd::kernel! {
     }
 }
 
-/// Forward S-transform of the split channels, in place (the float path; the reference the
-/// line and column forms are tested against). Rows of any width lifted side by
+/// Forward S-transform of the split channels, in place (the reference the line and
+/// column forms are tested against). Rows of any width lifted side by
 /// side pair up element by element, so the flattened channels are all it needs.
 #[inline(always)]
+#[cfg(test)]
 pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T]) {
     for (s, d) in low.iter_mut().zip(high.iter_mut()) {
         *d -= *s;
@@ -134,6 +135,7 @@ pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T]) {
 
 /// Inverse S-transform, exactly undoing [`forward`].
 #[inline(always)]
+#[cfg(test)]
 pub(crate) fn inverse<T: Lift>(low: &mut [T], high: &mut [T]) {
     for (s, d) in low.iter_mut().zip(high.iter_mut()) {
         *s -= d.half();

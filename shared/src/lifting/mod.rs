@@ -1,9 +1,9 @@
 //! Reversible integer wavelet lifting, 1-D and separable 2-D, 1 to 4 levels.
 //!
 //! Every size from 1 to [`crate::MAX_DIMENSION`] works, odd sizes included; forward then inverse is bit-exact for every
-//! input in range. A row is lifted into a caller-provided scratch row, low band first, and
-//! copied back: integers in one sweep over sample pairs, floats step by step after
-//! splitting even (→ low) and odd (→ high) samples (`Lift::STEPWISE` says why). Columns are
+//! input in range. A row is lifted with one caller-provided scratch row, low band first:
+//! integers in one sweep over sample pairs into the scratch and copied back, floats' db2
+//! in two passes, into the scratch and back (`Lift::ROW_PASSES` says why). Columns are
 //! lifted in place, whole rows at a time, in one sweep down the region: row pair
 //! `(2l, 2l + 1)` becomes low-band row `l` and high-band row `l` where it stands, so the
 //! column pass reads and writes the region once, front to back, with no copy. The 2-D
@@ -45,13 +45,15 @@ pub(crate) trait Lift:
     + core::ops::AddAssign
     + core::ops::SubAssign
 {
-    /// Whether to lift a row step by step, one pass per step over the split channels, rather
-    /// than in one sweep over sample pairs. Floats do: each pass vectorizes (a row's
-    /// one-sweep form carries each sample pair into the next). Integers sweep once: it
-    /// saves the Cortex-M7 a load and a store per sample and step (the device pipeline,
-    /// `tests/mcu-bench`), and their rounded 64-bit products do not vectorize anyway.
-    /// Columns always sweep once: there each step runs along whole rows, which vectorizes.
-    const STEPWISE: bool;
+    /// Whether db2 lifts a row in two passes over whole channels
+    /// ([`db2::forward_row_two_pass`]) rather than in one sweep over sample pairs
+    /// ([`db2::forward_line`]). Floats do: each pass vectorizes, where the sweep carries
+    /// each pair's `s¹` and `d¹` into the next. Integers sweep once: it saves the
+    /// Cortex-M7 loads and stores (the device pipeline, `tests/mcu-bench`), and their
+    /// rounded 64-bit products do not vectorize anyway. Haar's sweep carries nothing, so
+    /// both take it; columns always sweep once (each step runs along whole rows, which
+    /// vectorizes).
+    const ROW_PASSES: bool;
     /// Haar's update term: `⌊d/2⌋`, or `d/2`.
     fn half(self) -> Self;
     /// db2's first update term: `R(√3·o)`.
@@ -63,7 +65,7 @@ pub(crate) trait Lift:
 }
 
 impl Lift for i32 {
-    const STEPWISE: bool = false;
+    const ROW_PASSES: bool = false;
     #[inline(always)]
     fn half(self) -> Self {
         self >> 1
@@ -91,7 +93,7 @@ impl Lift for i32 {
 macro_rules! float_lift {
     ($t:ty, $sqrt3:expr) => {
         impl Lift for $t {
-            const STEPWISE: bool = true;
+            const ROW_PASSES: bool = true;
             #[inline(always)]
             fn half(self) -> Self {
                 0.5 * self
@@ -166,7 +168,8 @@ impl Wavelet {
     }
 
     /// Forward lifting of split channels made of rows of `width` samples side by side,
-    /// step by step (the float path; the reference the one-sweep forms are tested against).
+    /// step by step (the reference the one-sweep and two-pass forms are tested against).
+    #[cfg(test)]
     #[inline(always)]
     fn forward_split<T: Lift>(self, low: &mut [T], high: &mut [T], width: usize) {
         match self {
@@ -176,6 +179,7 @@ impl Wavelet {
     }
 
     /// Inverse of [`Self::forward_split`].
+    #[cfg(test)]
     #[inline(always)]
     fn inverse_split<T: Lift>(self, low: &mut [T], high: &mut [T], width: usize) {
         match self {
@@ -281,31 +285,21 @@ pub const fn scratch_words(width: usize, _height: usize) -> usize {
 }
 
 simd::kernel! {
-    /// One forward 1-D pass over a row: lifted into `scratch` (low band first) and copied
-    /// back. A `scratch` shorter than the row leaves it as it is (the public entry points
+    /// One forward 1-D pass over a row, low band first, with `scratch` as work space (one
+    /// sweep into it and a copy back, or two passes: [`Lift::ROW_PASSES`]). A `scratch` shorter than the row leaves it as it is (the public entry points
     /// check its length first).
     fn forward_row<T: Lift>(wavelet: Wavelet, row: &mut [T], scratch: &mut [T]) {
         let n = row.len();
         let Some(work) = scratch.get_mut(..n) else {
             return;
         };
-        if T::STEPWISE {
-            let (low, high) = work.split_at_mut(n.div_ceil(2));
-            // Even samples to the low half, odd to the high half.
-            let (pairs, odd_end) = row.as_chunks::<2>();
-            for (&[e, o], (l, h)) in pairs.iter().zip(low.iter_mut().zip(high.iter_mut())) {
-                *l = e;
-                *h = o;
+        match wavelet {
+            Wavelet::Db2 if T::ROW_PASSES => db2::forward_row_two_pass(row, work),
+            _ => {
+                wavelet.forward_line(row, work);
+                row.copy_from_slice(work);
             }
-            // An odd length's last sample goes to the low band's last slot.
-            if let ([last], Some(l)) = (odd_end, low.last_mut()) {
-                *l = *last;
-            }
-            wavelet.forward_split(low, high, 1);
-        } else {
-            wavelet.forward_line(row, work);
         }
-        row.copy_from_slice(work);
     }
 }
 
@@ -342,7 +336,8 @@ fn forward_line_reference<T: Lift>(
 
 simd::kernel! {
     /// One inverse 1-D pass over a row: copies low and high bands to `scratch` (saturated to
-    /// `load_bounds` when given) and lifts them back into the row, saturated to `out_bound`.
+    /// `load_bounds` when given) and lifts them back into the row, saturated to `out_bound`
+    /// (for floats' db2, two passes through `scratch`: [`Lift::ROW_PASSES`]).
     fn inverse_row<T: Lift>(
         wavelet: Wavelet,
         row: &mut [T],
@@ -355,8 +350,12 @@ simd::kernel! {
         let Some(work) = scratch.get_mut(..n) else {
             return;
         };
-        match load_bounds {
-            Some((low_bound, high_bound)) => {
+        match (wavelet, load_bounds) {
+            (Wavelet::Db2, None) if T::ROW_PASSES => {
+                db2::inverse_row_two_pass(row, work, out_bound);
+                return;
+            }
+            (_, Some((low_bound, high_bound))) => {
                 let (low, high) = work.split_at_mut(nl);
                 let (row_low, row_high) = row.split_at(nl);
                 for (d, &v) in low.iter_mut().zip(row_low) {
@@ -366,23 +365,9 @@ simd::kernel! {
                     *d = v.saturate(high_bound);
                 }
             }
-            None => work.copy_from_slice(row),
+            (_, None) => work.copy_from_slice(row),
         }
-        if !T::STEPWISE {
-            wavelet.inverse_line(work, row, out_bound);
-            return;
-        }
-        let (low, high) = work.split_at_mut(nl);
-        wavelet.inverse_split(low, high, 1);
-        let (pairs, odd_end) = row.as_chunks_mut::<2>();
-        for ([e, o], (&l, &h)) in pairs.iter_mut().zip(low.iter().zip(high.iter())) {
-            *e = l.saturate(out_bound);
-            *o = h.saturate(out_bound);
-        }
-        // An odd length's last sample comes from the low band's last slot.
-        if let ([last], Some(&l)) = (odd_end, low.last()) {
-            *last = l.saturate(out_bound);
-        }
+        wavelet.inverse_line(work, row, out_bound);
     }
 }
 
@@ -874,6 +859,11 @@ mod tests {
             let mut line = vec![T::default(); n];
             wavelet.forward_line(&x, &mut line);
             assert_eq!(line, split, "forward line, {wavelet:?}, n {n}");
+            // The row pass as the 2-D transform runs it (floats' db2 in two passes).
+            let mut row = x.clone();
+            let mut scratch = vec![T::default(); n];
+            forward_row(wavelet, &mut row, &mut scratch);
+            assert_eq!(row, split, "forward row, {wavelet:?}, n {n}");
             let in_place: Vec<T> = (0..n).map(|k| fwd[k * stride + j]).collect();
             let expect: Vec<T> = (0..n).map(|k| split[interleaved(k)]).collect();
             assert_eq!(
@@ -889,6 +879,9 @@ mod tests {
                 .collect();
             wavelet.inverse_line(&x, &mut line, bound);
             assert_eq!(line, expect, "inverse line, {wavelet:?}, n {n}");
+            let mut row = x.clone();
+            inverse_row(wavelet, &mut row, &mut scratch, None, bound);
+            assert_eq!(row, expect, "inverse row, {wavelet:?}, n {n}");
             let in_place: Vec<T> = (0..n).map(|k| inv[k * stride + j]).collect();
             assert_eq!(
                 in_place, expect,
@@ -917,6 +910,8 @@ mod tests {
             check_against_steps(wavelet, &ints, (w, n, pad), bounds);
             let floats: Vec<f32> = ints.iter().map(|&v| v as f32 / 64.0).collect();
             check_against_steps(wavelet, &floats, (w, n, pad), bounds);
+            let doubles: Vec<f64> = ints.iter().map(|&v| f64::from(v) / 64.0).collect();
+            check_against_steps(wavelet, &doubles, (w, n, pad), bounds);
         }
 
         #[test]
