@@ -157,7 +157,7 @@ pub(crate) fn map_neighbourhood_row<T: Copy, U>(
 /// Rows `y − 1`, `y` and `y + 1` of the region, mirrored at its top and bottom, each
 /// `dims.width()` long; `None` if `buf` does not hold them.
 #[inline(always)]
-fn row_and_neighbours<T>(buf: &[T], dims: Dims, y: usize) -> Option<(&[T], &[T], &[T])> {
+pub(crate) fn row_and_neighbours<T>(buf: &[T], dims: Dims, y: usize) -> Option<(&[T], &[T], &[T])> {
     let h = dims.height();
     Some((
         dims.row(buf, mirror(y as isize - 1, h))?,

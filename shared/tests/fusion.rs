@@ -407,36 +407,46 @@ fn fuse_pair_refuses_bad_arguments() {
 
 /// The float step checks both images in the pass that also finds their level-1 Laplacian
 /// maxima: a bad sample anywhere, in either image, under either normalization, is refused
-/// before either image changes.
+/// before either image changes. The widths take that pass through all its paths: one or
+/// two samples (borders only), a short interior (sample by sample), and 75 (an interior
+/// of two blocks of 32, one of 8 and one sample).
 #[test]
 fn float_step_refuses_a_bad_sample_anywhere_and_changes_nothing() {
-    let (w, h) = (9, 7);
-    let dims = Dims::new(w, h).unwrap();
-    let n = dims.pixels();
-    let a0: Vec<f32> = (0..n).map(|i| (i * 37 % 251) as f32).collect();
-    let b0: Vec<f32> = (0..n).map(|i| (i * 91 % 241) as f32).collect();
-    let mut scratch = vec![0f32; float::fuse_scratch_len(dims)];
-    for norm in [SaliencyNorm::Local, SaliencyNorm::Reference(100)] {
-        let c = FuseConfig {
-            norm,
-            ..cfg(Wavelet::Db2, 1)
-        };
-        for bad in [f32::NAN, f32::INFINITY, -2e9] {
-            // First pixel, one in the middle, the last row (checked after the Laplacian of
-            // the row above has read it), the last pixel.
-            for at in [0, n / 2, n - w + 3, n - 1] {
-                for poison_b in [false, true] {
-                    let (mut a, mut b) = (a0.clone(), b0.clone());
-                    let target = if poison_b { &mut b } else { &mut a };
-                    target[at] = bad;
-                    let (a1, b1) = (a.clone(), b.clone());
-                    let r =
-                        float::fuse_pair(&mut a, &mut b, dims, &c, LlWeight::HALF, &mut scratch);
-                    assert!(r.is_err(), "{norm:?} {bad} at {at} in b: {poison_b}");
-                    let same = |x: &[f32], y: &[f32]| {
-                        x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits())
-                    };
-                    assert!(same(&a, &a1) && same(&b, &b1), "an image changed");
+    for (w, h) in [(9, 7), (1, 3), (2, 2), (75, 3)] {
+        let dims = Dims::new(w, h).unwrap();
+        let n = dims.pixels();
+        let a0: Vec<f32> = (0..n).map(|i| (i * 37 % 251) as f32).collect();
+        let b0: Vec<f32> = (0..n).map(|i| (i * 91 % 241) as f32).collect();
+        let mut scratch = vec![0f32; float::fuse_scratch_len(dims)];
+        for norm in [SaliencyNorm::Local, SaliencyNorm::Reference(100)] {
+            let c = FuseConfig {
+                norm,
+                ..cfg(Wavelet::Db2, 1)
+            };
+            for bad in [f32::NAN, f32::INFINITY, -2e9] {
+                for at in 0..n {
+                    for poison_b in [false, true] {
+                        let (mut a, mut b) = (a0.clone(), b0.clone());
+                        let target = if poison_b { &mut b } else { &mut a };
+                        target[at] = bad;
+                        let (a1, b1) = (a.clone(), b.clone());
+                        let r = float::fuse_pair(
+                            &mut a,
+                            &mut b,
+                            dims,
+                            &c,
+                            LlWeight::HALF,
+                            &mut scratch,
+                        );
+                        assert!(
+                            r.is_err(),
+                            "{w}x{h} {norm:?} {bad} at {at} in b: {poison_b}"
+                        );
+                        let same = |x: &[f32], y: &[f32]| {
+                            x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits())
+                        };
+                        assert!(same(&a, &a1) && same(&b, &b1), "an image changed");
+                    }
                 }
             }
         }

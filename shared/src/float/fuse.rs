@@ -5,7 +5,7 @@
 use crate::fusion::{Arith, FuseConfig, Join, LlWeight, Sequential, fuse_pair_checked};
 use crate::lifting::{self, Coefficients, LevelBounds, Lift};
 use crate::saliency::ll_gain_q16;
-use crate::saliency::{SaliencyNorm, map_neighbourhood_row};
+use crate::saliency::{SaliencyNorm, map_neighbourhood_row, row_and_neighbours};
 use crate::{Dims, Error, Wavelet, simd};
 
 mod sealed {
@@ -123,10 +123,14 @@ impl<T: Float> Arith for T {
         let max = match norm {
             SaliencyNorm::Local => match known_max {
                 Some(max) => max,
-                None => (0..dims.height()).fold(T::ZERO, |m, y| {
-                    let r = laplacian_row_max(buf, dims, y, row);
-                    if r > m { r } else { m }
-                }),
+                None => {
+                    let mut scan = LaplacianScan::new();
+                    for y in 0..dims.height() {
+                        scan.row(buf, dims, y);
+                    }
+                    // A deeper level's input is the transform's own LL band: no check.
+                    scan.largest()
+                }
             },
             // The LL band's DC gain per level, as on the integer path.
             SaliencyNorm::Reference(r) => {
@@ -177,39 +181,152 @@ impl<T: Float> Arith for T {
         dims.rows(buf).try_for_each(check_row)
     }
 
-    /// One pass for both: each row is checked while it is in cache for its Laplacian,
-    /// which saves a read of each image from memory.
-    fn check_and_max(
-        buf: &[T],
-        dims: Dims,
-        local_max: bool,
-        row: &mut [T],
-    ) -> Result<Option<T>, Error> {
-        let row = match row.get_mut(..dims.width()) {
-            Some(row) if local_max => row,
-            _ => return Self::check_samples(buf, dims).map(|()| None),
-        };
+    /// One pass for both: each sample is checked as the centre of its Laplacian, which
+    /// saves a read of each image from memory.
+    fn check_and_max(buf: &[T], dims: Dims, local_max: bool) -> Result<Option<T>, Error> {
+        if !local_max {
+            return Self::check_samples(buf, dims).map(|()| None);
+        }
         dims.check_buffer("image", buf.len())?;
-        checked_laplacian_max(buf, dims, row).map(Some)
+        checked_laplacian_max(buf, dims).map(Some)
     }
 }
 
 simd::kernel! {
-    /// Checks every row of the region (its buffer checked) and returns its largest
-    /// `|∇²I|`, each row's Laplacian built in `row`.
-    fn checked_laplacian_max<T: Float>(buf: &[T], dims: Dims, row: &mut [T]) -> Result<T, Error> {
-        let mut max = T::ZERO;
-        for (y, samples) in dims.rows(buf).enumerate() {
-            check_row(samples)?;
-            // Row y + 1 is not checked yet: a Laplacian spoiled by it is never returned,
-            // since that row fails next.
-            let r = laplacian_row_max(buf, dims, y, row);
-            if r > max {
-                max = r;
+    /// Checks every sample of the region (its buffer checked) and returns its largest
+    /// `|∇²I|`, in one pass.
+    fn checked_laplacian_max<T: Float>(buf: &[T], dims: Dims) -> Result<T, Error> {
+        let mut scan = LaplacianScan::new();
+        for y in 0..dims.height() {
+            scan.row(buf, dims, y);
+        }
+        scan.finish()
+    }
+}
+
+/// A scan for the largest `|∇²I|` of a region that checks each sample on the way (as the
+/// centre of its own Laplacian). It keeps 32 lanes of each and reduces them once, at the
+/// end: as four vectors of eight `f32` the maxima run as four independent chains instead
+/// of one waiting on each `max`'s latency, and no row pays for a reduction, a store of its
+/// Laplacian or a second read for the check (separate passes took a third of the scan's
+/// instructions, callgrind).
+struct LaplacianScan<T> {
+    /// The largest `|∇²I|` per lane.
+    max: [T; 32],
+    /// Per lane, 0 while every sample seen was in range.
+    out_of_range: [T; 32],
+}
+
+impl<T: Float> LaplacianScan<T> {
+    fn new() -> Self {
+        Self {
+            max: [T::ZERO; 32],
+            out_of_range: [T::ZERO; 32],
+        }
+    }
+
+    /// Takes one centre sample and its `|∇²I|` into a lane.
+    #[inline(always)]
+    fn take(max: &mut T, out_of_range: &mut T, centre: T, lap: T) {
+        // NaN fails both comparisons: never a maximum, always out of range. Selects, not
+        // conditional stores: those compiled to masked stores to memory, twice as slow.
+        *max = if lap > *max { lap } else { *max };
+        let in_range = centre.abs() <= T::MAX_SAMPLE;
+        *out_of_range = if in_range { *out_of_range } else { T::ONE };
+    }
+
+    /// Takes in row `y` of the region (nothing if `buf` does not hold it), with the
+    /// mirrored neighbours of [`map_neighbourhood_row`].
+    #[inline(always)]
+    fn row(&mut self, buf: &[T], dims: Dims, y: usize) {
+        let Some((up, mid, down)) = row_and_neighbours(buf, dims, y) else {
+            return;
+        };
+        let (max0, oor0) = (&mut self.max[0], &mut self.out_of_range[0]);
+        let w = mid.len();
+        let at = |r: &[T], x: usize| r.get(x).copied().unwrap_or(T::ZERO);
+        // The borders, the left and right neighbours mirrored (both the centre for w = 1).
+        for x in [0, w - 1].into_iter().take(w.min(2)) {
+            let side = at(
+                mid,
+                if w == 1 {
+                    0
+                } else if x == 0 {
+                    1
+                } else {
+                    w - 2
+                },
+            );
+            let c = at(mid, x);
+            let lap = laplacian(c, [at(up, x), at(down, x), side, side]);
+            Self::take(max0, oor0, c, lap);
+        }
+        // The interior, 32 samples at a time, then 8, then one by one.
+        let (u, d) = (interior(up, 1, w), interior(down, 1, w));
+        let (l, c, r) = (
+            interior(mid, 0, w),
+            interior(mid, 1, w),
+            interior(mid, 2, w),
+        );
+        let rest = Self::blocks(&mut self.max, &mut self.out_of_range, [u, d, l, c, r]);
+        let rest = match (
+            self.max.first_chunk_mut(),
+            self.out_of_range.first_chunk_mut(),
+        ) {
+            (Some(max), Some(oor)) => Self::blocks::<8>(max, oor, rest),
+            _ => rest,
+        };
+        let (max0, oor0) = (&mut self.max[0], &mut self.out_of_range[0]);
+        let [u, d, l, c, r] = rest;
+        for ((((&u, &d), &l), &c), &r) in u.iter().zip(d).zip(l).zip(c).zip(r) {
+            Self::take(max0, oor0, c, laplacian(c, [u, d, l, r]));
+        }
+    }
+
+    /// Takes in whole blocks of `N` interior samples, given as their up, down, left,
+    /// centre and right neighbours (equally long), into `N` lanes; returns what is left.
+    #[inline(always)]
+    fn blocks<'a, const N: usize>(
+        max: &mut [T; N],
+        out_of_range: &mut [T; N],
+        [u, d, l, c, r]: [&'a [T]; 5],
+    ) -> [&'a [T]; 5] {
+        let ((u_n, u_rest), (d_n, d_rest)) = (u.as_chunks::<N>(), d.as_chunks::<N>());
+        let ((l_n, l_rest), (c_n, c_rest), (r_n, r_rest)) =
+            (l.as_chunks::<N>(), c.as_chunks::<N>(), r.as_chunks::<N>());
+        for ((((u, d), l), c), r) in u_n.iter().zip(d_n).zip(l_n).zip(c_n).zip(r_n) {
+            let lanes = max.iter_mut().zip(out_of_range.iter_mut());
+            let samples = u.iter().zip(d).zip(l).zip(c).zip(r);
+            for ((max, oor), ((((&u, &d), &l), &c), &r)) in lanes.zip(samples) {
+                Self::take(max, oor, c, laplacian(c, [u, d, l, r]));
             }
         }
-        Ok(max)
+        [u_rest, d_rest, l_rest, c_rest, r_rest]
     }
+
+    /// The largest `|∇²I|`, or the error for a sample out of range.
+    fn finish(self) -> Result<T, Error> {
+        if self.out_of_range.iter().any(|&v| v != T::ZERO) {
+            return Err(Error::InvalidParameter {
+                name: "sample (NaN, infinite or beyond ±1e9)",
+            });
+        }
+        Ok(self.largest())
+    }
+
+    /// The largest `|∇²I|`, whatever the samples' range.
+    fn largest(&self) -> T {
+        self.max
+            .iter()
+            .fold(T::ZERO, |m, &v| if v > m { v } else { m })
+    }
+}
+
+/// The `w − 2` samples of `row` from `from` on (empty for `w < 3`): the interior's
+/// centres (`from` 1) or left (0) or right (2) neighbours.
+#[inline(always)]
+fn interior<T>(row: &[T], from: usize, w: usize) -> &[T] {
+    row.get(from..(from + w).saturating_sub(2)).unwrap_or(&[])
 }
 
 /// Refuses a row holding a sample the float paths cannot take.
@@ -232,30 +349,6 @@ fn check_row<T: Float>(row: &[T]) -> Result<(), Error> {
 #[inline(always)]
 fn laplacian<T: Float>(c: T, [up, down, left, right]: [T; 4]) -> T {
     (up + down + left + right - T::FOUR * c).abs()
-}
-
-/// The largest `|∇²I|` of row `y`, built in `row` on the way.
-#[inline(always)]
-fn laplacian_row_max<T: Float>(buf: &[T], dims: Dims, y: usize, row: &mut [T]) -> T {
-    map_neighbourhood_row(buf, dims, y, row, laplacian);
-    max_of(row)
-}
-
-/// The largest of `values` (all finite and ≥ 0), over 32 lanes: they vectorize, and as
-/// four vectors of eight `f32` the maxima run as four independent chains instead of one
-/// waiting on each `max`'s latency (a quarter of the check pass's time, `perf annotate`).
-#[inline(always)]
-fn max_of<T: Float>(values: &[T]) -> T {
-    let max = |m: T, v: T| if v > m { v } else { m };
-    let mut lanes = [T::ZERO; 32];
-    let mut chunks = values.chunks_exact(32);
-    for chunk in &mut chunks {
-        for (m, &v) in lanes.iter_mut().zip(chunk) {
-            *m = max(*m, v);
-        }
-    }
-    let rest = chunks.remainder().iter();
-    lanes.iter().chain(rest).fold(T::ZERO, |m, &v| max(m, v))
 }
 
 /// `eˣ − 1` for `x` in `0..=1`: `x·q(x)` with `q` a degree-5 polynomial fitted to the

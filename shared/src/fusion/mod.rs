@@ -185,15 +185,9 @@ pub(crate) trait Arith: Copy + Default + Send + Sync + core::ops::AddAssign {
     fn check_samples(buf: &[Self], dims: Dims) -> Result<(), Error>;
     /// [`Arith::check_samples`], and with `local_max` the image's largest `|∇²I|` (what
     /// [`SaliencyNorm::Local`] normalizes level 1 by) where this path finds it in the same
-    /// pass over the image; `None` leaves that scan to [`Arith::saliency_rows`]. `row` is
-    /// a line of scratch.
-    fn check_and_max(
-        buf: &[Self],
-        dims: Dims,
-        local_max: bool,
-        row: &mut [Self],
-    ) -> Result<Option<Self>, Error> {
-        let _ = (local_max, row);
+    /// pass over the image; `None` leaves that scan to [`Arith::saliency_rows`].
+    fn check_and_max(buf: &[Self], dims: Dims, local_max: bool) -> Result<Option<Self>, Error> {
+        let _ = local_max;
         Self::check_samples(buf, dims).map(|()| None)
     }
 }
@@ -239,8 +233,8 @@ pub(crate) fn fuse_pair_checked<T: Arith>(
     let work = split_scratch(scratch, crate::lifting::scratch_len(dims), lines, dims)?;
     // Both images are checked before either is touched; the level-1 maxima come along.
     let local_max = cfg.norm == SaliencyNorm::Local && cfg.ablation.uses_saliency();
-    let max_a = T::check_and_max(a, dims, local_max, work.line)?;
-    let max_b = T::check_and_max(b, dims, local_max, work.line)?;
+    let max_a = T::check_and_max(a, dims, local_max)?;
+    let max_b = T::check_and_max(b, dims, local_max)?;
     fuse_generic(a, b, dims, cfg, ll_weight, work, [max_a, max_b], join)
 }
 
