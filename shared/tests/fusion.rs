@@ -452,3 +452,49 @@ fn float_step_refuses_a_bad_sample_anywhere_and_changes_nothing() {
         }
     }
 }
+
+/// The fuse step does not clear its window maps before summing into them (each map row is
+/// set by its first pixel row): whatever the scratch held before — here NaN or large
+/// integers — must not reach the result, for odd and even sizes (the windows' phase 1
+/// leaves a last row and column no pixel reaches), flat images (no saliency rows at all)
+/// and every level count.
+#[test]
+fn scratch_contents_do_not_reach_the_result() {
+    for (w, h) in [(9, 7), (8, 6), (17, 4), (6, 11), (1, 5)] {
+        let dims = Dims::new(w, h).unwrap();
+        let n = dims.pixels();
+        let a: Vec<i32> = (0..n as i32).map(|i| i * 37 % 251).collect();
+        let b: Vec<i32> = (0..n as i32).map(|i| i * 91 % 241).collect();
+        let flat = vec![77; n];
+        for wavelet in [Wavelet::Haar, Wavelet::Db2] {
+            for levels in 1..=dims.max_levels() {
+                let c = cfg(wavelet, levels);
+                for b in [&b, &flat] {
+                    let int = |fill: i32| {
+                        let (mut a, mut b) = (a.clone(), b.clone());
+                        let mut s = vec![fill; fuse_scratch_len(dims)];
+                        fuse_pair(&mut a, &mut b, dims, &c, LlWeight::HALF, &mut s).unwrap();
+                        a
+                    };
+                    assert_eq!(
+                        int(0),
+                        int(i32::MAX),
+                        "integer {w}x{h} {wavelet:?} L{levels}"
+                    );
+                    let float = |fill: f32| {
+                        let mut a: Vec<f32> = a.iter().map(|&v| v as f32).collect();
+                        let mut b: Vec<f32> = b.iter().map(|&v| v as f32).collect();
+                        let mut s = vec![fill; float::fuse_scratch_len(dims)];
+                        float::fuse_pair(&mut a, &mut b, dims, &c, LlWeight::HALF, &mut s).unwrap();
+                        a.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+                    };
+                    assert_eq!(
+                        float(0.0),
+                        float(f32::NAN),
+                        "f32 {w}x{h} {wavelet:?} L{levels}"
+                    );
+                }
+            }
+        }
+    }
+}

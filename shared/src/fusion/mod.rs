@@ -301,8 +301,10 @@ simd::kernel! {
         map: &mut [T],
         row: &mut [T],
     ) {
-        let (mw, _) = layout.map_dims(dims);
-        map.fill(T::default());
+        let (mw, mh) = layout.map_dims(dims);
+        // Each map row is set by its first pixel row and added to by its second, so the
+        // map is not cleared first (a pass over it); what no pixel reaches is zeroed here.
+        let mut rows_seen = false;
         T::saliency_rows(
             buf,
             dims,
@@ -312,35 +314,74 @@ simd::kernel! {
             known_max,
             row,
             |y, srow| {
+                rows_seen = true;
                 let m = (y + layout.phase) / 2;
+                // A map row's first pixel row: 2m − phase, or row 0 alone for phase 1.
+                let first = y == 0 || (y + layout.phase).is_multiple_of(2);
                 // The map has `map_dims(dims)` rows; a short `map` just loses the row.
                 let Some(map_row) = map.get_mut(m * mw..(m + 1) * mw) else {
                     return;
                 };
-                // With phase 1, entry 0 holds pixel 0 alone and entry m ≥ 1 pixels 2m − 1, 2m.
-                let (map_row, srow) = if layout.phase == 1 {
-                    let (Some((first, map_rest)), Some((&s0, s_rest))) =
-                        (map_row.split_first_mut(), srow.split_first())
-                    else {
-                        return;
-                    };
-                    *first += s0;
-                    (map_rest, s_rest)
+                if first {
+                    window_row::<T, true>(map_row, srow, layout.phase);
                 } else {
-                    (map_row, srow)
-                };
-                let (pairs, odd_end) = srow.as_chunks::<2>();
-                let odd_end = odd_end.first().copied();
-                let full = pairs.len();
-                for (acc, &[p0, p1]) in map_row.iter_mut().zip(pairs) {
-                    *acc += p0;
-                    *acc += p1;
-                }
-                if let (Some(v), Some(acc)) = (odd_end, map_row.get_mut(full)) {
-                    *acc += v;
+                    window_row::<T, false>(map_row, srow, layout.phase);
                 }
             },
         );
+        let reached = if rows_seen {
+            // Phase 1 with an odd height leaves the last map row to no pixel row.
+            (dims.height() + layout.phase).div_ceil(2).min(mh) * mw
+        } else {
+            // A flat image has no saliency rows: its map is all zero.
+            0
+        };
+        if let Some(rest) = map.get_mut(reached..mh * mw) {
+            rest.fill(T::default());
+        }
+    }
+}
+
+/// Takes one row of saliency into a row of window sums: sets the sums (`SET`, a map row's
+/// first pixel row) or adds to them. With phase 1, entry 0 holds pixel 0 alone and entry
+/// m ≥ 1 pixels 2m − 1, 2m; with phase 0, entry m pixels 2m, 2m + 1. A set row also zeroes
+/// the entries no pixel reaches (phase 1, odd width: the last), so nothing stale is left.
+/// Set sums are `p0 + p1`, bit for bit what adding both to a cleared entry gave.
+#[inline(always)]
+fn window_row<T: Arith, const SET: bool>(map_row: &mut [T], srow: &[T], phase: usize) {
+    let put = |acc: &mut T, v: T| {
+        if SET {
+            *acc = v;
+        } else {
+            *acc += v;
+        }
+    };
+    let (map_row, srow) = if phase == 1 {
+        let (Some((first, map_rest)), Some((&s0, s_rest))) =
+            (map_row.split_first_mut(), srow.split_first())
+        else {
+            return;
+        };
+        put(first, s0);
+        (map_rest, s_rest)
+    } else {
+        (map_row, srow)
+    };
+    let (pairs, odd_end) = srow.as_chunks::<2>();
+    let (paired, tail) = map_row.split_at_mut(pairs.len().min(map_row.len()));
+    for (acc, &[p0, p1]) in paired.iter_mut().zip(pairs) {
+        put(acc, p0);
+        *acc += p1;
+    }
+    let past = match (odd_end, tail.split_first_mut()) {
+        (&[v], Some((acc, past))) => {
+            put(acc, v);
+            past
+        }
+        _ => tail,
+    };
+    if SET {
+        past.fill(T::default());
     }
 }
 
