@@ -237,11 +237,11 @@ pub(crate) fn forward_row_two_pass<T: Lift>(row: &mut [T], work: &mut [T]) {
     }
     // The last s² (two for an odd length) read mirrored d¹.
     for l in nh - 1..nl {
-        let n = next_index(l, nh);
-        let d = if n == 0 {
+        let next = next_index(l, nh);
+        let d = if next == 0 {
             high_first.first()
         } else {
-            high_rest.get(n - 1)
+            high_rest.get(next - 1)
         };
         if let (Some(lo), Some(&d)) = (low.get_mut(l), d) {
             *lo = s_at(l) - d;
