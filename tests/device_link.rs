@@ -92,7 +92,12 @@ fn reference_tiles(
             },
             levels: cfg.levels,
             norm: match cfg.norm {
-                NormMode::PerFrame => SaliencyNorm::Reference(laplacian_max(&small, dw, dh)),
+                // The largest Laplacian of the frame's observation window.
+                NormMode::PerFrame => SaliencyNorm::Reference(laplacian_max(
+                    &small[top * dw..(top + window) * dw],
+                    dw,
+                    window,
+                )),
                 NormMode::PerTile => SaliencyNorm::Local,
             },
             ll_weighting: LlWeighting::Paper,

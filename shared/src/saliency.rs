@@ -63,8 +63,9 @@ pub enum SaliencyNorm {
     /// By the maximum over the region being fused: the whole image, or one tile.
     Local,
     /// By a caller-supplied level-1 maximum, in the input's units (8-bit gray levels for
-    /// [`crate::fusion::fuse_u8`]), e.g. the whole frame's (see [`laplacian_max`]), so every
-    /// tile of a frame is judged on one scale. Deeper levels scale it by the transform's
+    /// [`crate::fusion::fuse_u8`]), e.g. that of the frame's observation window, where the
+    /// device pipeline takes its tiles (see [`laplacian_max`]), so every tile of a frame
+    /// is judged on one scale. Deeper levels scale it by the transform's
     /// LL gain ([`ll_gain_q16`]: both paths run the same unscaled lifting); larger
     /// values saturate at 255. `Reference(0)` treats both images as flat: every weight ½.
     Reference(u32),
@@ -224,7 +225,7 @@ pub fn laplacian_max(buf: &[i32], dims: Dims) -> Result<u32, crate::Error> {
     Ok(laplacian_max_in(buf, dims, laplacian))
 }
 
-/// [`laplacian_max`] of a packed 8-bit image (a downsampled camera frame), for
+/// [`laplacian_max`] of a packed 8-bit image (a band of a downsampled camera frame), for
 /// [`SaliencyNorm::Reference`]; 0 if `buf` is shorter than the region.
 pub fn laplacian_max_u8(buf: &[u8], dims: Dims) -> u32 {
     if dims.check_buffer("image", buf.len()).is_err() {

@@ -243,7 +243,7 @@ pub fn run_device(acq: &Acquisition, setup: &Setup, repeats: usize) -> anyhow::R
 /// The reference for configurations of `setup`'s wavelet, levels and downsampling: the
 /// same schedule at full resolution (tiles `d` times taller, so each covers the same belt
 /// rows; frames at the belt offsets the device placed them at, `offsets` in its
-/// downsampled rows), fused in `f64`, normalized per frame.
+/// downsampled rows), fused in `f64`, normalized per frame (over its observation window).
 pub fn reference(acq: &Acquisition, setup: &Setup, offsets: &[u64]) -> anyhow::Result<Tiles<f64>> {
     let wire = setup.wire(&acq.base);
     let d = usize::from(setup.downsample);
@@ -271,10 +271,15 @@ pub fn reference(acq: &Acquisition, setup: &Setup, offsets: &[u64]) -> anyhow::R
     let mut tiles: BTreeMap<u64, (u8, Vec<f64>)> = BTreeMap::new();
     for ((bytes, _), &offset) in acq.frames.iter().zip(offsets) {
         let at = offset * d as u64;
-        let dims = downsample(bytes, acq.sensor.format, (w, h), 1, &mut gray)
+        downsample(bytes, acq.sensor.format, (w, h), 1, &mut gray)
             .map_err(|e| anyhow::anyhow!("{e}"))?;
+        // Normalized over the observation window, as the device does (`window_rows <= h`
+        // was checked above).
+        let top = schedule.window_top * w;
+        let window = &gray[top..top + schedule.window_rows * w];
+        let window_dims = Dims::new(w, schedule.window_rows)?;
         let cfg = FuseConfig {
-            norm: SaliencyNorm::Reference(laplacian_max_u8(&gray, dims)),
+            norm: SaliencyNorm::Reference(laplacian_max_u8(window, window_dims)),
             ..dev.fuse
         };
         for index in schedule.observed(at) {

@@ -111,7 +111,26 @@ pub fn downsample(
     factor: usize,
     out: &mut [u8],
 ) -> Result<Dims, Error> {
-    let dims = downsampled_dims(width, height, factor)?;
+    let all = downsampled_dims(width, height, factor)?.height();
+    downsample_rows(src, format, (width, height), factor, 0..all, out)
+}
+
+/// [`downsample`] of output rows `rows` only (downsampled rows, e.g. the pipeline's
+/// observation window), packed into `out` from its start; returns the size of that band.
+/// Camera rows outside the band are not read.
+pub fn downsample_rows(
+    src: &[u8],
+    format: PixelFormat,
+    (width, height): (usize, usize),
+    factor: usize,
+    rows: core::ops::Range<usize>,
+    out: &mut [u8],
+) -> Result<Dims, Error> {
+    let full = downsampled_dims(width, height, factor)?;
+    if rows.end > full.height() {
+        return Err(Error::InvalidParameter { name: "rows" });
+    }
+    let dims = Dims::new(full.width(), rows.end.saturating_sub(rows.start))?;
     let row_bytes = width * format.bytes_per_pixel();
     let needed = row_bytes * height;
     if src.len() < needed {
@@ -126,7 +145,7 @@ pub fn downsample(
     // The box area is 1, 4 or 16: the rounded mean is a shift.
     let shift = 2 * factor.trailing_zeros();
     let w = dims.width();
-    for (y, out_row) in out.chunks_exact_mut(w).take(dims.height()).enumerate() {
+    for (y, out_row) in rows.zip(out.chunks_exact_mut(w)) {
         let rows = src.chunks_exact(row_bytes).skip(y * factor).take(factor);
         if factor == 2 {
             let mut pair = rows.clone();
@@ -222,6 +241,19 @@ mod tests {
                 let mut out = [0u8; W * H];
                 let d = downsample(&src, format, (W, H), factor, &mut out).unwrap();
                 assert_eq!((d.width(), d.height()), (W / factor, H / factor));
+                // Every band of rows is those rows of the whole, packed from the start.
+                for start in 0..d.height() {
+                    for end in start + 1..=d.height() {
+                        let mut band = [0xa5u8; W * H];
+                        let got =
+                            downsample_rows(&src, format, (W, H), factor, start..end, &mut band)
+                                .unwrap();
+                        let n = got.pixels();
+                        assert_eq!((got.width(), got.height()), (d.width(), end - start));
+                        assert_eq!(band[..n], out[start * d.width()..end * d.width()]);
+                        assert!(band[n..].iter().all(|&v| v == 0xa5), "wrote past the band");
+                    }
+                }
                 let area = (factor * factor) as u32;
                 for oy in 0..d.height() {
                     for ox in 0..d.width() {
@@ -247,5 +279,13 @@ mod tests {
         assert!(downsample(&[0; 16], PixelFormat::Gray8, (4, 4), 3, &mut out).is_err());
         assert!(downsample(&[0; 16], PixelFormat::Gray8, (4, 4), 1, &mut out).is_err());
         assert!(downsample(&[0; 16], PixelFormat::Gray8, (1, 16), 2, &mut out).is_err());
+        // Bands beyond the frame, empty bands, a band larger than `out`.
+        let rows = |r: core::ops::Range<usize>, out: &mut [u8]| {
+            downsample_rows(&[0; 16], PixelFormat::Gray8, (4, 4), 2, r, out)
+        };
+        assert!(rows(1..3, &mut out).is_err());
+        assert!(rows(1..1, &mut out).is_err());
+        assert!(rows(0..2, &mut out[..3]).is_err());
+        assert!(rows(1..2, &mut out[..2]).is_ok());
     }
 }

@@ -7,7 +7,11 @@
 //!
 //! Only the middle of each frame is used: the *observation window* of
 //! `n·s + T − 1` rows centred on the roller's apex, `n` being the frames per tile and `s`
-//! the nominal frame spacing in rows. A tile is observed by a frame when it lies wholly
+//! the nominal frame spacing in rows. Only the window is downsampled, and the shift
+//! refinement's row profile and the per-frame saliency normalization (the largest
+//! Laplacian) are taken over it: the camera rows outside it are never read, which at the
+//! default configuration (47 of 120 rows) saves a fifth of the frame's instructions on
+//! the Cortex-M7 (docs/tradeoff.md). A tile is observed by a frame when it lies wholly
 //! in that window — with exact motion, by exactly `n` consecutive frames, from below the
 //! apex to above it. Each observation is fused into the tile's running result on the
 //! integer path ([`crate::fusion::fuse_u8`], the LL band weighted as configured); the
@@ -17,7 +21,7 @@
 //!
 //! Memory is the caller's ([`PipelineBuffers`]), sized by [`PipelineConfig::memory`].
 
-use super::downsample::{downsample, downsampled_dims};
+use super::downsample::{downsample_rows, downsampled_dims};
 use super::refine::{refine_shift, row_profile};
 use crate::float;
 use crate::fusion::{LlWeight, U8Work, fuse_scratch_words, fuse_u8};
@@ -103,12 +107,13 @@ pub struct PipelineConfig {
 
 /// The caller-owned memory a pipeline needs, by [`PipelineConfig::memory`]:
 ///
-/// - `frame`: the downsampled frame, `W·H` bytes;
+/// - `frame`: the downsampled observation window, `W·(n·s + T − 1)` bytes;
 /// - `tiles`: the tiles in fusion, `A·T·W` bytes with `A` = [`PipelineConfig::active_tiles`]
 ///   `= ⌈(n·s + T − 1)/T⌉ + 1`;
 /// - `work`: two fusion work images and the fusion scratch, `2·T·W +`
 ///   [`fuse_scratch_words`]`(W, T)` words;
-/// - `profiles`: this frame's and the previous frame's row profiles, `2·(H − 1)` words.
+/// - `profiles`: this frame's and the previous frame's row profiles (of the window),
+///   `2·(n·s + T − 2)` words.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Memory {
     /// Bytes of `frame`.
@@ -195,6 +200,13 @@ impl PipelineConfig {
         self.frame
     }
 
+    /// The observation window's band of the downsampled frame: its width by
+    /// [`Self::window_rows`] (what the pipeline downsamples, profiles and normalizes by).
+    pub fn window_dims(&self) -> Dims {
+        // `from_wire` checked the window fits the frame; the fallback is never taken.
+        Dims::new(self.frame.width(), self.window_rows()).unwrap_or(self.frame)
+    }
+
     /// The size of one tile: the frame's width by `tile_rows`.
     pub fn tile_dims(&self) -> Dims {
         self.tile
@@ -228,7 +240,7 @@ impl PipelineConfig {
 
     /// The memory a pipeline of this configuration needs.
     pub fn memory(&self) -> Memory {
-        let d = self.frame_dims();
+        let d = self.window_dims();
         let (w, h, t) = (d.width(), d.height(), self.tile_rows);
         Memory {
             frame_bytes: w * h,
@@ -395,11 +407,14 @@ impl<'a> Pipeline<'a> {
         mut emit: impl FnMut(Tile<'_>),
     ) -> Result<FrameReport, FrameError> {
         let cfg = self.cfg;
-        let dims = downsample(
+        let schedule = cfg.schedule();
+        let window = schedule.window_top..schedule.window_top + schedule.window_rows;
+        let dims = downsample_rows(
             camera,
             cfg.sensor.format,
             (cfg.sensor.width, cfg.sensor.height),
             cfg.downsample,
+            window,
             self.bufs.frame,
         )
         .map_err(FrameError::Size)?;
@@ -451,13 +466,16 @@ impl<'a> Pipeline<'a> {
             SaliencyNorm::Local
         };
         let fuse_cfg = FuseConfig { norm, ..cfg.fuse };
-        let schedule = cfg.schedule();
         // Tiles above the window are done: no later frame can see them. Emitting them
         // first bounds the tiles held to those starting inside the window.
         let emitted = self.emit_where(|index| schedule.is_done(index, offset), &mut emit);
         let observed = schedule.observed(offset);
         for index in observed.clone() {
-            self.observe(index, schedule.frame_row(index, offset), &fuse_cfg);
+            // Rows of the window band: the tile lies wholly in the window.
+            let row = schedule
+                .frame_row(index, offset)
+                .saturating_sub(schedule.window_top);
+            self.observe(index, row, &fuse_cfg);
         }
         Ok(FrameReport {
             offset,
@@ -474,7 +492,7 @@ impl<'a> Pipeline<'a> {
         n
     }
 
-    /// Fuses rows `row ..` of the current frame into tile `index`.
+    /// Fuses rows `row ..` of the current window band into tile `index`.
     fn observe(&mut self, index: u64, row: usize, cfg: &FuseConfig) {
         let (t, dims) = (self.cfg.tile_rows, self.cfg.tile);
         let w = dims.width();

@@ -5,7 +5,7 @@
 use super::clock::Clock;
 use super::frames::{self, FRAME_BYTES, HEIGHT, SPACING_PX, WIDTH};
 use core::fmt;
-use rollfuse_core::device::downsample::downsample;
+use rollfuse_core::device::downsample::{downsample, downsample_rows};
 use rollfuse_core::device::refine::{refine_shift, row_profile};
 use rollfuse_core::device::{
     MCU_CAPACITY, Pipeline, PipelineBuffers, PipelineConfig, Precision, Sensor,
@@ -299,21 +299,25 @@ fn kernels(clock: &Clock, b: &mut Buffers, out: &mut impl FnMut(&Row)) -> bool {
         })
     };
     frames::draw(0, &mut b.camera);
-    let (frame, i) = clock
-        .instructions(|| downsample(&b.camera, SENSOR.format, (WIDTH, HEIGHT), 2, &mut b.frame));
-    let Ok(frame) = frame else {
+    // The pipeline reads only the observation window: its band is what each kernel sees.
+    let schedule = cfg.schedule();
+    let window = schedule.window_top..schedule.window_top + schedule.window_rows;
+    let (band, i) = clock.instructions(|| {
+        downsample_rows(&b.camera, SENSOR.format, (WIDTH, HEIGHT), 2, window, &mut b.frame)
+    });
+    let Ok(band) = band else {
         return false;
     };
-    row("downsample", frame.pixels(), i);
-    let p = frame.height() - 1;
+    row("downsample", band.pixels(), i);
+    let p = band.height() - 1;
     let (previous, current) = b.profiles.split_at_mut(p);
-    row_profile(&b.frame, frame, previous);
-    let ((), i) = clock.instructions(|| row_profile(&b.frame, frame, &mut current[..p]));
-    row("row_profile", frame.pixels(), i);
+    row_profile(&b.frame, band, previous);
+    let ((), i) = clock.instructions(|| row_profile(&b.frame, band, &mut current[..p]));
+    row("row_profile", band.pixels(), i);
     let (_, i) = clock.instructions(|| refine_shift(previous, &current[..p], 8, 2));
-    row("refine_shift", frame.pixels(), i);
-    let (_, i) = clock.instructions(|| laplacian_max_u8(&b.frame, frame));
-    row("laplacian_max", frame.pixels(), i);
+    row("refine_shift", band.pixels(), i);
+    let (_, i) = clock.instructions(|| laplacian_max_u8(&b.frame, band));
+    row("laplacian_max", band.pixels(), i);
     let tile = cfg.tile_dims();
     let n = tile.pixels();
     for (v, &p) in b.ints.iter_mut().zip(&b.frame[..n]) {
