@@ -40,6 +40,8 @@ awk -F, '
         for (i = 1; i <= 4; i++) printf "| %s | %d | %.2f | 1 |\n", names[i], k[names[i]], kp[names[i]]
         printf "| fuse step, integer (one %d-pixel tile) | %d | %.1f | %.2f |\n", tilepx, fuse, fusepx, obs
         printf "| … of which forward lifting, one image | %d | %.1f | |\n", k["forward_2d"], kp["forward_2d"]
-        printf "| … of which inverse lifting | %d | %.1f | |\n", k["inverse_2d"], kp["inverse_2d"]
+        printf "| … of which inverse lifting (saturating every load; the fuse step saturates none) | %d | %.1f | |\n", k["inverse_2d"], kp["inverse_2d"]
+        printf "| the fuse step with max-abs(coefficient) selection: transforms and glue, no saliency | %d | %.1f | |\n", k["fuse_max_high"], kp["fuse_max_high"]
+        printf "| … so saliency maps, weights and blend (the difference of the two rows) | %d | %.1f | |\n", fuse - k["fuse_max_high"], fusepx - kp["fuse_max_high"]
         printf "| fuse step, f32 on the FPU (same tile) | %d | %.1f | |\n", fuse32, fuse32px
     }' "$csv"

@@ -14,7 +14,7 @@ use rollfuse_core::fusion::{LlWeight, U8Work, fuse_u8};
 use rollfuse_core::lifting::{forward_2d, inverse_2d};
 use rollfuse_core::protocol::{DeviceConfig, NormMode, PixelFormat, WaveletId};
 use rollfuse_core::saliency::laplacian_max_u8;
-use rollfuse_core::{FuseConfig, SaliencyNorm, Wavelet, float};
+use rollfuse_core::{Ablation, FuseConfig, SaliencyNorm, Wavelet, float};
 
 /// The CSV columns.
 pub const HEADER: &str = "section,name,wavelet,levels,downsample,norm,pixels,calls,\
@@ -334,5 +334,25 @@ fn kernels(clock: &Clock, b: &mut Buffers, out: &mut impl FnMut(&Row)) -> bool {
         return false;
     }
     row("inverse_2d", n, i);
+    // The fuse step of two tiles of the band with max-|coefficient| selection (no saliency
+    // maps, weights or blend); the `tile` rows have the full step on the same tiles.
+    let fuse = FuseConfig {
+        ablation: Ablation::MaxHigh,
+        ..cfg.fuse
+    };
+    let (a, rest) = b.work.split_at_mut(n);
+    let (b_work, scratch) = rest.split_at_mut(n);
+    let work = U8Work {
+        a,
+        b: b_work,
+        scratch,
+    };
+    let (ta, tb) = (&b.frame[..n], &b.frame[n..2 * n]);
+    let (r, i) =
+        clock.instructions(|| fuse_u8((ta, tile), (tb, tile), &fuse, LlWeight::HALF, work));
+    if r.is_err() {
+        return false;
+    }
+    row("fuse_max_high", n, i);
     true
 }
