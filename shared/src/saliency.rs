@@ -7,8 +7,8 @@
 //!    Laplacian, with whole-sample symmetric extension at the borders.
 //! 2. `Sal = L · 255 / max L`, rounded down, where `max L` is taken over the region being
 //!    fused ([`SaliencyNorm::Local`]: the whole image, or the tile on the device) or given
-//!    by the caller ([`SaliencyNorm::Reference`]: e.g. the whole frame's maximum when tiles
-//!    are fused). A flat region (`max L = 0`) has `Sal = 0` everywhere.
+//!    by the caller ([`SaliencyNorm::Reference`]: e.g. the maximum over a frame's
+//!    observation window when its tiles are fused). A flat region (`max L = 0`) has `Sal = 0` everywhere.
 //! 3. `S = exp(Sal/255) − 1`, looked up in [`EXP_TABLE`] (Q24, built at compile time).
 //!    `Sal` keeps 8 fraction bits and the table is interpolated linearly between entries:
 //!    weakly salient pixels, the most common kind at deeper levels, would otherwise all
@@ -216,8 +216,8 @@ fn for_each_laplacian(
     for_each_neighbourhood(buf, dims, |x, y, c, around| f(x, y, laplacian(c, around)));
 }
 
-/// The largest `|∇²I|` over the region: the `max L` of eq. 3 (e.g. a whole frame's, for
-/// [`SaliencyNorm::Reference`] when its tiles are fused). Fails if `buf` is shorter than
+/// The largest `|∇²I|` over the region: the `max L` of eq. 3 (e.g. a frame's observation
+/// window's, for [`SaliencyNorm::Reference`] when its tiles are fused). Fails if `buf` is shorter than
 /// the region.
 pub fn laplacian_max(buf: &[i32], dims: Dims) -> Result<u32, crate::Error> {
     dims.check_buffer("image", buf.len())?;
