@@ -8,7 +8,8 @@
 //! 2. `Sal = L · 255 / max L`, rounded down, where `max L` is taken over the region being
 //!    fused ([`SaliencyNorm::Local`]: the whole image, or the tile on the device) or given
 //!    by the caller ([`SaliencyNorm::Reference`]: e.g. the maximum over a frame's
-//!    observation window when its tiles are fused). A flat region (`max L = 0`) has `Sal = 0` everywhere.
+//!    observation window when its tiles are fused). A flat region (`max L = 0`) has
+//!    `Sal = 0` everywhere.
 //! 3. `S = exp(Sal/255) − 1`, looked up in [`EXP_TABLE`] (Q24, built at compile time).
 //!    `Sal` keeps 8 fraction bits and the table is interpolated linearly between entries:
 //!    weakly salient pixels, the most common kind at deeper levels, would otherwise all
@@ -65,9 +66,9 @@ pub enum SaliencyNorm {
     /// By a caller-supplied level-1 maximum, in the input's units (8-bit gray levels for
     /// [`crate::fusion::fuse_u8`]), e.g. that of the frame's observation window, where the
     /// device pipeline takes its tiles (see [`laplacian_max`]), so every tile of a frame
-    /// is judged on one scale. Deeper levels scale it by the transform's
-    /// LL gain ([`ll_gain_q16`]: both paths run the same unscaled lifting); larger
-    /// values saturate at 255. `Reference(0)` treats both images as flat: every weight ½.
+    /// is judged on one scale. Deeper levels scale it by the transform's LL gain
+    /// ([`ll_gain_q16`]: both paths run the same unscaled lifting); larger values
+    /// saturate at 255. `Reference(0)` treats both images as flat: every weight ½.
     Reference(u32),
 }
 
@@ -217,8 +218,8 @@ fn for_each_laplacian(
 }
 
 /// The largest `|∇²I|` over the region: the `max L` of eq. 3 (e.g. a frame's observation
-/// window's, for [`SaliencyNorm::Reference`] when its tiles are fused). Fails if `buf` is shorter than
-/// the region.
+/// window's, for [`SaliencyNorm::Reference`] when its tiles are fused). Fails if `buf` is
+/// shorter than the region.
 pub fn laplacian_max(buf: &[i32], dims: Dims) -> Result<u32, crate::Error> {
     dims.check_buffer("image", buf.len())?;
     // Any i32 samples: the 64-bit Laplacian.
