@@ -303,7 +303,14 @@ fn kernels(clock: &Clock, b: &mut Buffers, out: &mut impl FnMut(&Row)) -> bool {
     let schedule = cfg.schedule();
     let window = schedule.window_top..schedule.window_top + schedule.window_rows;
     let (band, i) = clock.instructions(|| {
-        downsample_rows(&b.camera, SENSOR.format, (WIDTH, HEIGHT), 2, window, &mut b.frame)
+        downsample_rows(
+            &b.camera,
+            SENSOR.format,
+            (WIDTH, HEIGHT),
+            2,
+            window,
+            &mut b.frame,
+        )
     });
     let Ok(band) = band else {
         return false;
