@@ -1,6 +1,6 @@
 //! Speed of the core kernels: forward and inverse lifting (Haar, db2; 1 and 3 levels) and
-//! one fuse step (integer and f32; f32 also on the hot loops' baseline copies, without
-//! AVX2), at the device's downsampled tile size (160×120), at
+//! one fuse step (integer and f32; f32 also on the hot loops' AVX2 and baseline copies,
+//! where the CPU has wider units), at the device's downsampled tile size (160×120), at
 //! 640×480 (fuse step) and at full camera resolution (1280×960).
 //!
 //! `cargo bench -p rollfuse-core --bench kernels`; throughput is reported in pixels/s.
@@ -8,7 +8,7 @@
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use rollfuse_core::fusion::{LlWeight, U8Work, fuse_scratch_len, fuse_u8};
 use rollfuse_core::lifting::{forward_2d, inverse_2d, scratch_len};
-use rollfuse_core::simd::set_vector_dispatch;
+use rollfuse_core::simd::{VectorUnit, set_vector_limit};
 use rollfuse_core::{Dims, FuseConfig, Wavelet, float};
 use std::hint::black_box;
 
@@ -93,10 +93,15 @@ fn fuse_step(c: &mut Criterion) {
             let (fa0, fb0) = (load(&a), load(&b));
             let (mut fa, mut fb) = (fa0.clone(), fb0.clone());
             let mut fscratch = vec![0f32; float::fuse_scratch_len(dims)];
-            // Also on the baseline copies of the hot loops (`simd`): what AVX2 buys, in
-            // the same run (the same copies where the CPU has no AVX2).
-            for (name, avx2) in [("f32", true), ("f32-baseline", false)] {
-                set_vector_dispatch(avx2);
+            // Also on narrower copies of the hot loops (`simd`): what each wider unit
+            // buys, in the same run (the same copies where the CPU lacks the unit).
+            let units = [
+                ("f32", VectorUnit::Avx512),
+                ("f32-avx2", VectorUnit::Avx2),
+                ("f32-baseline", VectorUnit::Baseline),
+            ];
+            for (name, unit) in units {
+                set_vector_limit(unit);
                 group.bench_function(BenchmarkId::new(name, &id), |bench| {
                     bench.iter(|| {
                         fa.copy_from_slice(&fa0);
@@ -106,7 +111,7 @@ fn fuse_step(c: &mut Criterion) {
                     })
                 });
             }
-            set_vector_dispatch(true);
+            set_vector_limit(VectorUnit::Avx512);
         }
     }
     group.finish();

@@ -7,8 +7,8 @@
 //!
 //! `#![no_std]`, no allocation, and no panics on any input: bad sizes and parameters come
 //! back as [`Error`] values. Buffers are the caller's. No `unsafe` either, but for one
-//! kind of call on x86-64 hosts: a hot loop's AVX2 copy, run where the CPU has AVX2
-//! ([`simd`]); elsewhere, the firmware included, the crate forbids `unsafe`.
+//! kind of call on x86-64 hosts: a hot loop's AVX2 or AVX-512 copy, run where the CPU has
+//! that unit ([`simd`]); elsewhere, the firmware included, the crate forbids `unsafe`.
 //!
 //! # Layers
 //!
@@ -24,7 +24,8 @@
 //!   model) and the device's command handling.
 //! - [`protocol`]: the messages of the USB link, their framing, CRC and limits.
 //! - [`motion`]: the roller's trapezoidal step profile and frame triggers.
-//! - [`simd`]: the run-time choice between baseline and AVX2 copies of the hot loops.
+//! - [`simd`]: the run-time choice between baseline, AVX2 and AVX-512 copies of the hot
+//!   loops.
 #![no_std]
 #![cfg_attr(not(target_arch = "x86_64"), forbid(unsafe_code))]
 #![cfg_attr(target_arch = "x86_64", deny(unsafe_code))]

@@ -1,11 +1,11 @@
-//! The hot loops' AVX2 copies give what their baseline copies give, to the bit
-//! (`rollfuse_core::simd`). A test binary of its own: the switch is process-wide.
+//! The hot loops' AVX-512 and AVX2 copies give what their baseline copies give, to the bit
+//! (`rollfuse_core::simd`). A test binary of its own: the limit is process-wide.
 
 mod common;
 
 use common::tactile_scene;
 use rollfuse_core::fusion::{LlWeight, fuse_pair, fuse_scratch_len};
-use rollfuse_core::simd::{avx2, set_vector_dispatch};
+use rollfuse_core::simd::{VectorUnit, avx2, avx512, set_vector_limit, vector_unit};
 use rollfuse_core::{Ablation, Dims, FuseConfig, LlWeighting, SaliencyNorm, Wavelet, float};
 
 /// Every configuration a fuse step can take that changes which loops run.
@@ -73,21 +73,40 @@ fn fuse_all(w: usize, h: usize, cfg: &FuseConfig) -> (Vec<u32>, Vec<u64>, Vec<i3
     )
 }
 
-// One test, so nothing else in this binary flips the switch meanwhile.
+// One test, so nothing else in this binary moves the limit meanwhile.
 #[test]
-fn avx2_and_baseline_copies_fuse_to_the_same_bits() {
-    let has = avx2();
-    set_vector_dispatch(false);
-    assert!(!avx2(), "the switch must turn AVX2 off");
-    set_vector_dispatch(true);
-    assert_eq!(avx2(), has, "the switch must give AVX2 back");
-    if !has {
-        // Nothing to compare: this CPU only ever runs the baseline copies.
+fn every_vector_unit_fuses_to_the_same_bits() {
+    let (has_avx2, has_avx512) = (avx2(), avx512());
+    assert!(has_avx2 || !has_avx512, "every AVX-512 CPU has AVX2");
+    set_vector_limit(VectorUnit::Baseline);
+    assert_eq!(vector_unit(), VectorUnit::Baseline, "the limit must hold");
+    assert!(!avx2() && !avx512());
+    set_vector_limit(VectorUnit::Avx2);
+    assert!(!avx512(), "the AVX2 limit must keep AVX-512 off");
+    assert_eq!(avx2(), has_avx2, "the AVX2 limit must allow AVX2");
+    set_vector_limit(VectorUnit::Avx512);
+    assert_eq!(
+        (avx2(), avx512()),
+        (has_avx2, has_avx512),
+        "the widest limit allows all"
+    );
+    // The wider units this CPU has, each compared with the baseline.
+    let wide: Vec<VectorUnit> = [
+        (VectorUnit::Avx2, has_avx2),
+        (VectorUnit::Avx512, has_avx512),
+    ]
+    .into_iter()
+    .filter_map(|(unit, has)| has.then_some(unit))
+    .collect();
+    if !has_avx512 {
+        eprintln!("SKIPPED (AVX-512 part): no AVX-512 on this CPU; its copies never run here");
+    }
+    if wide.is_empty() {
         eprintln!("SKIPPED: no AVX2 on this CPU; the baseline copies are the only ones run");
         return;
     }
     // Odd and even sizes, one-row and one-column regions, and widths that leave vector
-    // remainders of every length.
+    // remainders of every length (of 4, 8 and 16 lanes).
     let sizes = [
         (64, 48),
         (37, 29),
@@ -96,6 +115,7 @@ fn avx2_and_baseline_copies_fuse_to_the_same_bits() {
         (2, 2),
         (45, 8),
         (130, 67),
+        (95, 21),
     ];
     let mut compared = 0;
     for &(w, h) in &sizes {
@@ -103,17 +123,20 @@ fn avx2_and_baseline_copies_fuse_to_the_same_bits() {
             if Dims::new(w, h).unwrap().check_levels(cfg.levels).is_err() {
                 continue;
             }
-            set_vector_dispatch(true);
-            let wide = fuse_all(w, h, &cfg);
-            set_vector_dispatch(false);
+            set_vector_limit(VectorUnit::Baseline);
             let baseline = fuse_all(w, h, &cfg);
-            set_vector_dispatch(true);
-            assert!(
-                wide == baseline,
-                "{w}×{h} {cfg:?}: AVX2 and baseline differ"
-            );
-            compared += 1;
+            for &unit in &wide {
+                set_vector_limit(unit);
+                assert_eq!(vector_unit(), unit);
+                let result = fuse_all(w, h, &cfg);
+                assert!(
+                    result == baseline,
+                    "{w}×{h} {cfg:?}: {unit:?} and baseline differ"
+                );
+                compared += 1;
+            }
         }
     }
+    set_vector_limit(VectorUnit::Avx512);
     assert!(compared > 100, "only {compared} cases ran");
 }
