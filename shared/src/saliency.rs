@@ -115,29 +115,28 @@ pub(crate) fn neighbourhood_row<T: Copy>(
     );
 }
 
-/// Sets `out[x] = f(centre, [up, down, left, right])` for every pixel of row `y`, with the
-/// extension of [`neighbourhood_row`]. The interior runs over zipped slices, with no index
-/// checks, so a simple `f` vectorizes. Nothing is written if `buf` is shorter than the
-/// region or `out` than its width.
-// Indices stay inside the rows: `row_and_neighbours` returns three rows of exactly
-// `w = dims.width() ≥ 1` elements and `out` is cut to `w` by `get_mut`; the border indices
-// are 0, 1, w − 2 and w − 1 with `w ≥ 2` past the `w == 1` case, and `m` is a window of 3.
+/// Sets `out[x] = f(centre, [up, down, left, right])` for every pixel of the row `mid`,
+/// `up` and `down` being the rows above and below it (as [`row_and_neighbours`] gives
+/// them), with the extension of [`neighbourhood_row`] at its ends. The interior runs over
+/// zipped slices, with no index checks, so a simple `f` vectorizes. Nothing is written if
+/// `up`, `down` or `out` is shorter than `mid`, or `mid` is empty.
+// Indices stay inside the rows: all four are cut to `w = mid.len() ≥ 1`; the border
+// indices are 0, 1, w − 2 and w − 1 with `w ≥ 2` past the `w == 1` case, and `m` is a
+// window of 3.
 #[allow(clippy::indexing_slicing)]
 #[inline(always)]
-pub(crate) fn map_neighbourhood_row<T: Copy, U>(
-    buf: &[T],
-    dims: Dims,
-    y: usize,
+pub(crate) fn map_neighbourhood<T: Copy, U>(
+    [up, mid, down]: [&[T]; 3],
     out: &mut [U],
     f: impl Fn(T, [T; 4]) -> U,
 ) {
-    let Some((up, mid, down)) = row_and_neighbours(buf, dims, y) else {
-        return;
-    };
     let w = mid.len();
-    let Some(out) = out.get_mut(..w) else {
+    let (Some(up), Some(down), Some(out)) = (up.get(..w), down.get(..w), out.get_mut(..w)) else {
         return;
     };
+    if w == 0 {
+        return;
+    }
     if w == 1 {
         out[0] = f(mid[0], [up[0], down[0], mid[0], mid[0]]);
         return;
@@ -252,8 +251,8 @@ fn laplacian_max_in(buf: &[i32], dims: Dims, laplacian: impl Fn(i32, [i32; 4]) -
 /// The Laplacian (capped at the maximum) is scaled by a power of two that brings the
 /// maximum into `2¹⁵..2¹⁶`, so the reciprocal fits in 25 bits and each pixel costs one
 /// 32 × 32 → 64-bit multiply (a single instruction on the Cortex-M7).
-#[derive(Clone, Copy)]
-struct Normalizer {
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Normalizer {
     /// The unscaled maximum: larger Laplacians (Reference normalization) are capped to it.
     cap: u32,
     /// Right shift, then left shift, that bring `cap` into `2¹⁵..2¹⁶` (one is zero).
@@ -263,7 +262,8 @@ struct Normalizer {
 }
 
 impl Normalizer {
-    fn new(max: u32) -> Self {
+    /// The normalizer for `max` (a `max` of 0 is taken as 1).
+    pub(crate) fn new(max: u32) -> Self {
         let cap = max.max(1);
         let bits = 32 - cap.leading_zeros();
         let (down, up) = (bits.saturating_sub(16), 16u32.saturating_sub(bits));
@@ -323,30 +323,14 @@ pub(crate) fn level_max(
     }
 }
 
-/// Calls `f(y, S)` with the row of `S = exp(Sal/255) − 1` (Q24) of every row `y`, built in
-/// `row` (at least the region's width), `max` being the normalizing maximum. A flat region
-/// (`max = 0`) has `S = 0` everywhere and makes no calls.
-pub(crate) fn saliency_rows(
-    buf: &[i32],
-    dims: Dims,
-    max: u32,
-    row: &mut [i32],
-    mut f: impl FnMut(usize, &[i32]),
-) {
-    if max == 0 {
-        return;
-    }
-    let norm = Normalizer::new(max);
-    let Some(row) = row.get_mut(..dims.width()) else {
-        return;
-    };
-    for y in 0..dims.height() {
-        // S ≤ 1.7183 · 2²⁴ < 2³¹.
-        map_neighbourhood_row(buf, dims, y, row, |c, around| {
-            norm.saliency(level_laplacian(c, around)) as i32
-        });
-        f(y, row);
-    }
+/// Sets `out` to the row of `S = exp(Sal/255) − 1` (Q24) of the row `mid` between `up`
+/// and `down` (see [`map_neighbourhood`]), normalized by `norm`.
+#[inline(always)]
+pub(crate) fn saliency_row(norm: Normalizer, rows: [&[i32]; 3], out: &mut [i32]) {
+    // S ≤ 1.7183 · 2²⁴ < 2³¹.
+    map_neighbourhood(rows, out, |c, around| {
+        norm.saliency(level_laplacian(c, around)) as i32
+    });
 }
 
 /// `W₁ = S₁ / (S₁ + S₂)` as Q15 (`1.0` = 32768), rounded to nearest, `½` when both are

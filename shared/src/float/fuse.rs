@@ -2,10 +2,10 @@
 //! exact floating-point arithmetic, float saliency and float weights — in `f32` (the
 //! host's working path) or `f64` (the reference the trade-off study measures against).
 
-use crate::fusion::{Arith, FuseConfig, Join, LlWeight, Sequential, fuse_pair_checked};
+use crate::fusion::{Arith, FuseConfig, Join, LlWeight, Sequential, fuse_pair_checked, rings_len};
 use crate::lifting::{self, Coefficients, LevelBounds, Lift};
 use crate::saliency::ll_gain_q16;
-use crate::saliency::{SaliencyNorm, map_neighbourhood_row, row_and_neighbours};
+use crate::saliency::{SaliencyNorm, map_neighbourhood, row_and_neighbours};
 use crate::{Dims, Error, Wavelet, simd};
 
 mod sealed {
@@ -99,6 +99,16 @@ impl<T: Float> Arith for T {
         lifting::forward_level(wavelet, buf, dims, scratch);
     }
 
+    fn forward_level_observed(
+        wavelet: Wavelet,
+        buf: &mut [T],
+        dims: Dims,
+        scratch: &mut [T],
+        observe: impl FnMut(usize, &[T], &mut [T]),
+    ) {
+        lifting::forward_level_observed(wavelet, buf, dims, scratch, observe);
+    }
+
     fn inverse(wavelet: Wavelet, buf: &mut [T], dims: Dims, levels: u8, scratch: &mut [T]) {
         // Floats need no saturation: the bounds are only passed along.
         let bounds = [LevelBounds::default(); crate::MAX_LEVELS as usize];
@@ -106,20 +116,17 @@ impl<T: Float> Arith for T {
         lifting::inverse_levels(wavelet, buf, dims, levels, scratch, &bounds, inside);
     }
 
-    #[inline(always)]
-    fn saliency_rows(
+    /// `1 / max`.
+    type SaliencyScale = T;
+
+    fn saliency_scale(
         buf: &[T],
         dims: Dims,
         norm: SaliencyNorm,
         wavelet: Wavelet,
         level: u8,
         known_max: Option<T>,
-        row: &mut [T],
-        mut f: impl FnMut(usize, &[T]),
-    ) {
-        let Some(row) = row.get_mut(..dims.width()) else {
-            return;
-        };
+    ) -> Option<T> {
         let max = match norm {
             SaliencyNorm::Local => match known_max {
                 Some(max) => max,
@@ -138,19 +145,20 @@ impl<T: Float> Arith for T {
                 (1..level).fold(T::from_f64(f64::from(r)), |m, _| m * gain)
             }
         };
-        if max <= T::ZERO || !max.is_finite() {
+        (max > T::ZERO && max.is_finite()).then(|| T::ONE / max)
+    }
+
+    #[inline(always)]
+    fn saliency_row(inv: T, rows: [&[T]; 3], out: &mut [T]) {
+        let Some(out) = out.get_mut(..rows[1].len()) else {
             return;
-        }
-        let inv = T::ONE / max;
-        for y in 0..dims.height() {
-            // Sal/255 = |∇²I| / max, saturated at 1 for a Reference maximum.
-            map_neighbourhood_row(buf, dims, y, row, laplacian);
-            // A pass of its own: a plain map over the row, which vectorizes.
-            for v in row.iter_mut() {
-                let x = *v * inv;
-                *v = (if x < T::ONE { x } else { T::ONE }).expm1_unit();
-            }
-            f(y, row);
+        };
+        // Sal/255 = |∇²I| / max, saturated at 1 for a Reference maximum.
+        map_neighbourhood(rows, out, laplacian);
+        // A pass of its own: a plain map over the row, which vectorizes.
+        for v in out.iter_mut() {
+            let x = *v * inv;
+            *v = (if x < T::ONE { x } else { T::ONE }).expm1_unit();
         }
     }
 
@@ -236,7 +244,7 @@ impl<T: Float> LaplacianScan<T> {
     }
 
     /// Takes in row `y` of the region (nothing if `buf` does not hold it), with the
-    /// mirrored neighbours of [`map_neighbourhood_row`].
+    /// mirrored neighbours of [`row_and_neighbours`].
     #[inline(always)]
     fn row(&mut self, buf: &[T], dims: Dims, y: usize) {
         let Some((up, mid, down)) = row_and_neighbours(buf, dims, y) else {
@@ -383,9 +391,10 @@ pub const MAX_SAMPLE_F32: f32 = 1e9;
 
 /// Scratch length (in samples) that [`fuse_pair`] and [`fuse_pair_with`] need for `dims`:
 /// as on the integer path ([`crate::fusion::fuse_scratch_len`]), plus a second transform
-/// line so both images can be worked on at once.
+/// line so both images can be worked on at once, and two rows per image that let each
+/// image's saliency be taken in its transform's sweep.
 pub fn fuse_scratch_len(dims: Dims) -> usize {
-    crate::fusion::fuse_scratch_len(dims) + lifting::scratch_len(dims)
+    crate::fusion::fuse_scratch_len(dims) + lifting::scratch_len(dims) + rings_len(dims)
 }
 
 /// One float fuse step (`f32` or `f64`) on the `dims` region of `a` and `b`: the fused image replaces `a`,
@@ -413,7 +422,7 @@ pub fn fuse_pair_with<T: Float>(
     ll_weight: LlWeight,
     scratch: &mut [T],
 ) -> Result<(), Error> {
-    fuse_pair_checked(a, b, dims, cfg, ll_weight, scratch, 2, join)
+    fuse_pair_checked(a, b, dims, cfg, ll_weight, scratch, (2, true), join)
 }
 
 #[cfg(test)]

@@ -14,6 +14,16 @@ impl Arith for i32 {
         lifting::forward_level(wavelet, buf, dims, scratch);
     }
 
+    fn forward_level_observed(
+        wavelet: Wavelet,
+        buf: &mut [i32],
+        dims: Dims,
+        scratch: &mut [i32],
+        observe: impl FnMut(usize, &[i32], &mut [i32]),
+    ) {
+        lifting::forward_level_observed(wavelet, buf, dims, scratch, observe);
+    }
+
     fn inverse(wavelet: Wavelet, buf: &mut [i32], dims: Dims, levels: u8, scratch: &mut [i32]) {
         let bounds = level_bounds(wavelet, levels);
         // Fused coefficients are convex combinations of forward-transform outputs of the
@@ -22,7 +32,9 @@ impl Arith for i32 {
         lifting::inverse_levels(wavelet, buf, dims, levels, scratch, &bounds, inside);
     }
 
-    fn saliency_rows(
+    type SaliencyScale = saliency::Normalizer;
+
+    fn saliency_scale(
         buf: &[i32],
         dims: Dims,
         norm: SaliencyNorm,
@@ -30,11 +42,14 @@ impl Arith for i32 {
         level: u8,
         // Never given: `check_and_max` leaves the scan to this function.
         _known_max: Option<i32>,
-        row: &mut [i32],
-        f: impl FnMut(usize, &[i32]),
-    ) {
+    ) -> Option<saliency::Normalizer> {
         let max = saliency::level_max(buf, dims, norm, wavelet, level);
-        saliency::saliency_rows(buf, dims, max, row, f);
+        (max != 0).then(|| saliency::Normalizer::new(max))
+    }
+
+    #[inline(always)]
+    fn saliency_row(norm: saliency::Normalizer, rows: [&[i32]; 3], out: &mut [i32]) {
+        saliency::saliency_row(norm, rows, out);
     }
 
     fn weight(s1: i32, s2: i32) -> i32 {
@@ -88,7 +103,7 @@ pub fn fuse_pair(
     ll_weight: LlWeight,
     scratch: &mut [i32],
 ) -> Result<(), Error> {
-    fuse_pair_checked(a, b, dims, cfg, ll_weight, scratch, 1, &Sequential)
+    fuse_pair_checked(a, b, dims, cfg, ll_weight, scratch, (1, false), &Sequential)
 }
 
 /// Fraction bits the 8-bit fusion keeps below the pixel's integer part while it works.
@@ -133,7 +148,12 @@ pub fn fuse_u8(
     if ll_weight.0 > 1 << 15 {
         return Err(Error::InvalidParameter { name: "ll_weight" });
     }
-    let parts = split_scratch(work.scratch, lifting::scratch_len(packed), 1, packed)?;
+    let parts = split_scratch(
+        work.scratch,
+        lifting::scratch_len(packed),
+        (1, false),
+        packed,
+    )?;
     // Every buffer was checked to hold its region above: the zips pair all `h` rows.
     for (src, src_dims, dst) in [(a, a_dims, &mut *work.a), (b, b_dims, &mut *work.b)] {
         for (row, dst_row) in src_dims.rows(src).zip(dst.chunks_exact_mut(w)) {

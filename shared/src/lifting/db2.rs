@@ -314,7 +314,7 @@ pub(crate) fn inverse_row_two_pass<T: Lift>(row: &mut [T], work: &mut [T], out_b
 /// [`crate::geometry`]). Each step works on whole rows, so the sweep reads and writes the
 /// region once, front to back; `ready` runs the row pass on each row before the sweep
 /// first reads it.
-pub(crate) fn forward_columns<T: Lift, F: FnMut(&mut [T])>(
+pub(crate) fn forward_columns<T: Lift, F: FnMut(usize, &mut [T])>(
     buf: &mut [T],
     (stride, w, n): (usize, usize, usize),
     ready: &mut RowsReady<'_, F>,

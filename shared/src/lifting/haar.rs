@@ -48,7 +48,7 @@ pub(crate) fn inverse_line<T: Lift>(src: &[T], dst: &mut [T], out_bound: i32) {
 /// samples, `stride` apart; row pair `(2l, 2l + 1)` becomes low-band row `l` and
 /// high-band row `l` in its place (an odd length's last row is low already).
 /// `ready` runs the row pass on each row before it is read.
-pub(crate) fn forward_columns<T: Lift, F: FnMut(&mut [T])>(
+pub(crate) fn forward_columns<T: Lift, F: FnMut(usize, &mut [T])>(
     buf: &mut [T],
     (stride, w, n): (usize, usize, usize),
     ready: &mut RowsReady<'_, F>,

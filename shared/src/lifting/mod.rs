@@ -140,7 +140,7 @@ impl Wavelet {
     /// Forward lifting of the columns of a region in place: `n` rows of `w` samples,
     /// `stride` apart, from the start of `buf` (layout in [`crate::geometry`]). `ready`
     /// runs the row pass on each row before the sweep first reads it.
-    fn forward_columns<T: Lift, F: FnMut(&mut [T])>(
+    fn forward_columns<T: Lift, F: FnMut(usize, &mut [T])>(
         self,
         buf: &mut [T],
         (stride, w, n): (usize, usize, usize),
@@ -410,19 +410,59 @@ pub(crate) fn forward_level<T: Lift>(
     dims: Dims,
     scratch: &mut [T],
 ) {
-    let (w, h) = (dims.width(), dims.height());
-    let mut row_pass = |row: &mut [T]| {
+    let w = dims.width();
+    sweep_level(wavelet, buf, dims, |_, row| {
         if w > 1 {
             forward_row(wavelet, row, scratch);
         }
-    };
+    });
+}
+
+/// [`forward_level`] that first shows each row of the region to `observe`:
+/// `observe(k, row k, scratch)` runs for `k = 0, 1, …` in order, each call before row `k`
+/// is transformed, with the level's scratch line to use as it likes (the row pass needs
+/// it only afterwards). Where the column sweep takes the rows in order (an even height)
+/// each is observed as the sweep brings it into cache, so observer and transform read
+/// the region once between them; otherwise every row is observed first.
+pub(crate) fn forward_level_observed<T: Lift>(
+    wavelet: Wavelet,
+    buf: &mut [T],
+    dims: Dims,
+    scratch: &mut [T],
+    mut observe: impl FnMut(usize, &[T], &mut [T]),
+) {
+    let (w, h) = (dims.width(), dims.height());
+    if h.is_multiple_of(2) {
+        sweep_level(wavelet, buf, dims, |k, row| {
+            observe(k, row, scratch);
+            if w > 1 {
+                forward_row(wavelet, row, scratch);
+            }
+        });
+    } else {
+        // An odd height's sweep lifts its last rows early (`RowsReady::early`).
+        for (k, row) in dims.rows(buf).enumerate() {
+            observe(k, row, scratch);
+        }
+        forward_level(wavelet, buf, dims, scratch);
+    }
+}
+
+/// One forward 2-D level with `row_pass(k, row k)` as its row transform: each row is
+/// lifted just before the column sweep first reads it, while the sweep's rows are in
+/// cache, so the level reads and writes the region once.
+fn sweep_level<T: Lift>(
+    wavelet: Wavelet,
+    buf: &mut [T],
+    dims: Dims,
+    mut row_pass: impl FnMut(usize, &mut [T]),
+) {
+    let (w, h) = (dims.width(), dims.height());
     if h > 1 {
-        // Each row is lifted just before the column sweep first reads it, while the
-        // sweep's rows are in cache: the level reads and writes the region once.
         let mut ready = RowsReady::new(&mut row_pass);
         wavelet.forward_columns(buf, (dims.stride(), w, h), &mut ready);
     } else if let Some(row) = dims.row_mut(buf, 0) {
-        row_pass(row);
+        row_pass(0, row);
     }
 }
 
@@ -452,7 +492,7 @@ impl<'f, F> RowsReady<'f, F> {
     #[inline(always)]
     pub fn through<T>(&mut self, buf: &mut [T], (stride, w): (usize, usize), last: usize)
     where
-        F: FnMut(&mut [T]),
+        F: FnMut(usize, &mut [T]),
     {
         while self.next <= last {
             let k = self.next;
@@ -460,7 +500,7 @@ impl<'f, F> RowsReady<'f, F> {
             if !self.early.contains(&Some(k))
                 && let Some([row]) = rows_at(buf, stride, w, [k])
             {
-                (self.row_pass)(row);
+                (self.row_pass)(k, row);
             }
         }
     }
@@ -469,7 +509,7 @@ impl<'f, F> RowsReady<'f, F> {
     /// two such rows (an odd length's last row and its mirrored odd partner).
     pub fn early<T>(&mut self, buf: &mut [T], (stride, w): (usize, usize), k: usize)
     where
-        F: FnMut(&mut [T]),
+        F: FnMut(usize, &mut [T]),
     {
         if k < self.next || self.early.contains(&Some(k)) {
             return;
@@ -477,7 +517,7 @@ impl<'f, F> RowsReady<'f, F> {
         let free = self.early.iter_mut().find(|slot| slot.is_none());
         if let (Some(slot), Some([row])) = (free, rows_at(buf, stride, w, [k])) {
             *slot = Some(k);
-            (self.row_pass)(row);
+            (self.row_pass)(k, row);
         }
     }
 }
@@ -825,13 +865,23 @@ mod tests {
             buf
         };
         // The row hooks must run exactly once on every row (the round-trip tests check
-        // that the row pass runs before the sweep reads a row: the 2-D result is exact).
+        // that the row pass runs before the sweep reads a row: the 2-D result is exact),
+        // and in order for an even length (what `forward_level_observed` relies on).
         let mut fwd = strided(&|k| k);
-        let mut rows_seen = 0;
-        let mut count = |_: &mut [T]| rows_seen += 1;
-        let mut ready = RowsReady::new(&mut count);
+        let mut order = Vec::new();
+        let mut record = |k: usize, _: &mut [T]| order.push(k);
+        let mut ready = RowsReady::new(&mut record);
         wavelet.forward_columns(&mut fwd, (stride, w, n), &mut ready);
-        assert_eq!(rows_seen, n, "forward row hook calls, {wavelet:?}, n {n}");
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        assert_eq!(
+            sorted,
+            (0..n).collect::<Vec<_>>(),
+            "forward row hooks, {wavelet:?}, n {n}"
+        );
+        if n % 2 == 0 {
+            assert_eq!(order, sorted, "forward row hook order, {wavelet:?}, n {n}");
+        }
         // The inverse reads each column's values as low band then high band.
         let mut inv = strided(&interleaved);
         let bounds = ColumnBounds {
