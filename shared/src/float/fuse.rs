@@ -95,20 +95,6 @@ impl Float for f64 {
 }
 
 impl<T: Float> Arith for T {
-    fn forward_level(wavelet: Wavelet, buf: &mut [T], dims: Dims, scratch: &mut [T]) {
-        lifting::forward_level(wavelet, buf, dims, scratch);
-    }
-
-    fn forward_level_observed(
-        wavelet: Wavelet,
-        buf: &mut [T],
-        dims: Dims,
-        scratch: &mut [T],
-        observe: impl FnMut(usize, &[T], &mut [T]),
-    ) {
-        lifting::forward_level_observed(wavelet, buf, dims, scratch, observe);
-    }
-
     fn inverse(wavelet: Wavelet, buf: &mut [T], dims: Dims, levels: u8, scratch: &mut [T]) {
         // Floats need no saturation: the bounds are only passed along.
         let bounds = [LevelBounds::default(); crate::MAX_LEVELS as usize];

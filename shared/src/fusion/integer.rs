@@ -10,20 +10,6 @@ use crate::saliency::{self, SaliencyNorm};
 use crate::{Dims, Error, Wavelet};
 
 impl Arith for i32 {
-    fn forward_level(wavelet: Wavelet, buf: &mut [i32], dims: Dims, scratch: &mut [i32]) {
-        lifting::forward_level(wavelet, buf, dims, scratch);
-    }
-
-    fn forward_level_observed(
-        wavelet: Wavelet,
-        buf: &mut [i32],
-        dims: Dims,
-        scratch: &mut [i32],
-        observe: impl FnMut(usize, &[i32], &mut [i32]),
-    ) {
-        lifting::forward_level_observed(wavelet, buf, dims, scratch, observe);
-    }
-
     fn inverse(wavelet: Wavelet, buf: &mut [i32], dims: Dims, levels: u8, scratch: &mut [i32]) {
         let bounds = level_bounds(wavelet, levels);
         // Fused coefficients are convex combinations of forward-transform outputs of the

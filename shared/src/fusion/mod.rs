@@ -18,6 +18,7 @@ pub(crate) mod integer;
 pub use cyclic::{CyclicBuffers, CyclicFuser};
 pub use integer::{GUARD_BITS, U8Work, fuse_pair, fuse_scratch_len, fuse_scratch_words, fuse_u8};
 
+use crate::lifting::{self, Lift};
 use crate::saliency::{SaliencyNorm, row_and_neighbours};
 use crate::{Dims, Error, Wavelet, simd};
 
@@ -153,21 +154,11 @@ impl WindowLayout {
 }
 
 /// The numeric operations a fusion path supplies: coefficients, saliency sums and weights
-/// all live in `Self` (i32 on the integer path, f32 on the float path).
-pub(crate) trait Arith: Copy + Default + Send + Sync + core::ops::AddAssign {
-    /// One forward 2-D level on `dims`.
-    fn forward_level(wavelet: Wavelet, buf: &mut [Self], dims: Dims, scratch: &mut [Self]);
+/// all live in `Self` (i32 on the integer path, f32 on the float path). The forward
+/// transform is the lifting's own, generic over [`Lift`]; the inverse differs by path.
+pub(crate) trait Arith: Lift + Send + Sync + core::ops::AddAssign {
     /// All inverse levels, deepest first.
     fn inverse(wavelet: Wavelet, buf: &mut [Self], dims: Dims, levels: u8, scratch: &mut [Self]);
-    /// [`Arith::forward_level`] that shows each row to `observe` first, in order
-    /// (`crate::lifting::forward_level_observed`).
-    fn forward_level_observed(
-        wavelet: Wavelet,
-        buf: &mut [Self],
-        dims: Dims,
-        scratch: &mut [Self],
-        observe: impl FnMut(usize, &[Self], &mut [Self]),
-    );
     /// What [`Arith::saliency_row`] normalizes the Laplacian by.
     type SaliencyScale: Copy;
     /// The normalization of the saliency of the level input `buf` on `dims`, or `None` for
@@ -463,7 +454,7 @@ fn saliency_and_forward<T: Arith>(
     ring: Option<&mut [T]>,
 ) {
     let Some((map, layout)) = map else {
-        T::forward_level(cfg.wavelet, img, dims, line);
+        lifting::forward_level(cfg.wavelet, img, dims, line);
         return;
     };
     let (w, h) = (dims.width(), dims.height());
@@ -472,7 +463,7 @@ fn saliency_and_forward<T: Arith>(
     let lagged = ring.and_then(|r| LaggedRows::new(r, w));
     match (scale, lagged) {
         (Some(scale), Some(mut lagged)) => {
-            T::forward_level_observed(cfg.wavelet, img, dims, line, |_, row, line| {
+            lifting::forward_level_observed(cfg.wavelet, img, dims, line, |_, row, line| {
                 lagged.meet(row, |y, rows| {
                     saliency_map_row(scale, rows, y, &mut map, line)
                 });
@@ -485,9 +476,9 @@ fn saliency_and_forward<T: Arith>(
                     saliency_map_row(scale, [up, mid, down], y, &mut map, line);
                 }
             }
-            T::forward_level(cfg.wavelet, img, dims, line);
+            lifting::forward_level(cfg.wavelet, img, dims, line);
         }
-        (None, _) => T::forward_level(cfg.wavelet, img, dims, line),
+        (None, _) => lifting::forward_level(cfg.wavelet, img, dims, line),
     }
     map.finish(dims);
 }
