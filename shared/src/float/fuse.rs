@@ -95,11 +95,17 @@ impl Float for f64 {
 }
 
 impl<T: Float> Arith for T {
-    fn inverse(wavelet: Wavelet, buf: &mut [T], dims: Dims, levels: u8, scratch: &mut [T]) {
+    fn inverse(
+        wavelet: Wavelet,
+        (buf, dims, levels): (&mut [T], Dims, u8),
+        scratch: &mut [T],
+        prepare: &mut impl FnMut(u8, usize, &mut [T]),
+    ) {
         // Floats need no saturation: the bounds are only passed along.
         let bounds = [LevelBounds::default(); crate::MAX_LEVELS as usize];
         let inside = Coefficients::InBounds;
-        lifting::inverse_levels(wavelet, buf, dims, levels, scratch, &bounds, inside);
+        let how = (&bounds, inside);
+        lifting::inverse_levels(wavelet, buf, dims, levels, scratch, how, prepare);
     }
 
     /// `1 / max`.

@@ -10,12 +10,18 @@ use crate::saliency::{self, SaliencyNorm};
 use crate::{Dims, Error, Wavelet};
 
 impl Arith for i32 {
-    fn inverse(wavelet: Wavelet, buf: &mut [i32], dims: Dims, levels: u8, scratch: &mut [i32]) {
+    fn inverse(
+        wavelet: Wavelet,
+        (buf, dims, levels): (&mut [i32], Dims, u8),
+        scratch: &mut [i32],
+        prepare: &mut impl FnMut(u8, usize, &mut [i32]),
+    ) {
         let bounds = level_bounds(wavelet, levels);
         // Fused coefficients are convex combinations of forward-transform outputs of the
         // same band (weights and the LL mix lie in 0..=1), so within its bound.
         let inside = Coefficients::InBounds;
-        lifting::inverse_levels(wavelet, buf, dims, levels, scratch, &bounds, inside);
+        let how = (&bounds, inside);
+        lifting::inverse_levels(wavelet, buf, dims, levels, scratch, how, prepare);
     }
 
     type SaliencyScale = saliency::Normalizer;

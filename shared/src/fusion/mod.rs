@@ -157,8 +157,15 @@ impl WindowLayout {
 /// all live in `Self` (i32 on the integer path, f32 on the float path). The forward
 /// transform is the lifting's own, generic over [`Lift`]; the inverse differs by path.
 pub(crate) trait Arith: Lift + Send + Sync + core::ops::AddAssign {
-    /// All inverse levels, deepest first.
-    fn inverse(wavelet: Wavelet, buf: &mut [Self], dims: Dims, levels: u8, scratch: &mut [Self]);
+    /// All inverse levels of `region` (image, dims, levels), deepest first;
+    /// `prepare(level, y, row y)` runs on each row of each level's region before that
+    /// level reads it.
+    fn inverse(
+        wavelet: Wavelet,
+        region: (&mut [Self], Dims, u8),
+        scratch: &mut [Self],
+        prepare: &mut impl FnMut(u8, usize, &mut [Self]),
+    );
     /// What [`Arith::saliency_row`] normalizes the Laplacian by.
     type SaliencyScale: Copy;
     /// The normalization of the saliency of the level input `buf` on `dims`, or `None` for
@@ -556,8 +563,12 @@ simd::kernel! {
 
 /// The fuse step, generic over the path. `a` and `b` hold the two images on `dims`
 /// (already validated, with their level-1 `|∇²I|` maxima where the check found them);
-/// the fused image replaces `a`, `b` is consumed. The errors cannot happen after the
-/// callers' checks: they stand in for the panics of slicing past a buffer's end.
+/// the fused image replaces `a`, `b` is consumed. The shallower levels' bands are fused
+/// as soon as both images are transformed (the deeper levels' maps reuse their maps'
+/// memory); the deepest level's bands are fused in the inverse's sweep, as it first reads
+/// each row, which saves a pass over the image (for one level, a read and a write of all
+/// of it). The errors cannot happen after the callers' checks: they stand in for the
+/// panics of slicing past a buffer's end.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn fuse_generic<T: Arith>(
     a: &mut [T],
@@ -566,7 +577,7 @@ pub(crate) fn fuse_generic<T: Arith>(
     cfg: &FuseConfig,
     ll_weight: LlWeight,
     work: Work<'_, T>,
-    [max_a, max_b]: [Option<T>; 2],
+    maxima: [Option<T>; 2],
     join: &impl Join,
 ) -> Result<(), Error> {
     let Work {
@@ -579,89 +590,143 @@ pub(crate) fn fuse_generic<T: Arith>(
     if cfg.ablation == Ablation::NoWavelet {
         return mix_region(a, b, dims, ll_weight).ok_or(image_error);
     }
-    let with_weights = cfg.ablation.uses_saliency();
-    let layout = WindowLayout::of(cfg.wavelet);
-    let [hl_shift, lh_shift, hh_shift] = layout.shifts;
     let mut d = dims;
-    for level in 1..=cfg.levels {
-        let (mw, mh) = layout.map_dims(d);
-        let maps_error = Error::BufferTooSmall {
-            which: "scratch",
-            needed: 2 * mw * mh,
-            got: maps.len(),
-        };
-        let (map_a, rest) = maps.split_at_mut_checked(mw * mh).ok_or(maps_error)?;
-        let map_b = rest.get_mut(..mw * mh).ok_or(maps_error)?;
-        // Each image's saliency (read before its transform overwrites it) and its
-        // transform: the two images are independent until the weights.
-        let known = |max| (level, if level == 1 { max } else { None });
-        let with_map = |map| with_weights.then_some((map, layout));
-        let (ring_a, ring_b) = match rings.as_deref_mut() {
-            Some(r) => {
-                let (ra, rb) = r.split_at_mut(r.len() / 2);
-                (Some(ra), Some(rb))
-            }
-            None => (None, None),
-        };
-        match line_b.as_deref_mut() {
-            Some(lb) => join.join(
-                || {
-                    saliency_and_forward(
-                        a,
-                        d,
-                        cfg,
-                        known(max_a),
-                        with_map(&mut *map_a),
-                        line,
-                        ring_a,
-                    )
-                },
-                || saliency_and_forward(b, d, cfg, known(max_b), with_map(&mut *map_b), lb, ring_b),
-            ),
-            None => {
-                saliency_and_forward(a, d, cfg, known(max_a), with_map(&mut *map_a), line, ring_a);
-                saliency_and_forward(b, d, cfg, known(max_b), with_map(&mut *map_b), line, ring_b);
-            }
-        }
-        if with_weights {
-            weight_map(map_a, map_b);
-        }
-        // The deepest LL band is mixed in the same sweep as the high bands, while its rows
-        // are in cache (the even rows' low halves, on the last level).
-        let mix_ll = level == cfg.levels && cfg.ablation != Ablation::SingleLl;
-        let nlx = d.width().div_ceil(2);
-        // Row y of the transformed level: HL right of the low columns for even y; LH and
-        // HH for odd y, each band's row y / 2 (`crate::geometry`). `weights((sx, sy), j,
-        // len)` is row j of W₁ for the band whose map entries are shifted by `(sx, sy)`.
-        let weights = |(sx, sy): (usize, usize), j: usize, len: usize| {
-            let start = (j + sy) * mw + sx;
-            map_a.get(start..start + len).ok_or(maps_error)
-        };
+    for level in 1..cfg.levels {
+        let lines = (&mut *line, line_b.as_deref_mut(), rings.as_deref_mut());
+        let fusion = transform_level(a, b, (d, level), cfg, &mut *maps, lines, maxima, join)?;
         for y in 0..d.height() {
             let (Some(ra), Some(rb)) = (d.row_mut(a, y), d.row(b, y)) else {
                 return Err(image_error);
             };
-            // nlx = ⌈w/2⌉ ≤ w, the rows' length.
-            let (low_a, high_a) = ra.split_at_mut(nlx);
-            let (low_b, high_b) = rb.split_at(nlx);
-            let j = y / 2;
-            if y % 2 == 0 {
-                if mix_ll {
-                    mix_row(low_a, low_b, ll_weight);
-                }
-                let w_hl = weights(hl_shift, j, high_a.len())?;
-                fuse_band_row(high_a, high_b, w_hl, with_weights);
-            } else {
-                let w_lh = weights(lh_shift, j, low_a.len())?;
-                fuse_band_row(low_a, low_b, w_lh, with_weights);
-                let w_hh = weights(hh_shift, j, high_a.len())?;
-                fuse_band_row(high_a, high_b, w_hh, with_weights);
-            }
+            fusion.fuse_row(y, ra, rb, ll_weight)?;
         }
         d = d.low_band();
     }
-    T::inverse(cfg.wavelet, a, dims, cfg.levels, line);
-    Ok(())
+    let lines = (&mut *line, line_b, rings);
+    let deepest = transform_level(a, b, (d, cfg.levels), cfg, maps, lines, maxima, join)?;
+    let b = &*b;
+    let mut outcome = Ok(());
+    let mut fuse_deepest = |level: u8, y: usize, ra: &mut [T]| {
+        if level == cfg.levels {
+            let fused = match d.row(b, y) {
+                Some(rb) => deepest.fuse_row(y, ra, rb, ll_weight),
+                None => Err(image_error),
+            };
+            outcome = outcome.and(fused);
+        }
+    };
+    T::inverse(cfg.wavelet, (a, dims, cfg.levels), line, &mut fuse_deepest);
+    outcome
+}
+
+/// One level of a fuse step up to its fusion: each image's saliency map (read before its
+/// transform overwrites it) and its transform, then `W₁` per window. Returns how to fuse
+/// the level's rows. `lines` are [`Work`]'s line, second line and rings.
+#[allow(clippy::too_many_arguments)]
+fn transform_level<'m, T: Arith>(
+    a: &mut [T],
+    b: &mut [T],
+    (d, level): (Dims, u8),
+    cfg: &FuseConfig,
+    maps: &'m mut [T],
+    (line, line_b, rings): (&mut [T], Option<&mut [T]>, Option<&mut [T]>),
+    [max_a, max_b]: [Option<T>; 2],
+    join: &impl Join,
+) -> Result<LevelFusion<'m, T>, Error> {
+    let with_weights = cfg.ablation.uses_saliency();
+    let layout = WindowLayout::of(cfg.wavelet);
+    let (mw, mh) = layout.map_dims(d);
+    let maps_error = Error::BufferTooSmall {
+        which: "scratch",
+        needed: 2 * mw * mh,
+        got: maps.len(),
+    };
+    let (map_a, rest) = maps.split_at_mut_checked(mw * mh).ok_or(maps_error)?;
+    let map_b = rest.get_mut(..mw * mh).ok_or(maps_error)?;
+    // The two images are independent until the weights.
+    let known = |max| (level, if level == 1 { max } else { None });
+    let with_map = |map| with_weights.then_some((map, layout));
+    let (ring_a, ring_b) = match rings {
+        Some(r) => {
+            let (ra, rb) = r.split_at_mut(r.len() / 2);
+            (Some(ra), Some(rb))
+        }
+        None => (None, None),
+    };
+    match line_b {
+        Some(lb) => join.join(
+            || saliency_and_forward(a, d, cfg, known(max_a), with_map(&mut *map_a), line, ring_a),
+            || saliency_and_forward(b, d, cfg, known(max_b), with_map(&mut *map_b), lb, ring_b),
+        ),
+        None => {
+            saliency_and_forward(a, d, cfg, known(max_a), with_map(&mut *map_a), line, ring_a);
+            saliency_and_forward(b, d, cfg, known(max_b), with_map(&mut *map_b), line, ring_b);
+        }
+    }
+    if with_weights {
+        weight_map(map_a, map_b);
+    }
+    Ok(LevelFusion {
+        dims: d,
+        weights: with_weights.then_some(&*map_a),
+        map_width: mw,
+        shifts: layout.shifts,
+        // The deepest LL band is mixed with the high bands, while its rows are in cache.
+        mix_ll: level == cfg.levels && cfg.ablation != Ablation::SingleLl,
+        maps_error,
+    })
+}
+
+/// How the rows of one transformed level are fused.
+struct LevelFusion<'m, T> {
+    /// The level's region.
+    dims: Dims,
+    /// `W₁` per window ([`WindowLayout`]); `None` for the max-high ablation.
+    weights: Option<&'m [T]>,
+    /// The map's width.
+    map_width: usize,
+    /// [`WindowLayout::shifts`].
+    shifts: [(usize, usize); 3],
+    /// Whether the LL band is mixed too (the deepest level's).
+    mix_ll: bool,
+    /// What a map too short for a row's weights reports.
+    maps_error: Error,
+}
+
+impl<T: Arith> LevelFusion<'_, T> {
+    /// Fuses row `y` of the transformed level `ra` with `rb`, image B's: HL right of the
+    /// low columns for even `y`; LH and HH for odd `y`, each band's row `y / 2`
+    /// (`crate::geometry`).
+    #[inline(always)]
+    fn fuse_row(&self, y: usize, ra: &mut [T], rb: &[T], ll_weight: LlWeight) -> Result<(), Error> {
+        let nlx = self.dims.width().div_ceil(2);
+        let too_short = self.dims.too_small("image", ra.len().min(rb.len()));
+        let ((low_a, high_a), (low_b, high_b)) = ra
+            .split_at_mut_checked(nlx)
+            .zip(rb.split_at_checked(nlx))
+            .ok_or(too_short)?;
+        let [hl, lh, hh] = self.shifts;
+        let j = y / 2;
+        // Row j of W₁ for the band whose map entries are shifted by `(sx, sy)`.
+        let weights = |(sx, sy): (usize, usize), len: usize| match self.weights {
+            Some(map) => {
+                let start = (j + sy) * self.map_width + sx;
+                map.get(start..start + len).ok_or(self.maps_error)
+            }
+            None => Ok(&[][..]),
+        };
+        let with_weights = self.weights.is_some();
+        if y.is_multiple_of(2) {
+            if self.mix_ll {
+                mix_row(low_a, low_b, ll_weight);
+            }
+            fuse_band_row(high_a, high_b, weights(hl, high_a.len())?, with_weights);
+        } else {
+            fuse_band_row(low_a, low_b, weights(lh, low_a.len())?, with_weights);
+            fuse_band_row(high_a, high_b, weights(hh, high_a.len())?, with_weights);
+        }
+        Ok(())
+    }
 }
 
 /// Sets `a = (1 − w)·a + w·b` over the `dims` region; `None` if a buffer does not hold it.

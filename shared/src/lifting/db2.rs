@@ -15,7 +15,7 @@
 //! channel, so the inverse applies the same extension to the same values and undoes each
 //! step exactly, for every length ≥ 1.
 
-use super::{ColumnBounds, Lift, RowsReady, row_pair, rows_at, segment};
+use super::{ColumnBounds, Lift, RowsPrepared, RowsReady, row_pair, rows_at, segment};
 use crate::geometry::mirror;
 use crate::simd;
 
@@ -413,14 +413,18 @@ simd::kernel! {
     /// Inverse of [`forward_columns`], in place: each output sample is saturated to its
     /// column's bound, and `done` runs on each row as soon as it is final. Even rows hold `s¹`
     /// and odd ones the unsaturated odd samples until the next row pair is known.
-    pub(crate) fn inverse_columns<T: Lift, D: FnMut(&mut [T])>(
+    pub(crate) fn inverse_columns<T: Lift, P: FnMut(usize, &mut [T]), D: FnMut(&mut [T])>(
         buf: &mut [T],
         region: (usize, usize, usize),
         bounds: ColumnBounds,
+        prepared: &mut RowsPrepared<'_, P>,
         done: &mut D,
     ) {
         let (stride, w, n) = region;
         let (nl, nh) = (n.div_ceil(2), n / 2);
+        // The first pairs and the early steps below read rows up to 5; the mirrored last
+        // pairs' rows are the tail `prepared` has done.
+        prepared.through(buf, (stride, w), 5);
         if nh == 0 {
             if let Some([row]) = rows_at(buf, stride, w, [0]) {
                 bounds.saturate(row);
@@ -458,6 +462,7 @@ simd::kernel! {
         };
         // Pair l + 1's s¹ and odd sample, and pair l's output.
         for l in 0..nh - 1 {
+            prepared.through(buf, (stride, w), 2 * l + 5);
             finish_last_even(buf, l, done);
             if early(l + 1) {
                 let Some([s, o, s_next, o_next]) =
@@ -504,6 +509,7 @@ simd::kernel! {
                 done(o);
             }
         }
+        prepared.through(buf, (stride, w), n - 1);
         finish_last_even(buf, nh - 1, done);
         if let Some([s, o]) = rows_at(buf, stride, w, [2 * nh - 2, 2 * nh - 1]) {
             for (cols, b) in bounds.segments() {

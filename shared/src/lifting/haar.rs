@@ -5,7 +5,7 @@
 //! the low and high bands on exit). For an odd length, `low` has one more element than
 //! `high`; the unpaired last sample passes to the low band unchanged.
 
-use super::{ColumnBounds, Lift, RowsReady, rows_at, segment};
+use super::{ColumnBounds, Lift, RowsPrepared, RowsReady, rows_at, segment};
 use crate::simd;
 
 /// Forward S-transform of one line: `src` holds the samples, `dst` (as long) gets the low
@@ -66,14 +66,16 @@ pub(crate) fn forward_columns<T: Lift, F: FnMut(usize, &mut [T])>(
 simd::kernel! {
     /// Inverse of [`forward_columns`], in place, each output sample saturated to its column's
     /// bound; `done` runs on each row once it is final.
-    pub(crate) fn inverse_columns<T: Lift, D: FnMut(&mut [T])>(
+    pub(crate) fn inverse_columns<T: Lift, P: FnMut(usize, &mut [T]), D: FnMut(&mut [T])>(
         buf: &mut [T],
         region: (usize, usize, usize),
         bounds: ColumnBounds,
+        prepared: &mut RowsPrepared<'_, P>,
         done: &mut D,
     ) {
         let (stride, w, n) = region;
         for l in 0..n / 2 {
+            prepared.through(buf, (stride, w), 2 * l + 1);
             let Some([s_row, d_row]) = rows_at(buf, stride, w, [2 * l, 2 * l + 1]) else {
                 return;
             };
@@ -83,6 +85,7 @@ simd::kernel! {
             done(s_row);
             done(d_row);
         }
+        prepared.through(buf, (stride, w), n.saturating_sub(1));
         if n % 2 == 1
             && let Some([last]) = rows_at(buf, stride, w, [n - 1])
         {

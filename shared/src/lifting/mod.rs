@@ -153,17 +153,19 @@ impl Wavelet {
     }
 
     /// Inverse of [`Self::forward_columns`], each output sample saturated to its column's
-    /// bound; `done` runs on each row as soon as it is final.
-    fn inverse_columns<T: Lift>(
+    /// bound; `prepared` runs its preparation on each row before the sweep first reads
+    /// it, `done` runs on each row as soon as it is final.
+    fn inverse_columns<T: Lift, P: FnMut(usize, &mut [T])>(
         self,
         buf: &mut [T],
         (stride, w, n): (usize, usize, usize),
         bounds: ColumnBounds,
+        prepared: &mut RowsPrepared<'_, P>,
         done: &mut impl FnMut(&mut [T]),
     ) {
         match self {
-            Wavelet::Haar => haar::inverse_columns(buf, (stride, w, n), bounds, done),
-            Wavelet::Db2 => db2::inverse_columns(buf, (stride, w, n), bounds, done),
+            Wavelet::Haar => haar::inverse_columns(buf, (stride, w, n), bounds, prepared, done),
+            Wavelet::Db2 => db2::inverse_columns(buf, (stride, w, n), bounds, prepared, done),
         }
     }
 
@@ -522,9 +524,63 @@ impl<'f, F> RowsReady<'f, F> {
     }
 }
 
+/// Runs a preparation once on every row of a region before the inverse column sweep
+/// first reads or writes it (fusion blends each row of the bands there, while the sweep
+/// brings it into cache): the last [`Self::TAIL`] rows, which the sweep's mirrored
+/// boundary reaches early, at once; the others in order as the sweep asks for them.
+pub(crate) struct RowsPrepared<'f, F> {
+    prepare: &'f mut F,
+    /// Rows below this one are prepared.
+    next: usize,
+    /// Rows from this one on are prepared.
+    tail: usize,
+}
+
+impl<'f, F> RowsPrepared<'f, F> {
+    /// Rows at the end that a sweep may read before it reaches them in order (db2's
+    /// mirrored last pairs reach back at most four rows).
+    const TAIL: usize = 6;
+
+    /// Prepares the tail of a region of `n` rows of `w` samples, `stride` apart, from
+    /// the start of `buf`.
+    pub fn new<T>(prepare: &'f mut F, buf: &mut [T], (stride, w, n): (usize, usize, usize)) -> Self
+    where
+        F: FnMut(usize, &mut [T]),
+    {
+        let tail = n.saturating_sub(Self::TAIL);
+        for k in tail..n {
+            if let Some([row]) = rows_at(buf, stride, w, [k]) {
+                prepare(k, row);
+            }
+        }
+        Self {
+            prepare,
+            next: 0,
+            tail,
+        }
+    }
+
+    /// Prepares every row up to `last` not prepared yet.
+    #[inline(always)]
+    pub fn through<T>(&mut self, buf: &mut [T], (stride, w): (usize, usize), last: usize)
+    where
+        F: FnMut(usize, &mut [T]),
+    {
+        let end = last.saturating_add(1).min(self.tail);
+        while self.next < end {
+            let k = self.next;
+            self.next += 1;
+            if let Some([row]) = rows_at(buf, stride, w, [k]) {
+                (self.prepare)(k, row);
+            }
+        }
+    }
+}
+
 /// The inverse column pass: loads saturated to each band's bound (unless the
 /// coefficients are [`Coefficients::InBounds`]) and the columns lifted back in place,
-/// saturated on the way out; `done` runs on each row as soon as it is final. `left` and
+/// saturated on the way out; `prepare(y, row y)` runs on each row before anything else
+/// reads it, `done` on each row as soon as it is final. `left` and
 /// `right` are the (low band, high band, output) bounds of the columns left of `split`
 /// and of the others: left of the row pass's split the columns hold its low band.
 fn inverse_columns<T: Lift>(
@@ -533,9 +589,12 @@ fn inverse_columns<T: Lift>(
     dims: Dims,
     (coefficients, split): (Coefficients, usize),
     [left, right]: [(i32, i32, i32); 2],
+    prepare: &mut impl FnMut(usize, &mut [T]),
     done: &mut impl FnMut(&mut [T]),
 ) {
     let (w, h) = (dims.width(), dims.height());
+    let region = (dims.stride(), w, h);
+    let mut prepared = RowsPrepared::new(prepare, buf, region);
     let band = |low: bool| {
         let pick = |b: (i32, i32, i32)| if low { b.0 } else { b.1 };
         ColumnBounds {
@@ -546,6 +605,8 @@ fn inverse_columns<T: Lift>(
         }
     };
     if coefficients == Coefficients::Any {
+        // The saturation reads every row first.
+        prepared.through(buf, (dims.stride(), w), h);
         // Even rows hold the low band, odd rows the high band.
         for y in 0..h {
             if let Some(row) = dims.row_mut(buf, y) {
@@ -559,7 +620,7 @@ fn inverse_columns<T: Lift>(
         left: left.2,
         right: right.2,
     };
-    wavelet.inverse_columns(buf, (dims.stride(), w, h), out, done);
+    wavelet.inverse_columns(buf, region, out, &mut prepared, done);
 }
 
 /// What an inverse transform may assume about the coefficients it is given.
@@ -576,14 +637,15 @@ pub(crate) enum Coefficients {
     InBounds,
 }
 
-/// One inverse 2-D level (columns, then rows), saturating to `bounds` of that level.
+/// One inverse 2-D level (columns, then rows), saturating to `bounds` of that level;
+/// `prepare(y, row y)` runs on each row of the region before the level reads it.
 pub(crate) fn inverse_level<T: Lift>(
     wavelet: Wavelet,
     buf: &mut [T],
     dims: Dims,
     scratch: &mut [T],
-    bounds: &LevelBounds,
-    coefficients: Coefficients,
+    (bounds, coefficients): (&LevelBounds, Coefficients),
+    prepare: &mut impl FnMut(usize, &mut [T]),
 ) {
     let (w, h) = (dims.width(), dims.height());
     let nlx = w.div_ceil(2);
@@ -605,10 +667,20 @@ pub(crate) fn inverse_level<T: Lift>(
             }
         };
         let how = (coefficients, nlx);
-        inverse_columns(wavelet, buf, dims, how, [left, right], &mut row_pass);
-    } else if w > 1
-        && let Some(row) = dims.row_mut(buf, 0)
-    {
+        inverse_columns(
+            wavelet,
+            buf,
+            dims,
+            how,
+            [left, right],
+            prepare,
+            &mut row_pass,
+        );
+    } else if let Some(row) = dims.row_mut(buf, 0) {
+        prepare(0, row);
+        if w == 1 {
+            return;
+        }
         // Without a column pass loads always saturate: a one-row level's low band holds
         // the deeper level's reconstruction, which fused coefficients can push past the
         // row-low bound (up to LL's).
@@ -632,13 +704,14 @@ pub fn inverse_1d(wavelet: Wavelet, line: &mut [i32], scratch: &mut [i32]) -> Re
     let dims = Dims::new(line.len(), 1)?;
     check_args(line, dims, None, scratch)?;
     // A single row has no column pass: its row bands are its final bands.
+    let bounds = &level_bounds(wavelet, 1)[0];
     inverse_level(
         wavelet,
         line,
         dims,
         scratch,
-        &level_bounds(wavelet, 1)[0],
-        Coefficients::Any,
+        (bounds, Coefficients::Any),
+        &mut |_, _| {},
     );
     Ok(())
 }
@@ -681,26 +754,37 @@ pub fn inverse_2d(
         dims,
         levels,
         scratch,
-        &bounds,
-        Coefficients::Any,
+        (&bounds, Coefficients::Any),
+        &mut |_, _, _| {},
     );
     Ok(())
 }
 
 /// All inverse levels of a `levels`-deep transform of `dims`, deepest first, each
-/// saturating to its entry of `bounds` (floats ignore them).
+/// saturating to its entry of `bounds` (floats ignore them); `prepare(level, y, row y)`
+/// runs on each row of each level's region (level 1 the full region) before that level
+/// reads it.
 pub(crate) fn inverse_levels<T: Lift>(
     wavelet: Wavelet,
     buf: &mut [T],
     dims: Dims,
     levels: u8,
     scratch: &mut [T],
-    bounds: &[LevelBounds; MAX_LEVELS as usize],
-    coefficients: Coefficients,
+    (bounds, coefficients): (&[LevelBounds; MAX_LEVELS as usize], Coefficients),
+    prepare: &mut impl FnMut(u8, usize, &mut [T]),
 ) {
     let sizes = level_sizes(dims);
-    for (&d, b) in sizes.iter().zip(bounds).take(usize::from(levels)).rev() {
-        inverse_level(wavelet, buf, d, scratch, b, coefficients);
+    let levels = sizes.iter().zip(bounds).zip(1..=levels);
+    for ((&d, b), level) in levels.rev() {
+        let mut prepare_level = |y: usize, row: &mut [T]| prepare(level, y, row);
+        inverse_level(
+            wavelet,
+            buf,
+            d,
+            scratch,
+            (b, coefficients),
+            &mut prepare_level,
+        );
     }
 }
 
@@ -890,10 +974,26 @@ mod tests {
             left,
             right,
         };
+        // The inverse starts from zeros: each row's coefficients arrive by its
+        // preparation, so a row the sweep touched before preparing it spoils the result.
+        let coefficients = inv.clone();
+        inv.fill(T::default());
+        let mut prepared_rows = Vec::new();
+        let mut fill = |k: usize, row: &mut [T]| {
+            prepared_rows.push(k);
+            row.copy_from_slice(&coefficients[k * stride..k * stride + w]);
+        };
+        let mut prepared = RowsPrepared::new(&mut fill, &mut inv, (stride, w, n));
         let mut rows_seen = 0;
         let mut count = |_: &mut [T]| rows_seen += 1;
-        wavelet.inverse_columns(&mut inv, (stride, w, n), bounds, &mut count);
+        wavelet.inverse_columns(&mut inv, (stride, w, n), bounds, &mut prepared, &mut count);
         assert_eq!(rows_seen, n, "inverse row hook calls, {wavelet:?}, n {n}");
+        prepared_rows.sort_unstable();
+        assert_eq!(
+            prepared_rows,
+            (0..n).collect::<Vec<_>>(),
+            "inverse preparations, {wavelet:?}, n {n}"
+        );
         for j in 0..w {
             let x = column(j);
             let bound = if j < w / 2 { left } else { right };
@@ -1037,9 +1137,11 @@ mod tests {
             }
             let bounds = level_bounds(wavelet, levels);
             let mut trusted = a.clone();
-            inverse_levels(wavelet, &mut a, dims, levels, &mut scratch, &bounds, Coefficients::Any);
-            let inside = Coefficients::InBounds;
-            inverse_levels(wavelet, &mut trusted, dims, levels, &mut scratch, &bounds, inside);
+            let any = (&bounds, Coefficients::Any);
+            inverse_levels(wavelet, &mut a, dims, levels, &mut scratch, any, &mut |_, _, _| {});
+            let inside = (&bounds, Coefficients::InBounds);
+            let none = &mut |_, _, _: &mut [i32]| {};
+            inverse_levels(wavelet, &mut trusted, dims, levels, &mut scratch, inside, none);
             prop_assert_eq!(trusted, a);
         }
 
