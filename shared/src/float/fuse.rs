@@ -383,11 +383,23 @@ pub const MAX_SAMPLE_F32: f32 = 1e9;
 
 /// Scratch length (in samples) that [`fuse_pair`] and [`fuse_pair_with`] need for `dims`:
 /// as on the integer path ([`crate::fusion::fuse_scratch_len`]), plus a second transform
-/// line so both images can be worked on at once, and two rows per image that let each
-/// image's saliency be taken in its transform's sweep.
+/// line so both images can be worked on at once, and (except on the Cortex-M7) two rows per
+/// image that let each image's saliency be taken in its transform's sweep.
 pub fn fuse_scratch_len(dims: Dims) -> usize {
-    crate::fusion::fuse_scratch_len(dims) + lifting::scratch_len(dims) + rings_len(dims)
+    let rings = if SALIENCY_IN_SWEEP {
+        rings_len(dims)
+    } else {
+        0
+    };
+    crate::fusion::fuse_scratch_len(dims) + lifting::scratch_len(dims) + rings
 }
+
+/// Whether each image's saliency is taken in its forward transform's sweep (from a ring of
+/// row copies) rather than in a pass of its own. The sweep saves a read of each image where
+/// memory is slow next to the arithmetic (the hosts' caches); the Cortex-M7 reads its
+/// tightly coupled RAM in a cycle and would only pay for the ring's copies (the `f32` fuse
+/// step 185 → 198 instructions per tile pixel, `bash tests/mcu-bench/run.sh`).
+const SALIENCY_IN_SWEEP: bool = !cfg!(target_arch = "arm");
 
 /// One float fuse step (`f32` or `f64`) on the `dims` region of `a` and `b`: the fused image replaces `a`,
 /// `b` is used as work space. Any size from 1 up, as on the integer path; samples must be
@@ -414,7 +426,16 @@ pub fn fuse_pair_with<T: Float>(
     ll_weight: LlWeight,
     scratch: &mut [T],
 ) -> Result<(), Error> {
-    fuse_pair_checked(a, b, dims, cfg, ll_weight, scratch, (2, true), join)
+    fuse_pair_checked(
+        a,
+        b,
+        dims,
+        cfg,
+        ll_weight,
+        scratch,
+        (2, SALIENCY_IN_SWEEP),
+        join,
+    )
 }
 
 #[cfg(test)]
