@@ -700,11 +700,11 @@ impl<T: Arith> LevelFusion<'_, T> {
     #[inline(always)]
     fn fuse_row(&self, y: usize, ra: &mut [T], rb: &[T], ll_weight: LlWeight) -> Result<(), Error> {
         let nlx = self.dims.width().div_ceil(2);
-        let too_short = self.dims.too_small("image", ra.len().min(rb.len()));
+        let got = ra.len().min(rb.len());
         let ((low_a, high_a), (low_b, high_b)) = ra
             .split_at_mut_checked(nlx)
             .zip(rb.split_at_checked(nlx))
-            .ok_or(too_short)?;
+            .ok_or_else(|| self.dims.too_small("image", got))?;
         let [hl, lh, hh] = self.shifts;
         let j = y / 2;
         // Row j of W₁ for the band whose map entries are shifted by `(sx, sy)`.
