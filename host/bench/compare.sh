@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # rollfuse vs a numpy + PyWavelets implementation of the same fusion, on the same six
-# 1280×960 frames, in one run, single-threaded, best of three each (image loading and
-# saving excluded on both sides). Prints both times and the ratio.
+# 1280×960 frames, in one run, single-threaded, best of ROUNDS (default 5) each, the two
+# taking turns (image loading and saving excluded on both sides). Prints both times and the
+# ratio. The best of several runs is what the code costs without a shared machine's
+# neighbours.
 #
 #   pip install PyWavelets numpy pillow
-#   bash host/bench/compare.sh
+#   bash host/bench/compare.sh            # ROUNDS=9 bash host/bench/compare.sh
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 work="$(mktemp -d)"
@@ -22,7 +24,7 @@ frames=("$work"/frames/frame_000{0..5}.png)
 source host/bench/common.sh
 best_rust=""
 best_py=""
-for _ in 1 2 3; do
+for _ in $(seq "${ROUNDS:-5}"); do
     # `rollfuse fuse` reports its fusion time (image loading excluded, as for the reference).
     rust=$("$bin" fuse "${frames[@]}" --out "$work/rust.png" --align none --levels 1 |
         sed -n 's/.*fusion took \([0-9.]*\) s.*/\1/p')
