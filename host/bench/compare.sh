@@ -8,6 +8,11 @@
 #   pip install PyWavelets numpy pillow
 #   bash host/bench/compare.sh            # ROUNDS=9 bash host/bench/compare.sh
 set -euo pipefail
+rounds="${ROUNDS:-5}"
+if ! [[ "$rounds" =~ ^[1-9][0-9]*$ ]]; then
+    echo "compare.sh: ROUNDS must be a whole number from 1 up, not '$rounds'" >&2
+    exit 2
+fi
 cd "$(dirname "$0")/../.."
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
@@ -24,7 +29,7 @@ frames=("$work"/frames/frame_000{0..5}.png)
 source host/bench/common.sh
 best_rust=""
 best_py=""
-for _ in $(seq "${ROUNDS:-5}"); do
+for _ in $(seq "$rounds"); do
     # `rollfuse fuse` reports its fusion time (image loading excluded, as for the reference).
     rust=$("$bin" fuse "${frames[@]}" --out "$work/rust.png" --align none --levels 1 |
         sed -n 's/.*fusion took \([0-9.]*\) s.*/\1/p')
