@@ -7,8 +7,13 @@
 //! s²[l] = s¹[l] − d¹[l + 1]
 //! ```
 //!
-//! `R(v)` rounds half up on the integer path (constants in Q16, products in i64) and is the
-//! identity on the `f32` path, which runs the same steps. The final scaling by `(√3 ∓ 1)/√2` is left
+//! `R(v)` rounds to the nearest integer on the integer path and is the identity on the
+//! `f32` path, which runs the same steps. The integer constants are in Q32, so each
+//! rounded product is the high word of one 32 × 32 → 64-bit product (or of two summed):
+//! `R(√3/4 · s + (√3 − 2)/4 · s')` rounds halves up, and `R(√3 · o)`, whose constant is
+//! beyond a signed Q32 word, is `2o − R((2 − √3) · o)` (halves down). Either is within ½
+//! of the product by the Q32 constant, which is all the proven bounds ([`super::bounds`])
+//! assume. The final scaling by `(√3 ∓ 1)/√2` is left
 //! out so the transform stays integer and reversible: the low band therefore has DC gain
 //! `1 + √3 ≈ 2.73` per 1-D pass. Indices outside a channel are mapped back by whole-sample
 //! symmetric extension of that channel ([`mirror`]); every step reads only the other
@@ -20,18 +25,57 @@ use crate::geometry::mirror;
 use crate::simd;
 
 /// Fraction bits of the lifting constants.
-pub(crate) const Q: u32 = 16;
-/// √3 in Q16.
-pub(crate) const SQRT3: i64 = 113_512;
-/// √3/4 in Q16.
-pub(crate) const A: i64 = 28_378;
-/// (√3 − 2)/4 in Q16 (negative).
-pub(crate) const B: i64 = -4_390;
+pub(crate) const Q: u32 = 32;
 
-/// Rounds a Q16 product to the nearest integer, halves upward.
+/// The integer db2 constants in Q32, each a signed 32-bit word: the operand of one
+/// `SMULL`/`SMMULR` on the Cortex-M7, where Q16 constants took a 64-bit rounding and a
+/// shift after each product (five and seven instructions for the two terms, now two and
+/// four: `bash tests/mcu-bench/run.sh`).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Constants {
+    /// 2 − √3 (√3 itself does not fit a signed Q32 word).
+    two_minus_sqrt3: i32,
+    /// √3/4.
+    a: i32,
+    /// (√3 − 2)/4 (negative).
+    b: i32,
+}
+
+/// [`Constants`]' values: `round(c · 2³²)`.
+pub(crate) const CONSTANTS: Constants = Constants {
+    two_minus_sqrt3: 1_150_833_018,
+    a: 1_859_775_393,
+    b: -287_708_255,
+};
+
+/// Rounds a Q32 value to the nearest integer, halves upward. As `(v + 2³¹) >> 32` the
+/// Cortex-M7 code is one `SMMULR` for a single product, but a 64-bit addition after a sum
+/// of two; as the high word plus the low word's top bit it is one addition instead.
 #[inline(always)]
-pub(crate) fn round_q(v: i64) -> i32 {
+fn round_q(v: i64) -> i32 {
     ((v + (1 << (Q - 1))) >> Q) as i32
+}
+
+/// [`round_q`] of a sum of products, written as its high word plus the low word's top bit.
+#[inline(always)]
+fn round_q_sum(v: i64) -> i32 {
+    ((v >> Q) as i32).wrapping_add(((v as u32) >> (Q - 1)) as i32)
+}
+
+impl Constants {
+    /// `R(√3·o)` as `2o − R((2 − √3)·o)`: within ½ of the product by the Q32 constant
+    /// (the bounds' rounding slack). `|o|` stays below 2³⁰ (every proven bound is below
+    /// `i32::MAX / 2`, `bounds` tests), so `2o` fits.
+    #[inline(always)]
+    pub(crate) fn sqrt3_times(self, o: i32) -> i32 {
+        2 * o - round_q(i64::from(self.two_minus_sqrt3) * i64::from(o))
+    }
+
+    /// `R(√3/4·s + (√3−2)/4·s_prev)`: one rounding of the two products' sum.
+    #[inline(always)]
+    pub(crate) fn predict(self, s: i32, s_prev: i32) -> i32 {
+        round_q_sum(i64::from(self.a) * i64::from(s) + i64::from(self.b) * i64::from(s_prev))
+    }
 }
 
 /// Index of `d¹[l + 1]`: the neighbour inside, or its mirror image past the end.
@@ -59,26 +103,26 @@ fn odd_index(l: usize, nh: usize) -> usize {
 
 /// `s¹ = e + R(√3·o)`.
 #[inline(always)]
-fn lift_s1<T: Lift>(e: T, o: T) -> T {
-    e + o.sqrt3()
+fn lift_s1<T: Lift>(e: T, o: T, k: T::Constants) -> T {
+    e + o.sqrt3(k)
 }
 
 /// `d¹ = o − R(√3/4·s¹ + (√3−2)/4·s¹_prev)`.
 #[inline(always)]
-fn lift_d1<T: Lift>(o: T, s: T, s_prev: T) -> T {
-    o - T::predict(s, s_prev)
+fn lift_d1<T: Lift>(o: T, s: T, s_prev: T, k: T::Constants) -> T {
+    o - T::predict(s, s_prev, k)
 }
 
 /// The odd sample back from `d¹`: `o = d¹ + R(√3/4·s¹ + (√3−2)/4·s¹_prev)`.
 #[inline(always)]
-fn unlift_odd<T: Lift>(d: T, s: T, s_prev: T) -> T {
-    d + T::predict(s, s_prev)
+fn unlift_odd<T: Lift>(d: T, s: T, s_prev: T, k: T::Constants) -> T {
+    d + T::predict(s, s_prev, k)
 }
 
 /// The even sample back from `s¹`: `e = s¹ − R(√3·o)`.
 #[inline(always)]
-fn unlift_even<T: Lift>(s: T, o: T) -> T {
-    s - o.sqrt3()
+fn unlift_even<T: Lift>(s: T, o: T, k: T::Constants) -> T {
+    s - o.sqrt3(k)
 }
 
 // The one-sweep transforms below run all three steps per sample pair, carrying `s¹` and
@@ -96,6 +140,7 @@ fn from<T>(c: &[T], start: usize) -> &[T] {
 /// Forward lifting of one line: `src` holds the samples, `dst` (as long) gets the low band
 /// then the high band. A line of one sample is copied.
 pub(crate) fn forward_line<T: Lift>(src: &[T], dst: &mut [T]) {
+    let k = T::constants();
     let n = src.len();
     let (nl, nh) = (n.div_ceil(2), n / 2);
     let Some(dst) = dst.get_mut(..n) else {
@@ -106,19 +151,19 @@ pub(crate) fn forward_line<T: Lift>(src: &[T], dst: &mut [T]) {
         return;
     }
     let at = |i: usize| src.get(i).copied().unwrap_or_default();
-    let s1 = |l: usize| lift_s1(at(2 * l), at(2 * odd_index(l, nh) + 1));
+    let s1 = |l: usize| lift_s1(at(2 * l), at(2 * odd_index(l, nh) + 1), k);
     let (low, high) = dst.split_at_mut(nl);
     let (pairs, _) = src.as_chunks::<2>();
     let mut s = s1(0);
-    let mut d = lift_d1(at(1), s, s1(prev_index(0, nl)));
+    let mut d = lift_d1(at(1), s, s1(prev_index(0, nl)), k);
     // Plain slices (not `skip`/`take` adapters) so the zip keeps one loop counter.
     for ((&[e, o], lo), hi) in from(pairs, 1)
         .iter()
         .zip(low.iter_mut())
         .zip(high.iter_mut())
     {
-        let s_next = lift_s1(e, o);
-        let d_next = lift_d1(o, s_next, s);
+        let s_next = lift_s1(e, o, k);
+        let d_next = lift_d1(o, s_next, s, k);
         *hi = d;
         *lo = s - d_next;
         (s, d) = (s_next, d_next);
@@ -139,6 +184,7 @@ pub(crate) fn forward_line<T: Lift>(src: &[T], dst: &mut [T]) {
 /// Inverse of [`forward_line`]: `src` holds the low then the high band, `dst` (as long)
 /// gets the samples, each saturated to `±out_bound`.
 pub(crate) fn inverse_line<T: Lift>(src: &[T], dst: &mut [T], out_bound: i32) {
+    let k = T::constants();
     let n = src.len();
     let (nl, nh) = (n.div_ceil(2), n / 2);
     let Some(dst) = dst.get_mut(..n) else {
@@ -157,13 +203,13 @@ pub(crate) fn inverse_line<T: Lift>(src: &[T], dst: &mut [T], out_bound: i32) {
     }
     let inner = nh.saturating_sub(2);
     let mut s = s1(0);
-    let mut o = unlift_odd(hi(0), s, s1(prev_index(0, nl)));
+    let mut o = unlift_odd(hi(0), s, s1(prev_index(0, nl)), k);
     let ahead = from(low, 1).iter().zip(from(high, 1)).zip(from(high, 2));
     let inner_pairs = pairs.get_mut(..inner).unwrap_or_default();
     for ([e_out, o_out], ((&l_next, &h_next), &h_after)) in inner_pairs.iter_mut().zip(ahead) {
         let s_next = l_next + h_after;
-        let o_next = unlift_odd(h_next, s_next, s);
-        *e_out = unlift_even(s, o).saturate(out_bound);
+        let o_next = unlift_odd(h_next, s_next, s, k);
+        *e_out = unlift_even(s, o, k).saturate(out_bound);
         *o_out = o.saturate(out_bound);
         (s, o) = (s_next, o_next);
     }
@@ -172,18 +218,18 @@ pub(crate) fn inverse_line<T: Lift>(src: &[T], dst: &mut [T], out_bound: i32) {
         if let Some([e_out, o_out]) = pairs.get_mut(l) {
             let s_next = if l + 1 < nl { s1(l + 1) } else { s };
             let o_next = if l + 1 < nh {
-                unlift_odd(hi(l + 1), s_next, s)
+                unlift_odd(hi(l + 1), s_next, s, k)
             } else {
                 o
             };
-            *e_out = unlift_even(s, o).saturate(out_bound);
+            *e_out = unlift_even(s, o, k).saturate(out_bound);
             *o_out = o.saturate(out_bound);
             (s, o) = (s_next, o_next);
         } else if let [last] = odd_end {
             // An odd length's last even sample reads a mirrored odd one.
             let m = odd_index(l, nh);
-            let o_m = unlift_odd(hi(m), s1(m), s1(prev_index(m, nl)));
-            *last = unlift_even(s, o_m).saturate(out_bound);
+            let o_m = unlift_odd(hi(m), s1(m), s1(prev_index(m, nl)), k);
+            *last = unlift_even(s, o_m, k).saturate(out_bound);
         }
     }
 }
@@ -196,6 +242,7 @@ pub(crate) fn inverse_line<T: Lift>(src: &[T], dst: &mut [T], out_bound: i32) {
 /// pass copies. A row of one sample is left as it is.
 #[inline(always)]
 pub(crate) fn forward_row_two_pass<T: Lift>(row: &mut [T], work: &mut [T]) {
+    let k = T::constants();
     let n = row.len();
     let (nl, nh) = (n.div_ceil(2), n / 2);
     let Some(work) = work.get_mut(..n) else {
@@ -207,20 +254,20 @@ pub(crate) fn forward_row_two_pass<T: Lift>(row: &mut [T], work: &mut [T]) {
     let (s1, odd) = work.split_at_mut(nl);
     let (pairs, odd_end) = row.as_chunks::<2>();
     for ((&[e, o], s), h) in pairs.iter().zip(s1.iter_mut()).zip(odd.iter_mut()) {
-        *s = lift_s1(e, o);
+        *s = lift_s1(e, o, k);
         *h = o;
     }
     // An odd length's last even sample reads a mirrored odd one.
     if let ([last], Some(&o)) = (odd_end, odd.get(odd_index(nh, nh)))
         && let Some(s) = s1.get_mut(nh)
     {
-        *s = lift_s1(*last, o);
+        *s = lift_s1(*last, o, k);
     }
     let (s1, odd) = (&*s1, &*odd);
     let s_at = |l: usize| s1.get(l).copied().unwrap_or_default();
     let (low, high) = row.split_at_mut(nl);
     if let (Some(d0), Some(&o0)) = (high.first_mut(), odd.first()) {
-        *d0 = lift_d1(o0, s_at(0), s_at(prev_index(0, nl)));
+        *d0 = lift_d1(o0, s_at(0), s_at(prev_index(0, nl)), k);
     }
     // d¹[l + 1] and, from it, s²[l], for l + 1 < nh.
     let (high_first, high_rest) = high.split_at_mut(1);
@@ -231,7 +278,7 @@ pub(crate) fn forward_row_two_pass<T: Lift>(row: &mut [T], work: &mut [T]) {
         .zip(from(s1, 1))
         .zip(s1)
     {
-        let d = lift_d1(o, s_next, s);
+        let d = lift_d1(o, s_next, s, k);
         *hi = d;
         *lo = s - d;
     }
@@ -254,6 +301,7 @@ pub(crate) fn forward_row_two_pass<T: Lift>(row: &mut [T], work: &mut [T]) {
 /// values as [`inverse_line`].
 #[inline(always)]
 pub(crate) fn inverse_row_two_pass<T: Lift>(row: &mut [T], work: &mut [T], out_bound: i32) {
+    let k = T::constants();
     let n = row.len();
     let (nl, nh) = (n.div_ceil(2), n / 2);
     let Some(work) = work.get_mut(..n) else {
@@ -285,26 +333,26 @@ pub(crate) fn inverse_row_two_pass<T: Lift>(row: &mut [T], work: &mut [T], out_b
     let s_at = |l: usize| s1.get(l).copied().unwrap_or_default();
     let odd_at = |l: usize| {
         let d = d1.get(l).copied().unwrap_or_default();
-        unlift_odd(d, s_at(l), s_at(prev_index(l, nl)))
+        unlift_odd(d, s_at(l), s_at(prev_index(l, nl)), k)
     };
     let (pairs, odd_end) = row.as_chunks_mut::<2>();
     let Some(([first_e, first_o], rest)) = pairs.split_first_mut() else {
         return;
     };
     let o0 = odd_at(0);
-    *first_e = unlift_even(s_at(0), o0).saturate(out_bound);
+    *first_e = unlift_even(s_at(0), o0, k).saturate(out_bound);
     *first_o = o0.saturate(out_bound);
     for ([e_out, o_out], ((&d, &s), &s_prev)) in rest
         .iter_mut()
         .zip(from(d1, 1).iter().zip(from(s1, 1)).zip(s1))
     {
-        let o = unlift_odd(d, s, s_prev);
-        *e_out = unlift_even(s, o).saturate(out_bound);
+        let o = unlift_odd(d, s, s_prev, k);
+        *e_out = unlift_even(s, o, k).saturate(out_bound);
         *o_out = o.saturate(out_bound);
     }
     // An odd length's last even sample reads a mirrored odd one.
     if let [last] = odd_end {
-        *last = unlift_even(s_at(nh), odd_at(odd_index(nh, nh))).saturate(out_bound);
+        *last = unlift_even(s_at(nh), odd_at(odd_index(nh, nh)), k).saturate(out_bound);
     }
 }
 
@@ -319,6 +367,7 @@ pub(crate) fn forward_columns<T: Lift, F: FnMut(usize, &mut [T])>(
     (stride, w, n): (usize, usize, usize),
     ready: &mut RowsReady<'_, F>,
 ) {
+    let k = T::constants();
     let (nl, nh) = (n.div_ceil(2), n / 2);
     ready.through(buf, (stride, w), n.min(4).saturating_sub(1));
     if nh == 0 {
@@ -335,19 +384,19 @@ pub(crate) fn forward_columns<T: Lift, F: FnMut(usize, &mut [T])>(
     for l in (0..nl).filter(|&l| early(l)) {
         if let Some([e, o]) = row_pair(buf, stride, w, 2 * l, 2 * odd_index(l, nh) + 1) {
             for (e, &o) in e.iter_mut().zip(o.iter()) {
-                *e = lift_s1(*e, o);
+                *e = lift_s1(*e, o, k);
             }
         }
     }
     // d¹₀ reads its mirrored left neighbour: s¹₁, or s¹₀ itself.
-    first_odd_row(buf, (stride, w, nl), lift_d1);
+    first_odd_row(buf, (stride, w, nl), |o, s, sp| lift_d1(o, s, sp, k));
     // Pair l's s¹ and d¹, and with them pair l − 1's s².
     for l in 1..nh {
         ready.through(buf, (stride, w), 2 * l + 1);
         let Some([s_prev, s, o]) = rows_at(buf, stride, w, [2 * l - 2, 2 * l, 2 * l + 1]) else {
             return;
         };
-        forward_rows(s_prev, s, o, !early(l));
+        forward_rows(s_prev, s, o, !early(l), k);
     }
     // The last low rows' s² read mirrored d¹.
     ready.through(buf, (stride, w), n - 1);
@@ -392,17 +441,23 @@ simd::kernel! {
     /// call cost 5 % more instructions in the forward transform (`tests/mcu-bench`).
     #[cfg_attr(target_arch = "arm", inline(always))]
     #[cfg_attr(not(target_arch = "arm"), inline(never))]
-    fn forward_rows<T: Lift>(s_prev: &mut [T], s: &mut [T], o: &mut [T], with_s1: bool) {
+    fn forward_rows<T: Lift>(
+        s_prev: &mut [T],
+        s: &mut [T],
+        o: &mut [T],
+        with_s1: bool,
+        k: T::Constants,
+    ) {
         let lanes = s_prev.iter_mut().zip(s.iter_mut()).zip(o.iter_mut());
         if with_s1 {
             for ((sp, s), o) in lanes {
-                *s = lift_s1(*s, *o);
-                *o = lift_d1(*o, *s, *sp);
+                *s = lift_s1(*s, *o, k);
+                *o = lift_d1(*o, *s, *sp, k);
                 *sp -= *o;
             }
         } else {
             for ((sp, s), o) in lanes {
-                *o = lift_d1(*o, *s, *sp);
+                *o = lift_d1(*o, *s, *sp, k);
                 *sp -= *o;
             }
         }
@@ -420,6 +475,7 @@ simd::kernel! {
         prepared: &mut RowsPrepared<'_, P>,
         done: &mut D,
     ) {
+        let k = T::constants();
         let (stride, w, n) = region;
         let (nl, nh) = (n.div_ceil(2), n / 2);
         // The first pairs and the early steps below read rows up to 5; the mirrored last
@@ -442,7 +498,7 @@ simd::kernel! {
                 }
             }
         }
-        first_odd_row(buf, (stride, w, nl), unlift_odd);
+        first_odd_row(buf, (stride, w, nl), |d, s, sp| unlift_odd(d, s, sp, k));
         // An odd length's last even row reads the odd sample of a mirrored pair: made while
         // that sample is not yet saturated, i.e. before its pair is finished.
         let last_even = (nl > nh).then(|| (nh, odd_index(nh, nh)));
@@ -452,7 +508,7 @@ simd::kernel! {
                     for (cols, b) in bounds.segments() {
                         let lanes = segment(s, &cols).iter_mut().zip(segment(o, &cols).iter());
                         for (s, &o) in lanes {
-                            *s = unlift_even(*s, o).saturate(b);
+                            *s = unlift_even(*s, o, k).saturate(b);
                         }
                     }
                     done(s);
@@ -478,8 +534,8 @@ simd::kernel! {
                         .iter()
                         .zip(segment(o_next, &cols).iter_mut());
                     for ((s, o), (&s_next, o_next)) in lanes.zip(next) {
-                        *o_next = unlift_odd(*o_next, s_next, *s);
-                        *s = unlift_even(*s, *o).saturate(b);
+                        *o_next = unlift_odd(*o_next, s_next, *s, k);
+                        *s = unlift_even(*s, *o, k).saturate(b);
                         *o = o.saturate(b);
                     }
                 }
@@ -500,8 +556,8 @@ simd::kernel! {
                     let ahead = segment(d_after, &cols).iter();
                     for (((s, o), (s_next, o_next)), &d_after) in lanes.zip(next).zip(ahead) {
                         *s_next += d_after;
-                        *o_next = unlift_odd(*o_next, *s_next, *s);
-                        *s = unlift_even(*s, *o).saturate(b);
+                        *o_next = unlift_odd(*o_next, *s_next, *s, k);
+                        *s = unlift_even(*s, *o, k).saturate(b);
                         *o = o.saturate(b);
                     }
                 }
@@ -517,7 +573,7 @@ simd::kernel! {
                     .iter_mut()
                     .zip(segment(o, &cols).iter_mut());
                 for (s, o) in lanes {
-                    *s = unlift_even(*s, *o).saturate(b);
+                    *s = unlift_even(*s, *o, k).saturate(b);
                     *o = o.saturate(b);
                 }
             }
@@ -563,11 +619,15 @@ fn rows_mut<T>(c: &mut [T], r0: usize, r1: usize, w: usize) -> &mut [T] {
 #[cfg(test)]
 fn update1<T: Lift>(low: &mut [T], high: &[T], w: usize, (nl, nh): (usize, usize), add: bool) {
     let o = rows(high, 0, nh, w);
-    apply(rows_mut(low, 0, nh, w), o, o, add, |v, _| v.sqrt3());
+    apply(rows_mut(low, 0, nh, w), o, o, add, |v, _| {
+        v.sqrt3(T::constants())
+    });
     for l in nh..nl {
         let m = odd_index(l, nh);
         let o = rows(high, m, m + 1, w);
-        apply(rows_mut(low, l, l + 1, w), o, o, add, |v, _| v.sqrt3());
+        apply(rows_mut(low, l, l + 1, w), o, o, add, |v, _| {
+            v.sqrt3(T::constants())
+        });
     }
 }
 
@@ -582,7 +642,7 @@ fn predict<T: Lift>(high: &mut [T], low: &[T], w: usize, (nl, nh): (usize, usize
         rows(low, 0, 1, w),
         rows(low, p, p + 1, w),
         add,
-        T::predict,
+        |s, sp| T::predict(s, sp, T::constants()),
     );
     if nh > 1 {
         apply(
@@ -590,7 +650,7 @@ fn predict<T: Lift>(high: &mut [T], low: &[T], w: usize, (nl, nh): (usize, usize
             rows(low, 1, nh, w),
             rows(low, 0, nh - 1, w),
             add,
-            T::predict,
+            |s, sp| T::predict(s, sp, T::constants()),
         );
     }
 }
@@ -645,12 +705,61 @@ mod tests {
     use super::*;
 
     #[test]
-    fn constants_are_the_rounded_q16_values() {
+    fn constants_are_the_rounded_q32_values() {
         let s3 = 3f64.sqrt();
         let q = (1u64 << Q) as f64;
-        assert_eq!(SQRT3, (s3 * q).round() as i64);
-        assert_eq!(A, (s3 / 4.0 * q).round() as i64);
-        assert_eq!(B, ((s3 - 2.0) / 4.0 * q).round() as i64);
+        let k = CONSTANTS;
+        assert_eq!(f64::from(k.two_minus_sqrt3), ((2.0 - s3) * q).round());
+        assert_eq!(f64::from(k.a), (s3 / 4.0 * q).round());
+        assert_eq!(f64::from(k.b), ((s3 - 2.0) / 4.0 * q).round());
+    }
+
+    #[test]
+    fn rounded_products_are_within_half_of_exact() {
+        // Across the proven range (|x| < 2³⁰). The slack past ½ is the Q32 constants' own
+        // error (at most 2⁻³³ each, times |x|) and f64's.
+        let s3 = 3f64.sqrt();
+        let slack = |x: f64| 0.5 + x / 2f64.powi(32) + 1e-6;
+        let mut x = 0x2545_f491u32;
+        let mut values = [0i32; 512];
+        for v in values.iter_mut() {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            *v = (x as i32) >> (2 + x % 30);
+        }
+        values[0] = (1 << 30) - 1;
+        values[1] = -(1 << 30) + 1;
+        let k = CONSTANTS;
+        for w in values.windows(2) {
+            let (s, p) = (f64::from(w[0]), f64::from(w[1]));
+            let got = f64::from(k.sqrt3_times(w[0]));
+            assert!((got - s3 * s).abs() <= slack(s.abs()), "√3·{s}: {got}");
+            let exact = s3 / 4.0 * s + (s3 - 2.0) / 4.0 * p;
+            let got = f64::from(k.predict(w[0], w[1]));
+            assert!(
+                (got - exact).abs() <= slack(s.abs() + p.abs()),
+                "{s}, {p}: {got}"
+            );
+        }
+        // Halves: up for the predict term, down for √3 (2o − R(…)).
+        assert_eq!(round_q(1 << 31), 1);
+        assert_eq!(round_q((1 << 31) - 1), 0);
+        assert_eq!(round_q(-(1 << 31)), 0);
+        assert_eq!(round_q(-(1 << 31) - 1), -1);
+        for v in [
+            0,
+            1,
+            -1,
+            1 << 31,
+            (1 << 31) - 1,
+            -(1 << 31),
+            3 << 31,
+            -(5 << 31),
+            i64::MAX >> 1,
+        ] {
+            assert_eq!(round_q_sum(v), round_q(v), "{v}");
+        }
     }
 
     #[test]

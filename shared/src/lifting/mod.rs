@@ -56,10 +56,18 @@ pub(crate) trait Lift:
     const ROW_PASSES: bool;
     /// Haar's update term: `⌊d/2⌋`, or `d/2`.
     fn half(self) -> Self;
+    /// What db2's [`Lift::sqrt3`] and [`Lift::predict`] multiply by, taken once per line,
+    /// row or column sweep ([`Lift::constants`]) and handed to every step.
+    type Constants: Copy;
+    /// The db2 constants. The integer ones reach the steps through `black_box`, as
+    /// values the compiler cannot see: it then multiplies by them as the 32-bit words
+    /// they are (one `SMULL`, `SMLAL` or `SMMULR` on the Cortex-M7), where for known
+    /// constants of 31 bits it builds each 64-bit product from three instructions.
+    fn constants() -> Self::Constants;
     /// db2's first update term: `R(√3·o)`.
-    fn sqrt3(self) -> Self;
+    fn sqrt3(self, k: Self::Constants) -> Self;
     /// db2's predict term: `R(√3/4·s + (√3−2)/4·s_prev)`.
-    fn predict(s: Self, s_prev: Self) -> Self;
+    fn predict(s: Self, s_prev: Self, k: Self::Constants) -> Self;
     /// Saturates to `±bound` (the integer inverse's guard; floats pass unchanged).
     fn saturate(self, bound: i32) -> Self;
 }
@@ -70,17 +78,18 @@ impl Lift for i32 {
     fn half(self) -> Self {
         self >> 1
     }
+    type Constants = db2::Constants;
     #[inline(always)]
-    fn sqrt3(self) -> Self {
-        db2::round_q(db2::SQRT3 * i64::from(self))
+    fn constants() -> db2::Constants {
+        core::hint::black_box(db2::CONSTANTS)
     }
     #[inline(always)]
-    fn predict(s: Self, s_prev: Self) -> Self {
-        // A·s + B·s_prev as A·(s − s_prev) + (A + B)·s_prev: the same integer, but both
-        // constants positive, which the Cortex-M7 code does in SUB, SMULL, SMLAL (with
-        // the negative B, LLVM emits six instructions). |s − s_prev| < 2³¹: every bound
-        // is below i32::MAX / 2 (`bounds` tests).
-        db2::round_q(db2::A * i64::from(s - s_prev) + (db2::A + db2::B) * i64::from(s_prev))
+    fn sqrt3(self, k: db2::Constants) -> Self {
+        k.sqrt3_times(self)
+    }
+    #[inline(always)]
+    fn predict(s: Self, s_prev: Self, k: db2::Constants) -> Self {
+        k.predict(s, s_prev)
     }
     #[inline(always)]
     fn saturate(self, bound: i32) -> Self {
@@ -98,12 +107,15 @@ macro_rules! float_lift {
             fn half(self) -> Self {
                 0.5 * self
             }
+            type Constants = ();
             #[inline(always)]
-            fn sqrt3(self) -> Self {
+            fn constants() {}
+            #[inline(always)]
+            fn sqrt3(self, _: ()) -> Self {
                 $sqrt3 * self
             }
             #[inline(always)]
-            fn predict(s: Self, s_prev: Self) -> Self {
+            fn predict(s: Self, s_prev: Self, _: ()) -> Self {
                 const A: $t = $sqrt3 / 4.0;
                 const B: $t = ($sqrt3 - 2.0) / 4.0;
                 A * s + B * s_prev
