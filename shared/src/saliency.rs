@@ -58,6 +58,28 @@ const fn build_exp_table() -> [U8F24; 256] {
     table
 }
 
+/// [`EXP_TABLE`] as `[S(k), S(k + 1) − S(k)]` in Q24 per entry (the last step 0), for the
+/// interpolation: one paired load (`LDRD` on the Cortex-M7) and no subtraction per pixel.
+const EXP_STEPS: [[u32; 2]; 256] = build_exp_steps();
+
+// `k + 1 < 256` by the loop guard; const evaluation only, as for `build_exp_table`.
+#[allow(clippy::indexing_slicing)]
+const fn build_exp_steps() -> [[u32; 2]; 256] {
+    let mut steps = [[0; 2]; 256];
+    let mut k = 0;
+    while k < 256 {
+        let lo = EXP_TABLE[k].to_bits();
+        let hi = if k < 255 {
+            EXP_TABLE[k + 1].to_bits()
+        } else {
+            lo
+        };
+        steps[k] = [lo, hi - lo];
+        k += 1;
+    }
+    steps
+}
+
 /// How the Laplacian is normalized to 0..=255 (eq. 3).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SaliencyNorm {
@@ -282,24 +304,24 @@ impl Normalizer {
     /// `Sal` in Q8 (0 ..= 255·256).
     #[inline(always)]
     fn sal_q8(self, lap: u32) -> u32 {
-        // l ≤ m < 2¹⁶ and recip < 2²⁵: the product fits in 41 bits.
-        let l = (lap.min(self.cap) >> self.down) << self.up;
-        let v = ((u64::from(l) * u64::from(self.recip)) >> 24) as u32;
-        v.min(255 << 8)
+        // l ≤ m < 2¹⁶, so l·2⁸ < 2²⁴ and (l·recip) >> 24 is the high word of l·2⁸·recip:
+        // one `UMULL` on the Cortex-M7, no 64-bit shift. With recip < 2²⁵ it is at most
+        // 255·2⁸ + m/2²⁴ < 255·2⁸ + 1 (see `new`), so never past 255·2⁸.
+        let l = (lap.min(self.cap) >> self.down) << (self.up + 8);
+        ((u64::from(l) * u64::from(self.recip)) >> 32) as u32
     }
 
     /// `S = exp(Sal/255) − 1` in Q24, interpolated between table entries.
-    // `k = Sal >> 8 ≤ 255` because `sal_q8` returns at most 255·256, and the upper entry is
-    // capped at 255: both index the 256-entry `EXP_TABLE` in range. Runs once per pixel.
-    #[allow(clippy::indexing_slicing)]
     #[inline(always)]
     fn saliency(self, lap: u32) -> u32 {
         let q = self.sal_q8(lap);
-        let (k, frac) = ((q >> 8) as usize, q & 0xff);
-        let lo = EXP_TABLE[k].to_bits();
-        let hi = EXP_TABLE[(k + 1).min(255)].to_bits();
-        // The table rises, so hi ≥ lo; the step is below 2²⁴·0.007 and times 255 fits u32.
-        lo + (((hi - lo) * frac + 128) >> 8)
+        // k = q >> 8 ≤ 255 as `sal_q8` shows (and test `saliency_matches_its_plain_statement`
+        // checks against a capped form); the mask only lets the compiler see the index in
+        // range, at one instruction where a `min` took four.
+        let (k, frac) = (((q >> 8) & 0xff) as usize, q & 0xff);
+        let [lo, step] = EXP_STEPS.get(k).copied().unwrap_or_default();
+        // The step is below 2²⁴·0.007 and times 255 fits u32.
+        lo + ((step * frac + 128) >> 8)
     }
 }
 
@@ -441,6 +463,47 @@ mod tests {
             }
             assert_eq!(n.sal_q8(u32::MAX), 255 << 8);
             assert_eq!(n.saliency(u32::MAX), EXP_TABLE[255].to_bits());
+        }
+    }
+
+    /// The plain statement of [`Normalizer::saliency`]: `Sal` by a 64-bit product shifted
+    /// down, capped at 255, then the table read at `k` and `k + 1`.
+    fn saliency_plain(n: Normalizer, lap: u32) -> u32 {
+        let l = (lap.min(n.cap) >> n.down) << n.up;
+        let q = (((u64::from(l) * u64::from(n.recip)) >> 24) as u32).min(255 << 8);
+        let k = (q >> 8) as usize;
+        let lo = EXP_TABLE[k].to_bits();
+        let hi = EXP_TABLE[(k + 1).min(255)].to_bits();
+        lo + (((hi - lo) * (q & 0xff) + 128) >> 8)
+    }
+
+    #[test]
+    fn saliency_matches_its_plain_statement() {
+        for max in [
+            1u32,
+            2,
+            3,
+            255,
+            1000,
+            16_320,
+            65_535,
+            65_536,
+            121_813,
+            1 << 27,
+            u32::MAX,
+        ] {
+            let n = Normalizer::new(max);
+            // Every Laplacian up to 2¹⁷ past the maximum (the reference normalization's
+            // larger ones are capped), then a spread of the rest.
+            let dense = 0..=max.saturating_add(1 << 17).min(1 << 20);
+            let spread = (0..64).map(|k| u32::MAX >> (k % 32));
+            for lap in dense.chain(spread) {
+                assert_eq!(
+                    n.saliency(lap),
+                    saliency_plain(n, lap),
+                    "max {max}, lap {lap}"
+                );
+            }
         }
     }
 
