@@ -359,30 +359,50 @@ pub(crate) fn saliency_row(norm: Normalizer, rows: [&[i32]; 3], out: &mut [i32])
 /// zero.
 ///
 /// Both sums are first halved together until they add up to at most 2¹⁷ (keeping their
-/// ratio to 17 bits). The division then runs as two 32-bit divisions: a 64-bit one is a
-/// library call of some hundred instructions on the Cortex-M7, once per window.
+/// ratio to 17 bits). The division then runs in 32 bits: a 64-bit one is a library call of
+/// some hundred instructions on the Cortex-M7, once per window.
 pub fn weight(s1: u32, s2: u32) -> U1F15 {
-    let (mut a, mut b) = (s1, s2);
-    let total = u64::from(a) + u64::from(b);
-    if total == 0 {
+    // The fusion's window sums stay below 2²⁸ (four saliencies of at most 1.72·2²⁴): their
+    // sum fits in 32 bits and takes the short path; other callers take the general one.
+    let (a, b) = if (s1 | s2) < 1 << 30 {
+        halve_to_17_bits(s1, s2, s1 + s2)
+    } else {
+        let total = u64::from(s1) + u64::from(s2);
+        // At least the halvings that bring `total` below 2³¹, then as for small sums.
+        let skip = (64 - total.leading_zeros()).saturating_sub(31);
+        let (a, b) = (s1 >> skip, s2 >> skip);
+        halve_to_17_bits(a, b, a + b)
+    };
+    let t = a + b;
+    if t == 0 {
         return U1F15::from_bits(1 << 14);
     }
-    // The fewest halvings that bring the sum to 2¹⁷ or below: at least those that bring
-    // `total` below 2¹⁸, then one more while the halved sum is still above.
-    let bits = 64 - total.leading_zeros();
-    let skip = bits.saturating_sub(18);
-    a >>= skip;
-    b >>= skip;
-    while a + b > (1 << 17) {
-        a >>= 1;
-        b >>= 1;
-    }
-    let t = a + b;
-    // (a·2¹⁵ + t/2) / t = q₁·2⁷ + (r₁·2⁷ + t/2) / t with q₁, r₁ = divmod(a·2⁸, t);
+    // (a·2¹⁵ + t/2) / t: in one 32-bit division while a·2¹⁵ + t/2 < 2³² (a < 2¹⁷ − 3, as
+    // t ≤ 2¹⁷); otherwise as q₁·2⁷ + (r₁·2⁷ + t/2) / t with q₁, r₁ = divmod(a·2⁸, t), where
     // a ≤ 2¹⁷ keeps a·2⁸ and r₁·2⁷ within 32 bits.
-    let (q1, r1) = ((a << 8) / t, (a << 8) % t);
-    let w = (q1 << 7) + ((r1 << 7) + t / 2) / t;
+    let w = if a < (1 << 17) - 3 {
+        ((a << 15) + t / 2) / t
+    } else {
+        let (q1, r1) = ((a << 8) / t, (a << 8) % t);
+        (q1 << 7) + ((r1 << 7) + t / 2) / t
+    };
     U1F15::from_bits(w.min(1 << 15) as u16)
+}
+
+/// Halves `a` and `b` (whose sum is `total`, below 2³¹) together, the fewest times that
+/// bring their sum to 2¹⁷ or below.
+#[inline(always)]
+fn halve_to_17_bits(a: u32, b: u32, total: u32) -> (u32, u32) {
+    // The halvings that bring `total` below 2¹⁸, then one more if the halved sum is still
+    // above 2¹⁷ (once is enough: it is below 2¹⁸, and halving each part halves the sum at
+    // least).
+    let skip = (32 - total.leading_zeros()).saturating_sub(18);
+    let (a, b) = (a >> skip, b >> skip);
+    if a + b > 1 << 17 {
+        (a >> 1, b >> 1)
+    } else {
+        (a, b)
+    }
 }
 
 #[cfg(test)]
@@ -431,6 +451,30 @@ mod tests {
             *v = x >> (x % 32);
         }
         values[95] = u32::MAX;
+        // Around the one-division bound (a < 2¹⁷ − 3 after halving) and the short path's
+        // (both below 2³⁰), unhalved and halved.
+        let edges = (0..8u32).flat_map(|d| {
+            [
+                (1 << 17) - d,
+                (1 << 18) - 2 * d,
+                (1 << 30) - d,
+                (1 << 31) - d,
+            ]
+        });
+        for a in edges.clone() {
+            for b in edges.clone().chain([0, 1, 2, 3, 4, 5, 1 << 29]) {
+                assert_eq!(
+                    weight(a, b).to_bits(),
+                    weight_by_u64_division(a, b),
+                    "{a} {b}"
+                );
+                assert_eq!(
+                    weight(b, a).to_bits(),
+                    weight_by_u64_division(b, a),
+                    "{b} {a}"
+                );
+            }
+        }
         for &a in &values {
             for &b in &values {
                 assert_eq!(
