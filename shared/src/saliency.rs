@@ -59,7 +59,7 @@ const fn build_exp_table() -> [U8F24; 256] {
 }
 
 /// [`EXP_TABLE`] as `[S(k), S(k + 1) − S(k)]` in Q24 per entry (the last step 0), for the
-/// interpolation: one paired load (`LDRD` on the Cortex-M7) and no subtraction per pixel.
+/// interpolation: one entry read per pixel, no second index and no subtraction.
 const EXP_STEPS: [[u32; 2]; 256] = build_exp_steps();
 
 // `k + 1 < 256` by the loop guard; const evaluation only, as for `build_exp_table`.

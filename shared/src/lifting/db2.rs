@@ -30,7 +30,7 @@ pub(crate) const Q: u32 = 32;
 /// The integer db2 constants in Q32, each a signed 32-bit word: the operand of one
 /// `SMULL`/`SMMULR` on the Cortex-M7, where Q16 constants took a 64-bit rounding and a
 /// shift after each product (five and seven instructions for the two terms, now two and
-/// four: `bash tests/mcu-bench/run.sh`).
+/// three: `llvm-objdump -d` of the `tests/mcu-bench` binary).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Constants {
     /// 2 − √3 (√3 itself does not fit a signed Q32 word).
@@ -48,15 +48,15 @@ pub(crate) const CONSTANTS: Constants = Constants {
     b: -287_708_255,
 };
 
-/// Rounds a Q32 value to the nearest integer, halves upward. As `(v + 2³¹) >> 32` the
-/// Cortex-M7 code is one `SMMULR` for a single product, but a 64-bit addition after a sum
-/// of two; as the high word plus the low word's top bit it is one addition instead.
+/// Rounds a Q32 value to the nearest integer, halves upward: of a single product, one
+/// `SMMULR` on the Cortex-M7.
 #[inline(always)]
 fn round_q(v: i64) -> i32 {
     ((v + (1 << (Q - 1))) >> Q) as i32
 }
 
-/// [`round_q`] of a sum of products, written as its high word plus the low word's top bit.
+/// [`round_q`] of a sum of two products, as its high word plus the low word's top bit: one
+/// addition after `SMULL` and `SMLAL`, where `(v + 2³¹) >> 32` takes a 64-bit one.
 #[inline(always)]
 fn round_q_sum(v: i64) -> i32 {
     ((v >> Q) as i32).wrapping_add(((v as u32) >> (Q - 1)) as i32)
