@@ -54,10 +54,13 @@ fn the_default_configuration_needs_what_the_formula_says() {
     let m = cfg.memory();
     assert_eq!(m.frame_bytes, w * h);
     assert_eq!(m.tile_bytes, 4 * t * w);
-    // Two work images, the transform's row of scratch, two maps.
-    assert_eq!(m.work_words, 2 * t * w + w + 2 * (w / 2 + 1) * (t / 2 + 1));
+    // Two work images, the transform's row of scratch, two maps, two saliency tables.
+    assert_eq!(
+        m.work_words,
+        2 * t * w + w + 2 * (w / 2 + 1) * (t / 2 + 1) + 2 * 1024
+    );
     assert_eq!(m.profile_words, 2 * (h - 1));
-    assert_eq!(m.total_bytes(), 45_080);
+    assert_eq!(m.total_bytes(), 53_272);
 
     // The firmware's buffers hold it, and the 2×-downsampled configurations users pick.
     assert!(m.fits(&rollfuse_core::device::MCU_CAPACITY));

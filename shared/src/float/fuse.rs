@@ -141,7 +141,7 @@ impl<T: Float> Arith for T {
     }
 
     #[inline(always)]
-    fn saliency_row(inv: T, rows: [&[T]; 3], out: &mut [T]) {
+    fn saliency_row(inv: T, _table: Option<&[T]>, rows: [&[T]; 3], out: &mut [T]) {
         let Some(out) = out.get_mut(..rows[1].len()) else {
             return;
         };
@@ -433,7 +433,7 @@ pub fn fuse_pair_with<T: Float>(
         cfg,
         ll_weight,
         scratch,
-        (2, SALIENCY_IN_SWEEP),
+        (2, SALIENCY_IN_SWEEP, false),
         join,
     )
 }

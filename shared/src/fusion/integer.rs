@@ -2,11 +2,11 @@
 //! [`crate::lifting`]. This is what the MCU runs.
 
 use super::{
-    Arith, FuseConfig, LlWeight, Sequential, fuse_generic, fuse_pair_checked, maps_len,
-    split_scratch,
+    Arith, FuseConfig, LlWeight, Sequential, TABLE_WORDS, fuse_generic, fuse_pair_checked,
+    maps_len, split_scratch,
 };
 use crate::lifting::{self, Coefficients, bounds::level_bounds};
-use crate::saliency::{self, SaliencyNorm};
+use crate::saliency::{self, ByteTable, SaliencyNorm};
 use crate::{Dims, Error, Wavelet};
 
 impl Arith for i32 {
@@ -39,9 +39,27 @@ impl Arith for i32 {
         (max != 0).then(|| saliency::Normalizer::new(max))
     }
 
+    fn fill_byte_table(norm: saliency::Normalizer, space: &mut [i32]) -> bool {
+        let Some(entries) = space.first_chunk_mut() else {
+            return false;
+        };
+        ByteTable::fill(entries, norm, GUARD_BITS);
+        true
+    }
+
     #[inline(always)]
-    fn saliency_row(norm: saliency::Normalizer, rows: [&[i32]; 3], out: &mut [i32]) {
-        saliency::saliency_row(norm, rows, out);
+    fn saliency_row(
+        norm: saliency::Normalizer,
+        table: Option<&[i32]>,
+        rows: [&[i32]; 3],
+        out: &mut [i32],
+    ) {
+        match table.and_then(|t| t.first_chunk()) {
+            Some(entries) => {
+                saliency::saliency_row_bytes(&ByteTable::new(entries, GUARD_BITS), rows, out)
+            }
+            None => saliency::saliency_row(norm, rows, out),
+        }
     }
 
     fn weight(s1: i32, s2: i32) -> i32 {
@@ -71,16 +89,17 @@ impl Arith for i32 {
 }
 
 /// Scratch length (in `i32`) that [`fuse_pair`] and [`fuse_u8`] need for `dims`: a
-/// transform line and the saliency maps ([`fuse_scratch_words`]).
+/// transform line, the saliency maps and the saliency tables ([`fuse_scratch_words`]).
 pub fn fuse_scratch_len(dims: Dims) -> usize {
     fuse_scratch_words(dims.width(), dims.height())
 }
 
 /// [`fuse_scratch_len`] for a `width × height` image, usable in constants (array sizes):
 /// `max(w, min(w, COLUMN_BLOCK)·h)` for the transform ([`lifting::scratch_len`]) plus
-/// `2·(⌈w/2⌉ + 1)·(⌈h/2⌉ + 1)` for the two saliency maps.
+/// `2·(⌈w/2⌉ + 1)·(⌈h/2⌉ + 1)` for the two saliency maps, plus 2048 for the two tables
+/// [`fuse_u8`] looks level 1's saliencies up in (used by it alone).
 pub const fn fuse_scratch_words(width: usize, height: usize) -> usize {
-    lifting::scratch_words(width, height) + maps_len(width, height)
+    lifting::scratch_words(width, height) + maps_len(width, height) + TABLE_WORDS
 }
 
 /// One integer fuse step: the fused image of `a` and `b` replaces `a`; `b` is used as work
@@ -95,7 +114,18 @@ pub fn fuse_pair(
     ll_weight: LlWeight,
     scratch: &mut [i32],
 ) -> Result<(), Error> {
-    fuse_pair_checked(a, b, dims, cfg, ll_weight, scratch, (1, false), &Sequential)
+    // One scratch size for both entry points; this one leaves the tables unused (its
+    // samples need not be 8-bit).
+    let needed = fuse_scratch_len(dims);
+    if scratch.len() < needed {
+        return Err(Error::BufferTooSmall {
+            which: "scratch",
+            needed,
+            got: scratch.len(),
+        });
+    }
+    let layout = (1, false, false);
+    fuse_pair_checked(a, b, dims, cfg, ll_weight, scratch, layout, &Sequential)
 }
 
 /// Fraction bits the 8-bit fusion keeps below the pixel's integer part while it works.
@@ -143,7 +173,7 @@ pub fn fuse_u8(
     let parts = split_scratch(
         work.scratch,
         lifting::scratch_len(packed),
-        (1, false),
+        (1, false, true),
         packed,
     )?;
     // Every buffer was checked to hold its region above: the zips pair all `h` rows.

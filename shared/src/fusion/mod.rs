@@ -19,7 +19,7 @@ pub use cyclic::{CyclicBuffers, CyclicFuser};
 pub use integer::{GUARD_BITS, U8Work, fuse_pair, fuse_scratch_len, fuse_scratch_words, fuse_u8};
 
 use crate::lifting::{self, Lift};
-use crate::saliency::{SaliencyNorm, row_and_neighbours};
+use crate::saliency::{BYTE_TABLE_LEN, SaliencyNorm, row_and_neighbours};
 use crate::{Dims, Error, Wavelet, simd};
 
 /// The ablations of the paper's Table II: each removes one part of the method.
@@ -167,7 +167,7 @@ pub(crate) trait Arith: Lift + Send + Sync + core::ops::AddAssign {
         prepare: &mut impl FnMut(u8, usize, &mut [Self]),
     );
     /// What [`Arith::saliency_row`] normalizes the Laplacian by.
-    type SaliencyScale: Copy;
+    type SaliencyScale: Copy + PartialEq + Send + Sync;
     /// The normalization of the saliency of the level input `buf` on `dims`, or `None` for
     /// a flat region (whose `S` is 0 everywhere). `known_max`, where given, is the level
     /// input's largest `|∇²I|` under [`SaliencyNorm::Local`], found by
@@ -180,9 +180,23 @@ pub(crate) trait Arith: Lift + Send + Sync + core::ops::AddAssign {
         level: u8,
         known_max: Option<Self>,
     ) -> Option<Self::SaliencyScale>;
+    /// Fills `space` with the saliency of every Laplacian a level input of 8-bit samples
+    /// (shifted left by [`GUARD_BITS`]) can have under `scale`, where this path has such
+    /// tables and `space` holds one ([`TABLE_WORDS`]); returns whether it did.
+    fn fill_byte_table(scale: Self::SaliencyScale, space: &mut [Self]) -> bool {
+        let _ = (scale, space);
+        false
+    }
     /// Sets `out` to the saliencies `S = exp(Sal/255) − 1` of the row `mid` of a level
-    /// input, given as `[up, mid, down]` with its (mirrored) neighbours.
-    fn saliency_row(scale: Self::SaliencyScale, rows: [&[Self]; 3], out: &mut [Self]);
+    /// input, given as `[up, mid, down]` with its (mirrored) neighbours; by lookup in
+    /// `table` where [`Arith::fill_byte_table`] filled one for `scale` (the input then
+    /// must be 8-bit samples with the guard bits), with the same result.
+    fn saliency_row(
+        scale: Self::SaliencyScale,
+        table: Option<&[Self]>,
+        rows: [&[Self]; 3],
+        out: &mut [Self],
+    );
     /// `W₁` from the two saliency sums.
     fn weight(s1: Self, s2: Self) -> Self;
     /// `W₁·h1 + (1 − W₁)·h2`.
@@ -232,7 +246,7 @@ pub(crate) fn fuse_pair_checked<T: Arith>(
     cfg: &FuseConfig,
     ll_weight: LlWeight,
     scratch: &mut [T],
-    layout: (usize, bool),
+    layout: (usize, bool, bool),
     join: &impl Join,
 ) -> Result<(), Error> {
     dims.check_buffer("first image", a.len())?;
@@ -266,7 +280,17 @@ pub(crate) struct Work<'s, T> {
     /// Two rows per image (A's, then B's), where the step has them: each image's
     /// saliency is then taken in its forward transform's sweep ([`saliency_and_forward`]).
     pub rings: Option<&'s mut [T]>,
+    /// [`TABLE_WORDS`] for the level-1 saliency tables ([`Arith::fill_byte_table`]),
+    /// where the step's images are 8-bit samples with [`GUARD_BITS`].
+    pub tables: Option<&'s mut [T]>,
 }
+
+/// Scratch for the saliency tables of [`Work::tables`]: one table per image.
+pub(crate) const TABLE_WORDS: usize = 2 * BYTE_TABLE_LEN;
+
+/// A level region smaller than this takes its saliency without tables: filling one
+/// costs about as much as looking up this many pixels saves.
+const TABLE_MIN_PIXELS: usize = BYTE_TABLE_LEN;
 
 /// Scratch for the saliency rings of [`Work::rings`]: two rows per image.
 pub(crate) fn rings_len(dims: Dims) -> usize {
@@ -274,16 +298,17 @@ pub(crate) fn rings_len(dims: Dims) -> usize {
 }
 
 /// Splits the caller's scratch into `lines` (1 or 2) transform lines of `line` elements,
-/// the maps and, with `rings`, the saliency rings.
+/// the maps and, with `rings`, the saliency rings, and with `tables` the saliency tables.
 pub(crate) fn split_scratch<T>(
     scratch: &mut [T],
     line: usize,
-    (lines, rings): (usize, bool),
+    (lines, rings, tables): (usize, bool, bool),
     dims: Dims,
 ) -> Result<Work<'_, T>, Error> {
     let maps = maps_len(dims.width(), dims.height());
     let ring = if rings { rings_len(dims) } else { 0 };
-    let needed = lines * line + maps + ring;
+    let table = if tables { TABLE_WORDS } else { 0 };
+    let needed = lines * line + maps + ring + table;
     let too_small = Error::BufferTooSmall {
         which: "scratch",
         needed,
@@ -300,15 +325,14 @@ pub(crate) fn split_scratch<T>(
         (None, rest)
     };
     let (maps, rest) = rest.split_at_mut_checked(maps).ok_or(too_small)?;
+    let (ring_part, rest) = rest.split_at_mut_checked(ring).ok_or(too_small)?;
+    let table_part = rest.get_mut(..table).ok_or(too_small)?;
     Ok(Work {
         line: first,
         line_b,
         maps,
-        rings: if rings {
-            Some(rest.get_mut(..ring).ok_or(too_small)?)
-        } else {
-            None
-        },
+        rings: rings.then_some(ring_part),
+        tables: tables.then_some(table_part),
     })
 }
 
@@ -374,15 +398,16 @@ simd::kernel! {
     /// input's rows `[up, mid, down]`.
     #[inline(always)]
     fn saliency_map_row<T: Arith>(
-        scale: T::SaliencyScale,
+        scale: Scale<'_, T>,
         rows: [&[T]; 3],
         y: usize,
         map: &mut WindowMap<'_, T>,
         row: &mut [T],
     ) {
+        let (scale, table) = scale;
         // `row` may be longer than the level input's rows (a line of the level above).
         if let Some(row) = row.get_mut(..rows[1].len()) {
-            T::saliency_row(scale, rows, row);
+            T::saliency_row(scale, table, rows, row);
             map.take(y, row);
         }
     }
@@ -445,32 +470,37 @@ impl<'r, T: Copy> LaggedRows<'r, T> {
     }
 }
 
-/// One image's part of a fuse step level: its saliency map (when `map` is given), then
-/// its forward transform. With `ring` (two rows of scratch) both run in one sweep over
-/// the image: each row's saliency is taken as the transform's sweep brings in the row
-/// below it, from copies of the original rows above, which the transform has lifted by
-/// then. That saves a pass over the image; the result is the same to the bit.
-#[allow(clippy::too_many_arguments)]
+/// A level input's saliency normalization ([`Arith::saliency_scale`]) and, where one was
+/// filled for it, its table ([`Arith::fill_byte_table`]).
+type Scale<'t, T> = (<T as Arith>::SaliencyScale, Option<&'t [T]>);
+
+/// An image's window map to fill, its layout and the image's [`Scale`] (`None`: flat).
+type MapOf<'m, 't, T> = (&'m mut [T], WindowLayout, Option<Scale<'t, T>>);
+
+/// One image's part of a fuse step level: its saliency map (when `map` is given: the
+/// map, its layout and the image's [`Scale`], `None` for a flat image), then its forward
+/// transform. With `ring` (two rows of scratch) both run in one sweep over the image:
+/// each row's saliency is taken as the transform's sweep brings in the row below it, from
+/// copies of the original rows above, which the transform has lifted by then. That saves
+/// a pass over the image; the result is the same to the bit.
 fn saliency_and_forward<T: Arith>(
     img: &mut [T],
     dims: Dims,
-    cfg: &FuseConfig,
-    (level, known_max): (u8, Option<T>),
-    map: Option<(&mut [T], WindowLayout)>,
+    wavelet: Wavelet,
+    map: Option<MapOf<'_, '_, T>>,
     line: &mut [T],
     ring: Option<&mut [T]>,
 ) {
-    let Some((map, layout)) = map else {
-        lifting::forward_level(cfg.wavelet, img, dims, line);
+    let Some((map, layout, scale)) = map else {
+        lifting::forward_level(wavelet, img, dims, line);
         return;
     };
     let (w, h) = (dims.width(), dims.height());
     let mut map = WindowMap::new(map, layout, dims);
-    let scale = T::saliency_scale(img, dims, cfg.norm, cfg.wavelet, level, known_max);
     let lagged = ring.and_then(|r| LaggedRows::new(r, w));
     match (scale, lagged) {
         (Some(scale), Some(mut lagged)) => {
-            lifting::forward_level_observed(cfg.wavelet, img, dims, line, |_, row, line| {
+            lifting::forward_level_observed(wavelet, img, dims, line, |_, row, line| {
                 lagged.meet(row, |y, rows| {
                     saliency_map_row(scale, rows, y, &mut map, line)
                 });
@@ -483,9 +513,9 @@ fn saliency_and_forward<T: Arith>(
                     saliency_map_row(scale, [up, mid, down], y, &mut map, line);
                 }
             }
-            lifting::forward_level(cfg.wavelet, img, dims, line);
+            lifting::forward_level(wavelet, img, dims, line);
         }
-        (None, _) => lifting::forward_level(cfg.wavelet, img, dims, line),
+        (None, _) => lifting::forward_level(wavelet, img, dims, line),
     }
     map.finish(dims);
 }
@@ -585,6 +615,7 @@ pub(crate) fn fuse_generic<T: Arith>(
         mut line_b,
         maps,
         mut rings,
+        mut tables,
     } = work;
     let image_error = dims.too_small("image", a.len().min(b.len()));
     if cfg.ablation == Ablation::NoWavelet {
@@ -593,7 +624,8 @@ pub(crate) fn fuse_generic<T: Arith>(
     let mut d = dims;
     for level in 1..cfg.levels {
         let lines = (&mut *line, line_b.as_deref_mut(), rings.as_deref_mut());
-        let fusion = transform_level(a, b, (d, level), cfg, &mut *maps, lines, maxima, join)?;
+        let space = (&mut *maps, tables.as_deref_mut());
+        let fusion = transform_level(a, b, (d, level), cfg, space, lines, maxima, join)?;
         for y in 0..d.height() {
             let (Some(ra), Some(rb)) = (d.row_mut(a, y), d.row(b, y)) else {
                 return Err(image_error);
@@ -603,7 +635,8 @@ pub(crate) fn fuse_generic<T: Arith>(
         d = d.low_band();
     }
     let lines = (&mut *line, line_b, rings);
-    let deepest = transform_level(a, b, (d, cfg.levels), cfg, maps, lines, maxima, join)?;
+    let space = (maps, tables);
+    let deepest = transform_level(a, b, (d, cfg.levels), cfg, space, lines, maxima, join)?;
     let b = &*b;
     let mut outcome = Ok(());
     let mut fuse_deepest = |level: u8, y: usize, ra: &mut [T]| {
@@ -621,20 +654,21 @@ pub(crate) fn fuse_generic<T: Arith>(
 
 /// One level of a fuse step up to its fusion: each image's saliency map (read before its
 /// transform overwrites it) and its transform, then `W₁` per window. Returns how to fuse
-/// the level's rows. `lines` are [`Work`]'s line, second line and rings.
+/// the level's rows. `space` is [`Work`]'s maps and tables, `lines` its line, second line
+/// and rings.
 #[allow(clippy::too_many_arguments)]
 fn transform_level<'m, T: Arith>(
     a: &mut [T],
     b: &mut [T],
     (d, level): (Dims, u8),
     cfg: &FuseConfig,
-    maps: &'m mut [T],
+    (maps, tables): (&'m mut [T], Option<&mut [T]>),
     (line, line_b, rings): (&mut [T], Option<&mut [T]>, Option<&mut [T]>),
     [max_a, max_b]: [Option<T>; 2],
     join: &impl Join,
 ) -> Result<LevelFusion<'m, T>, Error> {
     let with_weights = cfg.ablation.uses_saliency();
-    let layout = WindowLayout::of(cfg.wavelet);
+    let (wl, layout) = (cfg.wavelet, WindowLayout::of(cfg.wavelet));
     let (mw, mh) = layout.map_dims(d);
     let maps_error = Error::BufferTooSmall {
         which: "scratch",
@@ -643,9 +677,21 @@ fn transform_level<'m, T: Arith>(
     };
     let (map_a, rest) = maps.split_at_mut_checked(mw * mh).ok_or(maps_error)?;
     let map_b = rest.get_mut(..mw * mh).ok_or(maps_error)?;
+    let scale_of = |img: &[T], max| {
+        let known_max = if level == 1 { max } else { None };
+        let scale = || T::saliency_scale(img, d, cfg.norm, cfg.wavelet, level, known_max);
+        with_weights.then(scale).flatten()
+    };
+    let scales = [scale_of(a, max_a), scale_of(b, max_b)];
+    // Only level 1's input is the 8-bit samples the tables are for.
+    let [table_a, table_b] = match tables {
+        Some(space) if level == 1 && d.pixels() >= TABLE_MIN_PIXELS => byte_tables(space, scales),
+        _ => [None, None],
+    };
+    let [scale_a, scale_b] = [(scales[0], table_a), (scales[1], table_b)]
+        .map(|(scale, table)| scale.map(|scale| (scale, table)));
     // The two images are independent until the weights.
-    let known = |max| (level, if level == 1 { max } else { None });
-    let with_map = |map| with_weights.then_some((map, layout));
+    let with_map = |map, scale| with_weights.then_some((map, layout, scale));
     let (ring_a, ring_b) = match rings {
         Some(r) => {
             let (ra, rb) = r.split_at_mut(r.len() / 2);
@@ -655,12 +701,12 @@ fn transform_level<'m, T: Arith>(
     };
     match line_b {
         Some(lb) => join.join(
-            || saliency_and_forward(a, d, cfg, known(max_a), with_map(&mut *map_a), line, ring_a),
-            || saliency_and_forward(b, d, cfg, known(max_b), with_map(&mut *map_b), lb, ring_b),
+            || saliency_and_forward(a, d, wl, with_map(&mut *map_a, scale_a), line, ring_a),
+            || saliency_and_forward(b, d, wl, with_map(&mut *map_b, scale_b), lb, ring_b),
         ),
         None => {
-            saliency_and_forward(a, d, cfg, known(max_a), with_map(&mut *map_a), line, ring_a);
-            saliency_and_forward(b, d, cfg, known(max_b), with_map(&mut *map_b), line, ring_b);
+            saliency_and_forward(a, d, wl, with_map(&mut *map_a, scale_a), line, ring_a);
+            saliency_and_forward(b, d, wl, with_map(&mut *map_b, scale_b), line, ring_b);
         }
     }
     if with_weights {
@@ -675,6 +721,27 @@ fn transform_level<'m, T: Arith>(
         mix_ll: level == cfg.levels && cfg.ablation != Ablation::SingleLl,
         maps_error,
     })
+}
+
+/// The two images' saliency tables ([`Arith::fill_byte_table`]) in `space`, for their
+/// scales: one table serves both when they share a scale (a reference maximum); `None`
+/// for a flat image, or where the path has no tables.
+fn byte_tables<'t, T: Arith>(
+    space: &'t mut [T],
+    [scale_a, scale_b]: [Option<T::SaliencyScale>; 2],
+) -> [Option<&'t [T]>; 2] {
+    let (space_a, space_b) = space.split_at_mut(space.len() / 2);
+    let a_filled = scale_a.is_some_and(|s| T::fill_byte_table(s, space_a));
+    let shared = a_filled && scale_a == scale_b;
+    let b_filled = !shared && scale_b.is_some_and(|s| T::fill_byte_table(s, space_b));
+    let (space_a, space_b): (&'t [T], &'t [T]) = (space_a, space_b);
+    let table_a = a_filled.then_some(space_a);
+    let table_b = if shared {
+        table_a
+    } else {
+        b_filled.then_some(space_b)
+    };
+    [table_a, table_b]
 }
 
 /// How the rows of one transformed level are fused.
@@ -791,7 +858,7 @@ mod tests {
                         let (mut a, mut b) = (scene(w, h, 0), scene(w, h, 5));
                         let mut scratch = vec![0f32; crate::float::fuse_scratch_len(dims)];
                         let half = LlWeight::HALF;
-                        let layout = (2, rings);
+                        let layout = (2, rings, false);
                         let seq = &Sequential;
                         fuse_pair_checked(
                             &mut a,
@@ -815,5 +882,78 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Level 1's saliencies looked up in tables (what `fuse_u8` does) fuse to the same
+    /// bits as computed pixel by pixel: under each image's own maximum (two tables), a
+    /// shared reference maximum (one), one that caps most Laplacians and one above every
+    /// Laplacian; on regions with and without tables (below `TABLE_MIN_PIXELS`).
+    #[test]
+    fn saliency_tables_change_no_bit() {
+        // 8-bit samples with the guard bits, with 0/255 dots: Laplacians up to the largest.
+        let bytes = |w: usize, h: usize, seed: usize| -> Vec<i32> {
+            scene(w, h, seed)
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| {
+                    let v = if (i * 11 + seed).is_multiple_of(37) {
+                        255.0
+                    } else {
+                        v
+                    };
+                    (v.round().clamp(0.0, 255.0) as i32) << GUARD_BITS
+                })
+                .collect()
+        };
+        let norms = [
+            SaliencyNorm::Local,
+            SaliencyNorm::Reference(40 << GUARD_BITS),
+            SaliencyNorm::Reference(3 << GUARD_BITS),
+            SaliencyNorm::Reference(5000 << GUARD_BITS),
+        ];
+        let mut tabled = 0;
+        for (w, h) in [(160, 16), (61, 47), (40, 30), (31, 24), (7, 2)] {
+            let dims = Dims::new(w, h).unwrap();
+            tabled += usize::from(dims.pixels() >= TABLE_MIN_PIXELS);
+            for wavelet in [Wavelet::Haar, Wavelet::Db2] {
+                for levels in 1..=2 {
+                    if dims.check_levels(levels).is_err() {
+                        continue;
+                    }
+                    for norm in norms {
+                        let cfg = FuseConfig {
+                            wavelet,
+                            levels,
+                            norm,
+                            ..FuseConfig::default()
+                        };
+                        let fused = |tables: bool| {
+                            let (mut a, mut b) = (bytes(w, h, 0), bytes(w, h, 5));
+                            let mut scratch = vec![0i32; fuse_scratch_len(dims)];
+                            let ll = LlWeight::HALF;
+                            let (layout, seq) = ((1, false, tables), &Sequential);
+                            fuse_pair_checked(
+                                &mut a,
+                                &mut b,
+                                dims,
+                                &cfg,
+                                ll,
+                                &mut scratch,
+                                layout,
+                                seq,
+                            )
+                            .unwrap();
+                            a
+                        };
+                        assert_eq!(
+                            fused(true),
+                            fused(false),
+                            "{w}×{h} {wavelet:?} L{levels} {norm:?}"
+                        );
+                    }
+                }
+            }
+        }
+        assert_eq!(tabled, 3, "regions with tables");
     }
 }
