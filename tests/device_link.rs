@@ -92,12 +92,17 @@ fn reference_tiles(
             },
             levels: cfg.levels,
             norm: match cfg.norm {
-                // The largest Laplacian of the frame's observation window.
-                NormMode::PerFrame => SaliencyNorm::Reference(laplacian_max(
-                    &small[top * dw..(top + window) * dw],
-                    dw,
-                    window,
-                )),
+                // The largest Laplacian of the rows the frame's tiles cover: those wholly
+                // inside the window, adjacent.
+                NormMode::PerFrame => {
+                    let first = (offset + top).div_ceil(t) * t - offset;
+                    let end = (offset + top + window) / t * t - offset;
+                    SaliencyNorm::Reference(if end > first {
+                        laplacian_max(&small[first * dw..end * dw], dw, end - first)
+                    } else {
+                        0 // no tile observed: nothing is fused
+                    })
+                }
                 NormMode::PerTile => SaliencyNorm::Local,
             },
             ll_weighting: LlWeighting::Paper,
@@ -122,14 +127,13 @@ fn reference_tiles(
                     scratch: &mut scratch,
                 };
                 fuse_u8(
-                    (&entry.1, tile_dims),
+                    (&mut entry.1, tile_dims),
                     (rows, tile_dims),
                     &fuse_cfg,
                     ll,
                     work,
                 )
                 .unwrap();
-                entry.1 = a.iter().map(|&v| v as u8).collect();
             }
             entry.0 += 1;
         }

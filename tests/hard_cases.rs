@@ -33,8 +33,9 @@ fn fuse_fixed(a: &[u8], b: &[u8], w: usize, h: usize, cfg: &FuseConfig) -> Resul
         b: &mut wb,
         scratch: &mut scratch,
     };
-    fuse_u8((a, dims), (b, dims), cfg, LlWeight::HALF, work)?;
-    Ok(wa.iter().map(|&v| v as u8).collect())
+    let mut fused = a.to_vec();
+    fuse_u8((&mut fused, dims), (b, dims), cfg, LlWeight::HALF, work)?;
+    Ok(fused)
 }
 
 /// The float path in `T` (f32: the host's; f64: the reference).

@@ -33,16 +33,17 @@ fn float_and_fixed_agree_within_two_gray_levels_on_simulated_frames() {
                     b: &mut wb,
                     scratch: &mut scratch,
                 };
-                fuse_u8((&a, dims), (&b, dims), &cfg, LlWeight::HALF, work).unwrap();
+                let mut fused = a.clone();
+                fuse_u8((&mut fused, dims), (&b, dims), &cfg, LlWeight::HALF, work).unwrap();
                 let mut fa: Vec<f32> = a.iter().map(|&v| f32::from(v)).collect();
                 let mut fb: Vec<f32> = b.iter().map(|&v| f32::from(v)).collect();
                 let mut fscratch = vec![0f32; float::fuse_scratch_len(dims)];
                 float::fuse_pair(&mut fa, &mut fb, dims, &cfg, LlWeight::HALF, &mut fscratch)
                     .unwrap();
-                let d = wa
+                let d = fused
                     .iter()
                     .zip(&fa)
-                    .map(|(&i, &f)| (i as u8).abs_diff(f.round().clamp(0.0, 255.0) as u8))
+                    .map(|(&i, &f)| i.abs_diff(f.round().clamp(0.0, 255.0) as u8))
                     .max()
                     .unwrap();
                 println!("{name} {wavelet:?} L{levels}: max |f32 − fixed| = {d}");

@@ -78,6 +78,8 @@ fn fuse_step(c: &mut Criterion) {
 
             let (mut wa, mut wb) = (vec![0; w * h], vec![0; w * h]);
             let mut scratch = vec![0; fuse_scratch_len(dims)];
+            // The result replaces the first image: each step starts from a fresh copy.
+            let mut fused = a.clone();
             group.bench_function(BenchmarkId::new("integer", &id), |bench| {
                 bench.iter(|| {
                     let work = U8Work {
@@ -85,7 +87,8 @@ fn fuse_step(c: &mut Criterion) {
                         b: &mut wb,
                         scratch: &mut scratch,
                     };
-                    fuse_u8((&a, dims), (&b, dims), &cfg, LlWeight::HALF, work).unwrap();
+                    fused.copy_from_slice(&a);
+                    fuse_u8((&mut fused, dims), (&b, dims), &cfg, LlWeight::HALF, work).unwrap();
                 })
             });
 

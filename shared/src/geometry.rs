@@ -175,6 +175,15 @@ impl Dims {
         (0..self.height).map_while(move |y| dims.row(buf, y))
     }
 
+    /// [`Self::rows`], mutable.
+    #[inline]
+    pub(crate) fn rows_mut<'b, T>(&self, buf: &'b mut [T]) -> impl Iterator<Item = &'b mut [T]> {
+        let (w, h) = (self.width, self.height);
+        buf.chunks_mut(self.stride.max(1))
+            .take(h)
+            .map_while(move |row| row.get_mut(..w))
+    }
+
     /// The error for a `which` buffer of `got` elements that does not hold the region.
     pub(crate) fn too_small(&self, which: &'static str, got: usize) -> Error {
         Error::BufferTooSmall {

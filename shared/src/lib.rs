@@ -42,6 +42,7 @@ pub mod fusion;
 pub mod geometry;
 pub mod lifting;
 pub mod motion;
+mod packed;
 pub mod protocol;
 pub mod saliency;
 pub mod simd;

@@ -22,6 +22,9 @@
 //! 5. `W₁ = S₁ / (S₁ + S₂)` in Q15, and `W₁ = ½` where `S₁ + S₂ = 0`.
 
 use crate::geometry::mirror;
+use crate::packed::{
+    AboveMax, LAPLACIAN_BIAS, laplacian_at, laplacian_quads, quad_pixels, single_pixels, unpack,
+};
 use crate::{Dims, Wavelet};
 use fixed::types::{U1F15, U8F24};
 
@@ -247,17 +250,38 @@ pub fn laplacian_max(buf: &[i32], dims: Dims) -> Result<u32, crate::Error> {
     Ok(laplacian_max_in(buf, dims, laplacian))
 }
 
-/// [`laplacian_max`] of a packed 8-bit image (a band of a downsampled camera frame), for
-/// [`SaliencyNorm::Reference`]; 0 if `buf` is shorter than the region.
+/// [`laplacian_max`] of an 8-bit image (a band of a downsampled camera frame, or a
+/// tile), for [`SaliencyNorm::Reference`]; 0 if `buf` is shorter than the region.
 pub fn laplacian_max_u8(buf: &[u8], dims: Dims) -> u32 {
     if dims.check_buffer("image", buf.len()).is_err() {
         return 0;
     }
-    let mut max = 0;
-    // Bytes are level inputs far below 2²⁸: the 32-bit Laplacian serves.
-    for_each_neighbourhood(buf, dims, |_, _, c, around| {
-        max = max.max(level_laplacian(i32::from(c), around.map(i32::from)));
-    });
+    (0..dims.height())
+        .filter_map(|y| row_and_neighbours(buf, dims, y))
+        .fold(0, |max, (up, mid, down)| {
+            row_laplacian_max_u8([up, mid, down], max)
+        })
+}
+
+/// The larger of `max` and the largest `|∇²I|` of row `mid`. Four pixels at a time, with a
+/// test for "any above `max`" that most groups pass in a few instructions
+/// ([`crate::packed::AboveMax`]); a group that fails it is looked at lane by lane.
+#[inline(always)]
+fn row_laplacian_max_u8(rows: [&[u8]; 3], mut max: u32) -> u32 {
+    let mut above = AboveMax::new(max);
+    for lanes in laplacian_quads(rows) {
+        if above.any(lanes) {
+            for v in lanes.into_iter().flat_map(unpack) {
+                max = max.max(v.abs_diff(LAPLACIAN_BIAS));
+            }
+            above = AboveMax::new(max);
+        }
+    }
+    for x in single_pixels(rows[1].len()) {
+        if let Some(v) = laplacian_at(rows, x) {
+            max = max.max(v.abs_diff(LAPLACIAN_BIAS));
+        }
+    }
     max
 }
 
@@ -355,60 +379,107 @@ pub(crate) fn saliency_row(norm: Normalizer, rows: [&[i32]; 3], out: &mut [i32])
     });
 }
 
-/// Entries of a [`ByteTable`]: one per `|∇²I| / 2^g` an 8-bit level input can have
-/// (0..=1020), rounded up to a power of two so an index is masked, not checked.
-pub(crate) const BYTE_TABLE_LEN: usize = 1024;
+/// Entries of a [`LaplacianTable`]: one per biased Laplacian of 8-bit samples
+/// ([`LAPLACIAN_BIAS`] ± 1020), rounded up to a power of two so an index is masked, not
+/// checked.
+pub(crate) const LAPLACIAN_TABLE_LEN: usize = 2048;
 
-/// `S` (Q24) of every Laplacian of a level input whose samples are 8-bit values shifted
-/// left by `g` guard bits, under one normalizer: those Laplacians are the multiples of
-/// `2^g` up to `1020·2^g`, entry `k` is `S` of `k·2^g`. A pixel then costs a lookup
-/// instead of the normalization and the interpolation of [`Normalizer::saliency`], with
-/// the same bits: the default integer fuse step 264.1 → 233.9 instructions per tile pixel
-/// on the Cortex-M7, the table's filling included (`bash tests/mcu-bench/run.sh`).
-pub(crate) struct ByteTable<'t> {
-    entries: &'t [i32; BYTE_TABLE_LEN],
-    guard: u32,
+/// `S` (Q24) of every Laplacian of an image whose samples are 8-bit values shifted left by
+/// `g` guard bits, under one normalizer, indexed by the Laplacian of the 8-bit values
+/// themselves, biased ([`crate::packed`]): entry `LAPLACIAN_BIAS ± k` holds `S` of
+/// `k·2^g`. A pixel then costs a lookup instead of the normalization and the
+/// interpolation of [`Normalizer::saliency`], with the same bits, and needs no absolute
+/// value.
+#[derive(Clone, Copy)]
+pub(crate) struct LaplacianTable<'t> {
+    entries: &'t [i32; LAPLACIAN_TABLE_LEN],
 }
 
-impl<'t> ByteTable<'t> {
-    /// Fills `entries` for `norm` and inputs with `guard` bits (at most 20, so every
+impl<'t> LaplacianTable<'t> {
+    /// Fills `entries` for `norm` and samples with `guard` bits (at most 20, so every
     /// Laplacian fits `u32`).
-    pub(crate) fn fill(entries: &mut [i32; BYTE_TABLE_LEN], norm: Normalizer, guard: u32) {
+    pub(crate) fn fill(
+        entries: &'t mut [i32; LAPLACIAN_TABLE_LEN],
+        norm: Normalizer,
+        guard: u32,
+    ) -> Self {
         let guard = guard.min(20);
+        let bias = LAPLACIAN_BIAS as usize;
+        let (below, above) = entries.split_at_mut(bias);
         // Laplacians past the cap all take the cap's saliency: only the entries up to it
         // need the arithmetic.
-        let below_cap = ((norm.cap >> guard) as usize).min(BYTE_TABLE_LEN - 1);
-        let (computed, capped) = entries.split_at_mut(below_cap + 1);
+        let below_cap = ((norm.cap >> guard) as usize).min(above.len() - 1);
+        let (computed, capped) = above.split_at_mut(below_cap + 1);
         for (k, e) in computed.iter_mut().enumerate() {
             *e = norm.saliency((k as u32) << guard) as i32;
         }
-        capped.fill(norm.saliency(norm.cap) as i32);
-    }
-
-    /// The table [`ByteTable::fill`] left in `entries` for inputs with `guard` bits.
-    pub(crate) fn new(entries: &'t [i32; BYTE_TABLE_LEN], guard: u32) -> Self {
-        Self {
-            entries,
-            guard: guard.min(20),
+        let at_cap = norm.saliency(norm.cap) as i32;
+        capped.fill(at_cap);
+        // Negative Laplacians mirror the positive ones; entry 0 is never read.
+        for (e, &mirrored) in below.iter_mut().rev().zip(above.iter().skip(1)) {
+            *e = mirrored;
         }
+        if let Some(first) = below.first_mut() {
+            *first = at_cap;
+        }
+        Self { entries }
     }
 
-    /// `S` (Q24) of the Laplacian `lap`, a multiple of `2^guard` no larger than
-    /// `1020·2^guard`; any other `lap` reads some entry (a wrong `S`, never a panic).
+    /// `S` (Q24) of the biased Laplacian `biased` (one of `4..=2044`); any other value
+    /// reads some entry (a wrong `S`, never a panic).
     #[inline(always)]
-    fn saliency(&self, lap: u32) -> i32 {
-        let k = ((lap >> self.guard) as usize) & (BYTE_TABLE_LEN - 1);
+    fn saliency(&self, biased: u32) -> i32 {
+        let k = (biased as usize) & (LAPLACIAN_TABLE_LEN - 1);
         self.entries.get(k).copied().unwrap_or_default()
     }
 }
 
-/// [`saliency_row`] of a level input of 8-bit samples with the table's guard bits, by
-/// lookup in `table`: the same bits.
+/// How [`saliency_row_u8`] turns a biased Laplacian into `S`: by a [`LaplacianTable`], or
+/// computed under a normalizer for samples with guard bits (for small images, where
+/// filling a table costs more than it saves).
+pub(crate) enum ByteSaliency<'t> {
+    /// Looked up.
+    Table(LaplacianTable<'t>),
+    /// Computed, for samples with this many guard bits.
+    Computed(Normalizer, u32),
+}
+
+/// Sets `out` to the saliencies `S` (Q24) of row `mid` of an image of 8-bit samples, given
+/// as `[up, mid, down]` (see [`row_and_neighbours`]), as `how` makes them. Four pixels'
+/// Laplacians come from a few word operations ([`crate::packed`]); the same values as
+/// [`saliency_row`] of the samples with the guard bits.
 #[inline(always)]
-pub(crate) fn saliency_row_bytes(table: &ByteTable<'_>, rows: [&[i32]; 3], out: &mut [i32]) {
-    map_neighbourhood(rows, out, |c, around| {
-        table.saliency(level_laplacian(c, around))
-    });
+pub(crate) fn saliency_row_u8(how: &ByteSaliency<'_>, rows: [&[u8]; 3], out: &mut [i32]) {
+    match how {
+        ByteSaliency::Table(table) => map_laplacian_row_u8(rows, out, |v| table.saliency(v)),
+        &ByteSaliency::Computed(norm, guard) => map_laplacian_row_u8(rows, out, |v| {
+            norm.saliency(v.abs_diff(LAPLACIAN_BIAS) << guard.min(20)) as i32
+        }),
+    }
+}
+
+/// Sets `out[x] = f(biased Laplacian of pixel x)` for every pixel of row `mid`; nothing
+/// past `out`'s end.
+#[inline(always)]
+fn map_laplacian_row_u8(rows: [&[u8]; 3], out: &mut [i32], f: impl Fn(u32) -> i32) {
+    let w = rows[1].len();
+    let quads = quad_pixels(w);
+    if let Some(grouped) = out.get_mut(quads) {
+        for (o, [even, odd]) in grouped
+            .as_chunks_mut::<4>()
+            .0
+            .iter_mut()
+            .zip(laplacian_quads(rows))
+        {
+            let ([e0, e1], [o0, o1]) = (unpack(even), unpack(odd));
+            *o = [f(e0), f(o0), f(e1), f(o1)];
+        }
+    }
+    for x in single_pixels(w) {
+        if let (Some(o), Some(v)) = (out.get_mut(x), laplacian_at(rows, x)) {
+            *o = f(v);
+        }
+    }
 }
 
 /// `W₁ = S₁ / (S₁ + S₂)` as Q15 (`1.0` = 32768), rounded to nearest, `½` when both are
@@ -463,25 +534,67 @@ fn halve_to_17_bits(a: u32, b: u32, total: u32) -> (u32, u32) {
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
+    use std::{vec, vec::Vec};
 
-    /// Every entry of a byte table is the saliency of its Laplacian, for maxima from
-    /// below one 8-bit step to past the largest 8-bit Laplacian, and 0 to 3 guard bits.
+    /// Every entry of a Laplacian table that a Laplacian of 8-bit samples reads is the
+    /// saliency of that Laplacian (with the guard bits), for maxima from below one 8-bit
+    /// step to past the largest 8-bit Laplacian, and 0 to 3 guard bits.
     #[test]
-    fn byte_table_entries_are_the_saliencies_of_their_laplacians() {
-        let mut entries = [0; BYTE_TABLE_LEN];
+    fn laplacian_table_entries_are_the_saliencies_of_their_laplacians() {
+        let mut entries = [0; LAPLACIAN_TABLE_LEN];
         for guard in 0..=3 {
             for max in [1, 7, 8, 9, 100, 1020 << guard, (1020 << guard) + 5, 1 << 27] {
                 let norm = Normalizer::new(max);
-                ByteTable::fill(&mut entries, norm, guard);
-                let table = ByteTable::new(&entries, guard);
-                for k in 0..=1020u32 {
-                    let lap = k << guard;
+                let table = LaplacianTable::fill(&mut entries, norm, guard);
+                for lap in -1020i32..=1020 {
+                    let scaled = lap.unsigned_abs() << guard;
                     assert_eq!(
-                        table.saliency(lap),
-                        norm.saliency(lap) as i32,
-                        "guard {guard}, max {max}, |∇²I| {lap}"
+                        table.saliency((LAPLACIAN_BIAS as i32 + lap) as u32),
+                        norm.saliency(scaled) as i32,
+                        "guard {guard}, max {max}, ∇²I {lap}"
                     );
+                }
+            }
+        }
+    }
+
+    /// The 8-bit rows' saliencies, by table and computed, are those of the samples with
+    /// the guard bits; and the 8-bit maximum is the plain one, on images of every width
+    /// up to 21 (groups of four and single pixels) with extreme and mixed samples.
+    #[test]
+    fn byte_rows_match_the_rows_with_guard_bits() {
+        let mut entries = [0; LAPLACIAN_TABLE_LEN];
+        let mut seed = 99u32;
+        for w in 1..=21 {
+            for h in [1, 2, 5] {
+                let bytes: Vec<u8> = (0..w * h)
+                    .map(|i| {
+                        seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+                        match i % 5 {
+                            0 => 255,
+                            1 => 0,
+                            _ => (seed >> 16) as u8,
+                        }
+                    })
+                    .collect();
+                let wide: Vec<i32> = bytes.iter().map(|&v| i32::from(v) << 3).collect();
+                let dims = Dims::new(w, h).unwrap();
+                let max = laplacian_max(&wide, dims).unwrap();
+                assert_eq!(laplacian_max_u8(&bytes, dims) << 3, max, "{w}×{h}");
+                let norm = Normalizer::new(max.max(1) * 3 / 4);
+                let table = LaplacianTable::fill(&mut entries, norm, 3);
+                for y in 0..h {
+                    let (u, m, d) = row_and_neighbours(&bytes, dims, y).unwrap();
+                    let (wu, wm, wd) = row_and_neighbours(&wide, dims, y).unwrap();
+                    let mut want = vec![0; w];
+                    saliency_row(norm, [wu, wm, wd], &mut want);
+                    for how in [ByteSaliency::Table(table), ByteSaliency::Computed(norm, 3)] {
+                        let mut got = vec![-1; w];
+                        saliency_row_u8(&how, [u, m, d], &mut got);
+                        assert_eq!(got, want, "{w}×{h} row {y}");
+                    }
                 }
             }
         }

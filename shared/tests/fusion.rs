@@ -29,8 +29,9 @@ fn fuse_int(a: &[u8], b: &[u8], w: usize, h: usize, cfg: &FuseConfig) -> Vec<u8>
         b: &mut wb,
         scratch: &mut scratch,
     };
-    fuse_u8((a, dims), (b, dims), cfg, LlWeight::HALF, work).unwrap();
-    wa.iter().map(|&v| v as u8).collect()
+    let mut fused = a.to_vec();
+    fuse_u8((&mut fused, dims), (b, dims), cfg, LlWeight::HALF, work).unwrap();
+    fused
 }
 
 /// f32 fuse of two 8-bit images, rounded and clamped to 8 bits.

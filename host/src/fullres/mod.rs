@@ -342,10 +342,16 @@ impl Fuser {
                     b: &mut self.ib,
                     scratch: &mut self.iscratch,
                 };
-                fuse_u8((&self.a8, packed), (&self.b8, packed), &self.cfg, ll, work)?;
-                for (dst, src) in mosaic.chunks_mut(stride).zip(self.ia.chunks_exact(w)) {
+                fuse_u8(
+                    (&mut self.a8, packed),
+                    (&self.b8, packed),
+                    &self.cfg,
+                    ll,
+                    work,
+                )?;
+                for (dst, src) in mosaic.chunks_mut(stride).zip(self.a8.chunks_exact(w)) {
                     for (d, &v) in dst.iter_mut().zip(src) {
-                        *d = v as f32;
+                        *d = f32::from(v);
                     }
                 }
             }

@@ -273,13 +273,16 @@ pub fn reference(acq: &Acquisition, setup: &Setup, offsets: &[u64]) -> anyhow::R
         let at = offset * d as u64;
         downsample(bytes, acq.sensor.format, (w, h), 1, &mut gray)
             .map_err(|e| anyhow::anyhow!("{e}"))?;
-        // Normalized over the observation window, as the device does (`window_rows <= h`
-        // was checked above).
-        let top = schedule.window_top * w;
-        let window = &gray[top..top + schedule.window_rows * w];
-        let window_dims = Dims::new(w, schedule.window_rows)?;
+        // Normalized over the rows the frame's tiles cover, as the device does (inside
+        // the window, and `window_rows <= h` was checked above).
+        let rows = schedule.observed_rows(at);
+        let band = &gray[rows.start * w..rows.end * w];
+        let norm = match Dims::new(w, rows.len()) {
+            Ok(band_dims) => laplacian_max_u8(band, band_dims),
+            Err(_) => 0, // no tile observed: nothing is fused
+        };
         let cfg = FuseConfig {
-            norm: SaliencyNorm::Reference(laplacian_max_u8(window, window_dims)),
+            norm: SaliencyNorm::Reference(norm),
             ..dev.fuse
         };
         for index in schedule.observed(at) {

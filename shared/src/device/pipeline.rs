@@ -304,6 +304,14 @@ impl Schedule {
         index * (self.tile_rows as u64) < offset + self.window_top as u64
     }
 
+    /// The frame rows the tiles a frame at `offset` observes cover (they are adjacent: one
+    /// band; empty if it observes none). Per-frame normalization takes the maximum
+    /// Laplacian over these rows: the window's others are fused into nothing that frame.
+    pub fn observed_rows(&self, offset: u64) -> core::ops::Range<usize> {
+        let tiles = self.observed(offset);
+        self.frame_row(tiles.start, offset)..self.frame_row(tiles.end, offset)
+    }
+
     /// The frame row where tile `index` (one of [`Self::observed`]) starts.
     pub fn frame_row(&self, index: u64, offset: u64) -> usize {
         (index * self.tile_rows as u64).saturating_sub(offset) as usize
@@ -460,22 +468,30 @@ impl<'a> Pipeline<'a> {
         self.last = Some((offset, position_px));
         self.previous_profile_first = !self.previous_profile_first;
 
-        let norm = if cfg.per_frame_norm {
-            SaliencyNorm::Reference(laplacian_max_u8(self.bufs.frame, dims))
-        } else {
-            SaliencyNorm::Local
-        };
-        let fuse_cfg = FuseConfig { norm, ..cfg.fuse };
         // Tiles above the window are done: no later frame can see them. Emitting them
         // first bounds the tiles held to those starting inside the window.
         let emitted = self.emit_where(|index| schedule.is_done(index, offset), &mut emit);
         let observed = schedule.observed(offset);
-        for index in observed.clone() {
-            // Rows of the window band: the tile lies wholly in the window.
-            let row = schedule
+        // Rows of the window band: each observed tile lies wholly in the window.
+        let band_row = |index| {
+            schedule
                 .frame_row(index, offset)
-                .saturating_sub(schedule.window_top);
-            self.observe(index, row, &fuse_cfg);
+                .saturating_sub(schedule.window_top)
+        };
+        let norm = if cfg.per_frame_norm {
+            let rows = schedule.observed_rows(offset);
+            let top = schedule.window_top;
+            let rows = rows.start.saturating_sub(top)..rows.end.saturating_sub(top);
+            let w = dims.width();
+            let covered = Dims::new(w, rows.len()).ok();
+            let band = covered.zip(self.bufs.frame.get(rows.start * w..rows.end * w));
+            SaliencyNorm::Reference(band.map_or(0, |(d, band)| laplacian_max_u8(band, d)))
+        } else {
+            SaliencyNorm::Local
+        };
+        let fuse_cfg = FuseConfig { norm, ..cfg.fuse };
+        for index in observed.clone() {
+            self.observe(index, band_row(index), &fuse_cfg);
         }
         Ok(FrameReport {
             offset,
@@ -587,21 +603,12 @@ fn fuse_tile_fixed(
     let n = dims.pixels();
     let (wa, rest) = work.split_at_mut(n.min(work.len()));
     let (wb, scratch) = rest.split_at_mut(n.min(rest.len()));
-    fuse_u8(
-        (tile, dims),
-        (src, dims),
-        cfg,
-        ll,
-        U8Work {
-            a: &mut *wa,
-            b: wb,
-            scratch,
-        },
-    )?;
-    for (d, &v) in tile.iter_mut().zip(wa.iter()) {
-        *d = v as u8; // fuse_u8 clamped it to 0..=255
-    }
-    Ok(())
+    let work = U8Work {
+        a: wa,
+        b: wb,
+        scratch,
+    };
+    fuse_u8((tile, dims), (src, dims), cfg, ll, work)
 }
 
 /// [`fuse_tile_fixed`] on the `f32` path: the tiles stay 8-bit, the step runs in `f32`

@@ -17,7 +17,8 @@ pub fn row_profile(frame: &[u8], dims: Dims, out: &mut [i32]) {
     let mut rows = frame
         .chunks_exact(w)
         .take(dims.height())
-        .map(|r| r.iter().map(|&v| i32::from(v)).sum::<i32>());
+        // A row of bytes sums to far below 2³¹ (its width is at most `MAX_DIMENSION`).
+        .map(|r| crate::packed::row_sum(r) as i32);
     let Some(mut prev) = rows.next() else {
         return;
     };

@@ -141,7 +141,7 @@ impl<T: Float> Arith for T {
     }
 
     #[inline(always)]
-    fn saliency_row(inv: T, _table: Option<&[T]>, rows: [&[T]; 3], out: &mut [T]) {
+    fn saliency_row(inv: T, rows: [&[T]; 3], out: &mut [T]) {
         let Some(out) = out.get_mut(..rows[1].len()) else {
             return;
         };

@@ -93,7 +93,7 @@ impl<'a> CyclicFuser<'a> {
         let ll_weight = LlWeight::for_frame(self.cfg.ll_weighting, frame_no);
         let bufs = &mut self.bufs;
         fuse_u8(
-            (bufs.fused.get(..n).ok_or(fused_error)?, self.dims),
+            (bufs.fused.get_mut(..n).ok_or(fused_error)?, self.dims),
             (frame, src),
             &self.cfg,
             ll_weight,
@@ -103,9 +103,6 @@ impl<'a> CyclicFuser<'a> {
                 scratch: bufs.scratch,
             },
         )?;
-        for (dst, &v) in bufs.fused.iter_mut().take(n).zip(bufs.work_a.iter()) {
-            *dst = v as u8;
-        }
         self.frames = frame_no;
         Ok(())
     }

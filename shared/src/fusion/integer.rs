@@ -2,11 +2,15 @@
 //! [`crate::lifting`]. This is what the MCU runs.
 
 use super::{
-    Arith, FuseConfig, LlWeight, Sequential, TABLE_WORDS, fuse_generic, fuse_pair_checked,
-    maps_len, split_scratch,
+    Arith, FuseConfig, LlWeight, Sequential, TABLE_WORDS, WindowLayout, WindowMap, fuse_generic,
+    fuse_pair_checked, maps_len, split_scratch,
 };
 use crate::lifting::{self, Coefficients, bounds::level_bounds};
-use crate::saliency::{self, ByteTable, SaliencyNorm};
+use crate::packed::widen_shifted;
+use crate::saliency::{
+    self, ByteSaliency, LaplacianTable, Normalizer, SaliencyNorm, laplacian_max_u8,
+    row_and_neighbours, saliency_row_u8,
+};
 use crate::{Dims, Error, Wavelet};
 
 impl Arith for i32 {
@@ -39,27 +43,9 @@ impl Arith for i32 {
         (max != 0).then(|| saliency::Normalizer::new(max))
     }
 
-    fn fill_byte_table(norm: saliency::Normalizer, space: &mut [i32]) -> bool {
-        let Some(entries) = space.first_chunk_mut() else {
-            return false;
-        };
-        ByteTable::fill(entries, norm, GUARD_BITS);
-        true
-    }
-
     #[inline(always)]
-    fn saliency_row(
-        norm: saliency::Normalizer,
-        table: Option<&[i32]>,
-        rows: [&[i32]; 3],
-        out: &mut [i32],
-    ) {
-        match table.and_then(|t| t.first_chunk()) {
-            Some(entries) => {
-                saliency::saliency_row_bytes(&ByteTable::new(entries, GUARD_BITS), rows, out)
-            }
-            None => saliency::saliency_row(norm, rows, out),
-        }
+    fn saliency_row(norm: saliency::Normalizer, rows: [&[i32]; 3], out: &mut [i32]) {
+        saliency::saliency_row(norm, rows, out);
     }
 
     fn weight(s1: i32, s2: i32) -> i32 {
@@ -95,9 +81,9 @@ pub fn fuse_scratch_len(dims: Dims) -> usize {
 }
 
 /// [`fuse_scratch_len`] for a `width × height` image, usable in constants (array sizes):
-/// `max(w, min(w, COLUMN_BLOCK)·h)` for the transform ([`lifting::scratch_len`]) plus
-/// `2·(⌈w/2⌉ + 1)·(⌈h/2⌉ + 1)` for the two saliency maps, plus 2048 for the two tables
-/// [`fuse_u8`] looks level 1's saliencies up in (used by it alone).
+/// `w` for the transform's line ([`lifting::scratch_len`]) plus `2·(⌈w/2⌉ + 1)·(⌈h/2⌉ + 1)`
+/// for the two saliency maps, plus 2048 for the table [`fuse_u8`] looks level 1's
+/// saliencies up in (used by it alone).
 pub const fn fuse_scratch_words(width: usize, height: usize) -> usize {
     lifting::scratch_words(width, height) + maps_len(width, height) + TABLE_WORDS
 }
@@ -114,7 +100,7 @@ pub fn fuse_pair(
     ll_weight: LlWeight,
     scratch: &mut [i32],
 ) -> Result<(), Error> {
-    // One scratch size for both entry points; this one leaves the tables unused (its
+    // One scratch size for both entry points; this one leaves the table unused (its
     // samples need not be 8-bit).
     let needed = fuse_scratch_len(dims);
     if scratch.len() < needed {
@@ -139,19 +125,29 @@ pub const GUARD_BITS: u32 = 3;
 /// Work buffers of [`fuse_u8`]: `a` and `b` hold at least `w·h` words, `scratch` at least
 /// [`fuse_scratch_len`].
 pub struct U8Work<'w> {
-    /// Transform work for the first image; holds the fused 8-bit values on return.
+    /// Transform work for the first image.
     pub a: &'w mut [i32],
     /// Transform work for the second image.
     pub b: &'w mut [i32],
-    /// Lines and saliency maps.
+    /// Lines, saliency maps and the saliency table.
     pub scratch: &'w mut [i32],
 }
 
+/// A level-1 region smaller than this takes its saliency without a table: filling one
+/// costs about as much as looking this many pixels up saves.
+const TABLE_MIN_PIXELS: usize = 1024;
+
 /// Fuses two 8-bit images (each with its own stride) on the integer path with
-/// [`GUARD_BITS`] of extra precision. The result, rounded and clamped to 0..=255, is left
-/// packed `w × h` in `work.a`, so a caller may fuse into one of its inputs.
+/// [`GUARD_BITS`] of extra precision. The result, rounded and clamped to 0..=255, replaces
+/// `a`'s region (the bytes between its rows are left alone); should the step fail, `a`
+/// is as it was.
+///
+/// Level 1's saliency is taken from the bytes themselves, four pixels per few word
+/// operations, and looked up in a table of every Laplacian 8-bit samples can have: the
+/// same bits as the generic step on the samples with the guard bits
+/// (test `fuse_u8_matches_the_step_on_samples_with_guard_bits`).
 pub fn fuse_u8(
-    (a, a_dims): (&[u8], Dims),
+    (a, a_dims): (&mut [u8], Dims),
     (b, b_dims): (&[u8], Dims),
     cfg: &FuseConfig,
     ll_weight: LlWeight,
@@ -170,21 +166,13 @@ pub fn fuse_u8(
     if ll_weight.0 > 1 << 15 {
         return Err(Error::InvalidParameter { name: "ll_weight" });
     }
-    let parts = split_scratch(
+    let (mut parts, table) = split_scratch(
         work.scratch,
         lifting::scratch_len(packed),
         (1, false, true),
         packed,
     )?;
-    // Every buffer was checked to hold its region above: the zips pair all `h` rows.
-    for (src, src_dims, dst) in [(a, a_dims, &mut *work.a), (b, b_dims, &mut *work.b)] {
-        for (row, dst_row) in src_dims.rows(src).zip(dst.chunks_exact_mut(w)) {
-            for (d, &v) in dst_row.iter_mut().zip(row) {
-                *d = i32::from(v) << GUARD_BITS;
-            }
-        }
-    }
-    // A reference maximum is in 8-bit units; the samples now carry the guard bits.
+    // A reference maximum is in 8-bit units; the samples get the guard bits.
     let cfg = &FuseConfig {
         norm: match cfg.norm {
             SaliencyNorm::Reference(r) => {
@@ -194,6 +182,17 @@ pub fn fuse_u8(
         },
         ..*cfg
     };
+    if cfg.ablation.uses_saliency() {
+        let images = [(&*a, a_dims), (b, b_dims)];
+        first_level_maps(images, cfg, parts.maps, table, parts.line)?;
+        parts.first_maps_ready = true;
+    }
+    // Every buffer was checked to hold its region above: the zips pair all `h` rows.
+    for (src, src_dims, dst) in [(&*a, a_dims, &mut *work.a), (b, b_dims, &mut *work.b)] {
+        for (row, dst_row) in src_dims.rows(src).zip(dst.chunks_exact_mut(w)) {
+            widen_shifted::<GUARD_BITS>(row, dst_row);
+        }
+    }
     fuse_generic(
         work.a,
         work.b,
@@ -205,8 +204,89 @@ pub fn fuse_u8(
         &Sequential,
     )?;
     let half = 1 << (GUARD_BITS - 1);
-    for v in work.a.iter_mut().take(packed.pixels()) {
-        *v = ((*v + half) >> GUARD_BITS).clamp(0, 255);
+    for (row, fused) in a_dims.rows_mut(a).zip(work.a.chunks_exact(w)) {
+        for (d, &v) in row.iter_mut().zip(fused) {
+            *d = ((v + half) >> GUARD_BITS).clamp(0, 255) as u8;
+        }
     }
     Ok(())
+}
+
+/// Level 1's two window maps of saliency sums ([`WindowLayout`]) of the 8-bit images, into
+/// `maps` as the generic step lays them out; `table` ([`TABLE_WORDS`]) holds the saliency
+/// table, filled once for both images where they share a normalizer (a reference
+/// maximum), and `line` (the image's width) one row of saliencies at a time. `cfg.norm`
+/// is in units of the samples with the guard bits.
+fn first_level_maps(
+    images: [(&[u8], Dims); 2],
+    cfg: &FuseConfig,
+    maps: &mut [i32],
+    table: &mut [i32],
+    line: &mut [i32],
+) -> Result<(), Error> {
+    let dims = Dims::new(images[0].1.width(), images[0].1.height())?;
+    let layout = WindowLayout::of(cfg.wavelet);
+    let (mw, mh) = layout.map_dims(dims);
+    let too_small = |needed, got| Error::BufferTooSmall {
+        which: "scratch",
+        needed,
+        got,
+    };
+    let maps_error = too_small(2 * mw * mh, maps.len());
+    let (map_a, rest) = maps.split_at_mut_checked(mw * mh).ok_or(maps_error)?;
+    let map_b = rest.get_mut(..mw * mh).ok_or(maps_error)?;
+    let table_len = table.len();
+    let table = table
+        .first_chunk_mut()
+        .ok_or(too_small(TABLE_WORDS, table_len))?;
+    let line_len = line.len();
+    let line = line
+        .get_mut(..dims.width())
+        .ok_or(too_small(dims.width(), line_len))?;
+    // `None`: a flat image, whose saliency is 0 everywhere.
+    let [norm_a, norm_b] = images.map(|(img, img_dims)| {
+        let max = match cfg.norm {
+            SaliencyNorm::Local => laplacian_max_u8(img, img_dims) << GUARD_BITS,
+            SaliencyNorm::Reference(r) => r,
+        };
+        (max != 0).then(|| Normalizer::new(max))
+    });
+    let use_table = dims.pixels() >= TABLE_MIN_PIXELS;
+    let [(a, a_dims), (b, b_dims)] = images;
+    let mut map_of = |(img, img_dims), how: Option<&ByteSaliency<'_>>, map| {
+        let mut map = WindowMap::new(map, layout, dims);
+        if let Some(how) = how {
+            for y in 0..dims.height() {
+                if let Some((up, mid, down)) = row_and_neighbours(img, img_dims, y) {
+                    saliency_row_u8(how, [up, mid, down], line);
+                    map.take(y, line);
+                }
+            }
+        }
+        map.finish(dims);
+    };
+    if norm_a == norm_b {
+        let shared = byte_saliency(norm_a, table, use_table);
+        map_of((a, a_dims), shared.as_ref(), map_a);
+        map_of((b, b_dims), shared.as_ref(), map_b);
+    } else {
+        let how_a = byte_saliency(norm_a, &mut *table, use_table);
+        map_of((a, a_dims), how_a.as_ref(), map_a);
+        let how_b = byte_saliency(norm_b, table, use_table);
+        map_of((b, b_dims), how_b.as_ref(), map_b);
+    }
+    Ok(())
+}
+
+/// How an image of 8-bit samples with [`GUARD_BITS`] takes its saliency under `norm`
+/// (`None`: flat): by a table filled in `table`, or computed per pixel.
+fn byte_saliency(
+    norm: Option<Normalizer>,
+    table: &mut [i32; TABLE_WORDS],
+    use_table: bool,
+) -> Option<ByteSaliency<'_>> {
+    norm.map(|norm| match use_table {
+        true => ByteSaliency::Table(LaplacianTable::fill(table, norm, GUARD_BITS)),
+        false => ByteSaliency::Computed(norm, GUARD_BITS),
+    })
 }

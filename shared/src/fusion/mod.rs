@@ -19,7 +19,7 @@ pub use cyclic::{CyclicBuffers, CyclicFuser};
 pub use integer::{GUARD_BITS, U8Work, fuse_pair, fuse_scratch_len, fuse_scratch_words, fuse_u8};
 
 use crate::lifting::{self, Lift};
-use crate::saliency::{BYTE_TABLE_LEN, SaliencyNorm, row_and_neighbours};
+use crate::saliency::{LAPLACIAN_TABLE_LEN, SaliencyNorm, row_and_neighbours};
 use crate::{Dims, Error, Wavelet, simd};
 
 /// The ablations of the paper's Table II: each removes one part of the method.
@@ -180,23 +180,9 @@ pub(crate) trait Arith: Lift + Send + Sync + core::ops::AddAssign {
         level: u8,
         known_max: Option<Self>,
     ) -> Option<Self::SaliencyScale>;
-    /// Fills `space` with the saliency of every Laplacian a level input of 8-bit samples
-    /// (shifted left by [`GUARD_BITS`]) can have under `scale`, where this path has such
-    /// tables and `space` holds one ([`TABLE_WORDS`]); returns whether it did.
-    fn fill_byte_table(scale: Self::SaliencyScale, space: &mut [Self]) -> bool {
-        let _ = (scale, space);
-        false
-    }
     /// Sets `out` to the saliencies `S = exp(Sal/255) − 1` of the row `mid` of a level
-    /// input, given as `[up, mid, down]` with its (mirrored) neighbours; by lookup in
-    /// `table` where [`Arith::fill_byte_table`] filled one for `scale` (the input then
-    /// must be 8-bit samples with the guard bits), with the same result.
-    fn saliency_row(
-        scale: Self::SaliencyScale,
-        table: Option<&[Self]>,
-        rows: [&[Self]; 3],
-        out: &mut [Self],
-    );
+    /// input, given as `[up, mid, down]` with its (mirrored) neighbours.
+    fn saliency_row(scale: Self::SaliencyScale, rows: [&[Self]; 3], out: &mut [Self]);
     /// `W₁` from the two saliency sums.
     fn weight(s1: Self, s2: Self) -> Self;
     /// `W₁·h1 + (1 − W₁)·h2`.
@@ -255,7 +241,7 @@ pub(crate) fn fuse_pair_checked<T: Arith>(
     if ll_weight.0 > 1 << 15 {
         return Err(Error::InvalidParameter { name: "ll_weight" });
     }
-    let work = split_scratch(scratch, crate::lifting::scratch_len(dims), layout, dims)?;
+    let (work, _) = split_scratch(scratch, crate::lifting::scratch_len(dims), layout, dims)?;
     // Both images are checked before either is touched; the level-1 maxima come along.
     let local_max = cfg.norm == SaliencyNorm::Local && cfg.ablation.uses_saliency();
     let max_a = T::check_and_max(a, dims, local_max)?;
@@ -280,17 +266,13 @@ pub(crate) struct Work<'s, T> {
     /// Two rows per image (A's, then B's), where the step has them: each image's
     /// saliency is then taken in its forward transform's sweep ([`saliency_and_forward`]).
     pub rings: Option<&'s mut [T]>,
-    /// [`TABLE_WORDS`] for the level-1 saliency tables ([`Arith::fill_byte_table`]),
-    /// where the step's images are 8-bit samples with [`GUARD_BITS`].
-    pub tables: Option<&'s mut [T]>,
+    /// Whether level 1's two window maps are already in `maps` (taken from the images'
+    /// 8-bit samples by [`fuse_u8`]): level 1 then runs its transforms alone.
+    pub first_maps_ready: bool,
 }
 
-/// Scratch for the saliency tables of [`Work::tables`]: one table per image.
-pub(crate) const TABLE_WORDS: usize = 2 * BYTE_TABLE_LEN;
-
-/// A level region smaller than this takes its saliency without tables: filling one
-/// costs about as much as looking up this many pixels saves.
-const TABLE_MIN_PIXELS: usize = BYTE_TABLE_LEN;
+/// Scratch for [`fuse_u8`]'s saliency table ([`crate::saliency::LaplacianTable`]).
+pub(crate) const TABLE_WORDS: usize = LAPLACIAN_TABLE_LEN;
 
 /// Scratch for the saliency rings of [`Work::rings`]: two rows per image.
 pub(crate) fn rings_len(dims: Dims) -> usize {
@@ -298,13 +280,14 @@ pub(crate) fn rings_len(dims: Dims) -> usize {
 }
 
 /// Splits the caller's scratch into `lines` (1 or 2) transform lines of `line` elements,
-/// the maps and, with `rings`, the saliency rings, and with `tables` the saliency tables.
+/// the maps and, with `rings`, the saliency rings; and with `table` the space of
+/// [`TABLE_WORDS`] for a saliency table, returned beside (empty without).
 pub(crate) fn split_scratch<T>(
     scratch: &mut [T],
     line: usize,
     (lines, rings, tables): (usize, bool, bool),
     dims: Dims,
-) -> Result<Work<'_, T>, Error> {
+) -> Result<(Work<'_, T>, &mut [T]), Error> {
     let maps = maps_len(dims.width(), dims.height());
     let ring = if rings { rings_len(dims) } else { 0 };
     let table = if tables { TABLE_WORDS } else { 0 };
@@ -327,13 +310,14 @@ pub(crate) fn split_scratch<T>(
     let (maps, rest) = rest.split_at_mut_checked(maps).ok_or(too_small)?;
     let (ring_part, rest) = rest.split_at_mut_checked(ring).ok_or(too_small)?;
     let table_part = rest.get_mut(..table).ok_or(too_small)?;
-    Ok(Work {
+    let work = Work {
         line: first,
         line_b,
         maps,
         rings: rings.then_some(ring_part),
-        tables: tables.then_some(table_part),
-    })
+        first_maps_ready: false,
+    };
+    Ok((work, table_part))
 }
 
 /// A level's map of 2×2 window sums of saliency ([`WindowLayout`]), filled from the level
@@ -398,16 +382,15 @@ simd::kernel! {
     /// input's rows `[up, mid, down]`.
     #[inline(always)]
     fn saliency_map_row<T: Arith>(
-        scale: Scale<'_, T>,
+        scale: T::SaliencyScale,
         rows: [&[T]; 3],
         y: usize,
         map: &mut WindowMap<'_, T>,
         row: &mut [T],
     ) {
-        let (scale, table) = scale;
         // `row` may be longer than the level input's rows (a line of the level above).
         if let Some(row) = row.get_mut(..rows[1].len()) {
-            T::saliency_row(scale, table, rows, row);
+            T::saliency_row(scale, rows, row);
             map.take(y, row);
         }
     }
@@ -470,15 +453,16 @@ impl<'r, T: Copy> LaggedRows<'r, T> {
     }
 }
 
-/// A level input's saliency normalization ([`Arith::saliency_scale`]) and, where one was
-/// filled for it, its table ([`Arith::fill_byte_table`]).
-type Scale<'t, T> = (<T as Arith>::SaliencyScale, Option<&'t [T]>);
-
-/// An image's window map to fill, its layout and the image's [`Scale`] (`None`: flat).
-type MapOf<'m, 't, T> = (&'m mut [T], WindowLayout, Option<Scale<'t, T>>);
+/// An image's window map to fill, its layout and the image's saliency normalization
+/// ([`Arith::saliency_scale`]; `None`: flat).
+type MapOf<'m, T> = (
+    &'m mut [T],
+    WindowLayout,
+    Option<<T as Arith>::SaliencyScale>,
+);
 
 /// One image's part of a fuse step level: its saliency map (when `map` is given: the
-/// map, its layout and the image's [`Scale`], `None` for a flat image), then its forward
+/// map, its layout and the image's normalization, `None` for a flat image), then its forward
 /// transform. With `ring` (two rows of scratch) both run in one sweep over the image:
 /// each row's saliency is taken as the transform's sweep brings in the row below it, from
 /// copies of the original rows above, which the transform has lifted by then. That saves
@@ -487,7 +471,7 @@ fn saliency_and_forward<T: Arith>(
     img: &mut [T],
     dims: Dims,
     wavelet: Wavelet,
-    map: Option<MapOf<'_, '_, T>>,
+    map: Option<MapOf<'_, T>>,
     line: &mut [T],
     ring: Option<&mut [T]>,
 ) {
@@ -615,7 +599,7 @@ pub(crate) fn fuse_generic<T: Arith>(
         mut line_b,
         maps,
         mut rings,
-        mut tables,
+        first_maps_ready,
     } = work;
     let image_error = dims.too_small("image", a.len().min(b.len()));
     if cfg.ablation == Ablation::NoWavelet {
@@ -624,7 +608,8 @@ pub(crate) fn fuse_generic<T: Arith>(
     let mut d = dims;
     for level in 1..cfg.levels {
         let lines = (&mut *line, line_b.as_deref_mut(), rings.as_deref_mut());
-        let space = (&mut *maps, tables.as_deref_mut());
+        let maps_ready = level == 1 && first_maps_ready;
+        let space = (&mut *maps, maps_ready);
         let fusion = transform_level(a, b, (d, level), cfg, space, lines, maxima, join)?;
         for y in 0..d.height() {
             let (Some(ra), Some(rb)) = (d.row_mut(a, y), d.row(b, y)) else {
@@ -635,7 +620,7 @@ pub(crate) fn fuse_generic<T: Arith>(
         d = d.low_band();
     }
     let lines = (&mut *line, line_b, rings);
-    let space = (maps, tables);
+    let space = (maps, cfg.levels == 1 && first_maps_ready);
     let deepest = transform_level(a, b, (d, cfg.levels), cfg, space, lines, maxima, join)?;
     let b = &*b;
     let mut outcome = Ok(());
@@ -654,7 +639,8 @@ pub(crate) fn fuse_generic<T: Arith>(
 
 /// One level of a fuse step up to its fusion: each image's saliency map (read before its
 /// transform overwrites it) and its transform, then `W₁` per window. Returns how to fuse
-/// the level's rows. `space` is [`Work`]'s maps and tables, `lines` its line, second line
+/// the level's rows. `space` is [`Work`]'s maps and whether they already hold this
+/// level's saliency sums (then only the transforms run), `lines` its line, second line
 /// and rings.
 #[allow(clippy::too_many_arguments)]
 fn transform_level<'m, T: Arith>(
@@ -662,7 +648,7 @@ fn transform_level<'m, T: Arith>(
     b: &mut [T],
     (d, level): (Dims, u8),
     cfg: &FuseConfig,
-    (maps, tables): (&'m mut [T], Option<&mut [T]>),
+    (maps, maps_ready): (&'m mut [T], bool),
     (line, line_b, rings): (&mut [T], Option<&mut [T]>, Option<&mut [T]>),
     [max_a, max_b]: [Option<T>; 2],
     join: &impl Join,
@@ -679,19 +665,16 @@ fn transform_level<'m, T: Arith>(
     let map_b = rest.get_mut(..mw * mh).ok_or(maps_error)?;
     let scale_of = |img: &[T], max| {
         let known_max = if level == 1 { max } else { None };
-        let scale = || T::saliency_scale(img, d, cfg.norm, cfg.wavelet, level, known_max);
-        with_weights.then(scale).flatten()
+        T::saliency_scale(img, d, cfg.norm, cfg.wavelet, level, known_max)
     };
-    let scales = [scale_of(a, max_a), scale_of(b, max_b)];
-    // Only level 1's input is the 8-bit samples the tables are for.
-    let [table_a, table_b] = match tables {
-        Some(space) if level == 1 && d.pixels() >= TABLE_MIN_PIXELS => byte_tables(space, scales),
-        _ => [None, None],
+    let take_maps = with_weights && !maps_ready;
+    let [scale_a, scale_b] = if take_maps {
+        [scale_of(a, max_a), scale_of(b, max_b)]
+    } else {
+        [None, None]
     };
-    let [scale_a, scale_b] = [(scales[0], table_a), (scales[1], table_b)]
-        .map(|(scale, table)| scale.map(|scale| (scale, table)));
     // The two images are independent until the weights.
-    let with_map = |map, scale| with_weights.then_some((map, layout, scale));
+    let with_map = |map, scale| take_maps.then_some((map, layout, scale));
     let (ring_a, ring_b) = match rings {
         Some(r) => {
             let (ra, rb) = r.split_at_mut(r.len() / 2);
@@ -721,27 +704,6 @@ fn transform_level<'m, T: Arith>(
         mix_ll: level == cfg.levels && cfg.ablation != Ablation::SingleLl,
         maps_error,
     })
-}
-
-/// The two images' saliency tables ([`Arith::fill_byte_table`]) in `space`, for their
-/// scales: one table serves both when they share a scale (a reference maximum); `None`
-/// for a flat image, or where the path has no tables.
-fn byte_tables<'t, T: Arith>(
-    space: &'t mut [T],
-    [scale_a, scale_b]: [Option<T::SaliencyScale>; 2],
-) -> [Option<&'t [T]>; 2] {
-    let (space_a, space_b) = space.split_at_mut(space.len() / 2);
-    let a_filled = scale_a.is_some_and(|s| T::fill_byte_table(s, space_a));
-    let shared = a_filled && scale_a == scale_b;
-    let b_filled = !shared && scale_b.is_some_and(|s| T::fill_byte_table(s, space_b));
-    let (space_a, space_b): (&'t [T], &'t [T]) = (space_a, space_b);
-    let table_a = a_filled.then_some(space_a);
-    let table_b = if shared {
-        table_a
-    } else {
-        b_filled.then_some(space_b)
-    };
-    [table_a, table_b]
 }
 
 /// How the rows of one transformed level are fused.
@@ -884,37 +846,51 @@ mod tests {
         }
     }
 
-    /// Level 1's saliencies looked up in tables (what `fuse_u8` does) fuse to the same
-    /// bits as computed pixel by pixel: under each image's own maximum (two tables), a
-    /// shared reference maximum (one), one that caps most Laplacians and one above every
-    /// Laplacian; on regions with and without tables (below `TABLE_MIN_PIXELS`).
+    /// `fuse_u8` (level 1's saliency from the bytes, by table or computed) gives the bits
+    /// of the generic step on the samples with the guard bits, rounded back: under each
+    /// image's own maximum (two tables), a shared reference maximum (one), one that caps
+    /// most Laplacians and one above every Laplacian; on regions with and without tables
+    /// (below `TABLE_MIN_PIXELS`), narrow ones (no groups of four) and strided inputs.
     #[test]
-    fn saliency_tables_change_no_bit() {
-        // 8-bit samples with the guard bits, with 0/255 dots: Laplacians up to the largest.
-        let bytes = |w: usize, h: usize, seed: usize| -> Vec<i32> {
+    fn fuse_u8_matches_the_step_on_samples_with_guard_bits() {
+        // 8-bit samples with 0/255 dots: Laplacians up to the largest.
+        let bytes = |w: usize, h: usize, seed: usize| -> Vec<u8> {
             scene(w, h, seed)
                 .iter()
                 .enumerate()
-                .map(|(i, &v)| {
-                    let v = if (i * 11 + seed).is_multiple_of(37) {
-                        255.0
-                    } else {
-                        v
-                    };
-                    (v.round().clamp(0.0, 255.0) as i32) << GUARD_BITS
+                .map(|(i, &v)| match (i * 11 + seed) % 37 {
+                    0 => 255,
+                    1 => 0,
+                    _ => v.round().clamp(0.0, 255.0) as u8,
                 })
                 .collect()
         };
         let norms = [
             SaliencyNorm::Local,
-            SaliencyNorm::Reference(40 << GUARD_BITS),
-            SaliencyNorm::Reference(3 << GUARD_BITS),
-            SaliencyNorm::Reference(5000 << GUARD_BITS),
+            SaliencyNorm::Reference(40),
+            SaliencyNorm::Reference(3),
+            SaliencyNorm::Reference(5000),
         ];
         let mut tabled = 0;
-        for (w, h) in [(160, 16), (61, 47), (40, 30), (31, 24), (7, 2)] {
+        for (w, h) in [
+            (160, 16),
+            (61, 47),
+            (40, 30),
+            (31, 24),
+            (7, 2),
+            (5, 9),
+            (2, 3),
+        ] {
             let dims = Dims::new(w, h).unwrap();
-            tabled += usize::from(dims.pixels() >= TABLE_MIN_PIXELS);
+            tabled += usize::from(dims.pixels() >= 1024);
+            let (a, b) = (bytes(w, h, 0), bytes(w, h, 5));
+            // `a` again with two bytes of padding after each row.
+            let stride = w + 2;
+            let mut padded = vec![7u8; stride * h];
+            for (dst, src) in padded.chunks_mut(stride).zip(a.chunks(w)) {
+                dst[..w].copy_from_slice(src);
+            }
+            let strided = Dims::with_stride(w, h, stride).unwrap();
             for wavelet in [Wavelet::Haar, Wavelet::Db2] {
                 for levels in 1..=2 {
                     if dims.check_levels(levels).is_err() {
@@ -927,29 +903,48 @@ mod tests {
                             norm,
                             ..FuseConfig::default()
                         };
-                        let fused = |tables: bool| {
-                            let (mut a, mut b) = (bytes(w, h, 0), bytes(w, h, 5));
-                            let mut scratch = vec![0i32; fuse_scratch_len(dims)];
-                            let ll = LlWeight::HALF;
-                            let (layout, seq) = ((1, false, tables), &Sequential);
-                            fuse_pair_checked(
-                                &mut a,
-                                &mut b,
-                                dims,
-                                &cfg,
-                                ll,
-                                &mut scratch,
-                                layout,
-                                seq,
-                            )
-                            .unwrap();
-                            a
+                        let wide = |img: &[u8]| -> Vec<i32> {
+                            img.iter().map(|&v| i32::from(v) << GUARD_BITS).collect()
                         };
-                        assert_eq!(
-                            fused(true),
-                            fused(false),
-                            "{w}×{h} {wavelet:?} L{levels} {norm:?}"
-                        );
+                        let (mut wa, mut wb) = (wide(&a), wide(&b));
+                        let mut scratch = vec![0i32; fuse_scratch_len(dims)];
+                        let generic = FuseConfig {
+                            norm: match norm {
+                                SaliencyNorm::Reference(r) => {
+                                    SaliencyNorm::Reference(r << GUARD_BITS)
+                                }
+                                local => local,
+                            },
+                            ..cfg
+                        };
+                        fuse_pair(
+                            &mut wa,
+                            &mut wb,
+                            dims,
+                            &generic,
+                            LlWeight::HALF,
+                            &mut scratch,
+                        )
+                        .unwrap();
+                        let half = 1 << (GUARD_BITS - 1);
+                        let want: Vec<u8> = wa
+                            .iter()
+                            .map(|&v| ((v + half) >> GUARD_BITS).clamp(0, 255) as u8)
+                            .collect();
+                        let mut got = padded.clone();
+                        let (mut ua, mut ub) = (vec![0; w * h], vec![0; w * h]);
+                        let work = U8Work {
+                            a: &mut ua,
+                            b: &mut ub,
+                            scratch: &mut scratch,
+                        };
+                        fuse_u8((&mut got, strided), (&b, dims), &cfg, LlWeight::HALF, work)
+                            .unwrap();
+                        let what = std::format!("{w}×{h} {wavelet:?} L{levels} {norm:?}");
+                        for (row, want_row) in got.chunks(stride).zip(want.chunks(w)) {
+                            assert_eq!(&row[..w], want_row, "{what}");
+                            assert_eq!(&row[w..], &[7, 7][..row.len() - w], "{what}: padding");
+                        }
                     }
                 }
             }

@@ -14,7 +14,7 @@ use rollfuse_core::fusion::{LlWeight, U8Work, fuse_u8};
 use rollfuse_core::lifting::{forward_2d, inverse_2d};
 use rollfuse_core::protocol::{DeviceConfig, NormMode, PixelFormat, WaveletId};
 use rollfuse_core::saliency::laplacian_max_u8;
-use rollfuse_core::{Ablation, FuseConfig, SaliencyNorm, Wavelet, float};
+use rollfuse_core::{Ablation, Dims, FuseConfig, SaliencyNorm, Wavelet, float};
 
 /// The CSV columns.
 pub const HEADER: &str = "section,name,wavelet,levels,downsample,norm,pixels,calls,\
@@ -240,8 +240,11 @@ fn tile_fuse(clock: &Clock, b: &mut Buffers, setup: Setup, out: &mut impl FnMut(
             b: work_b,
             scratch,
         };
+        // The result replaces the first tile: each call starts from a copy of it.
+        let fused = &mut b.tiles[..n];
+        fused.copy_from_slice(ta);
         let (r, i) =
-            clock.instructions(|| fuse_u8((ta, tile), (tb, tile), &fuse, LlWeight::HALF, work));
+            clock.instructions(|| fuse_u8((fused, tile), (tb, tile), &fuse, LlWeight::HALF, work));
         if r.is_err() {
             return false;
         }
@@ -323,8 +326,15 @@ fn kernels(clock: &Clock, b: &mut Buffers, out: &mut impl FnMut(&Row)) -> bool {
     row("row_profile", band.pixels(), i);
     let (_, i) = clock.instructions(|| refine_shift(previous, &current[..p], 8, 2));
     row("refine_shift", band.pixels(), i);
-    let (_, i) = clock.instructions(|| laplacian_max_u8(&b.frame, band));
-    row("laplacian_max", band.pixels(), i);
+    // Over the rows the frame's tiles cover, as the pipeline takes it.
+    let rows = schedule.observed_rows(0);
+    let top = schedule.window_top;
+    let covered = &b.frame[(rows.start - top) * band.width()..(rows.end - top) * band.width()];
+    let Ok(covered_dims) = Dims::new(band.width(), rows.len()) else {
+        return false;
+    };
+    let (_, i) = clock.instructions(|| laplacian_max_u8(covered, covered_dims));
+    row("laplacian_max", covered_dims.pixels(), i);
     let tile = cfg.tile_dims();
     let n = tile.pixels();
     for (v, &p) in b.ints.iter_mut().zip(&b.frame[..n]) {
@@ -355,8 +365,10 @@ fn kernels(clock: &Clock, b: &mut Buffers, out: &mut impl FnMut(&Row)) -> bool {
         scratch,
     };
     let (ta, tb) = (&b.frame[..n], &b.frame[n..2 * n]);
+    let fused = &mut b.tiles[..n];
+    fused.copy_from_slice(ta);
     let (r, i) =
-        clock.instructions(|| fuse_u8((ta, tile), (tb, tile), &fuse, LlWeight::HALF, work));
+        clock.instructions(|| fuse_u8((fused, tile), (tb, tile), &fuse, LlWeight::HALF, work));
     if r.is_err() {
         return false;
     }

@@ -1,0 +1,376 @@
+//! Four 8-bit samples in one 32-bit word: the 8-bit kernels of the device pipeline (the
+//! frame's Laplacian maximum, level 1's saliency, the widening of samples for the
+//! transform) work on the bytes of a word in two 16-bit lanes at a time, in plain
+//! integer arithmetic (SIMD within a register). The Cortex-M7's own SIMD instructions
+//! are out of reach of stable Rust but through inline assembly; these lanes need none.
+//!
+//! A word's even bytes (0 and 2) go to its low and high lane by a mask, its odd bytes
+//! (1 and 3) by a shift and the same mask. A lane holds 16 bits, and nothing here lets
+//! a lane's value leave `0..2¹⁶`, so no carry or borrow crosses into the other lane.
+
+use crate::geometry::mirror;
+
+/// The even bytes of a word, one per 16-bit lane.
+const EVEN_BYTES: u32 = 0x00FF_00FF;
+
+/// Added to every Laplacian `4c − (up + down + left + right)` of 8-bit samples, which lies
+/// in `−1020..=1020`, so a lane never holds a negative value: a biased Laplacian lies in
+/// `4..=2044`, and `|∇²I|` is its distance from the bias.
+pub(crate) const LAPLACIAN_BIAS: u32 = 1024;
+
+/// [`LAPLACIAN_BIAS`] in both lanes.
+const BIAS_LANES: u32 = LAPLACIAN_BIAS * 0x0001_0001;
+
+/// The lanes' sign bits, once a comparison has moved a lane's result there.
+const LANE_SIGNS: u32 = 0x8000_8000;
+
+/// `(even bytes, odd bytes)` of `word`, each pair in the low and high lane.
+#[inline(always)]
+fn lanes(word: u32) -> (u32, u32) {
+    (word & EVEN_BYTES, (word >> 8) & EVEN_BYTES)
+}
+
+/// The two lanes of a word, low first.
+#[inline(always)]
+pub(crate) fn unpack(lanes: u32) -> [u32; 2] {
+    [lanes & 0xFFFF, lanes >> 16]
+}
+
+/// Biased Laplacians of pixels `x .. x + 4` of a row: `left`, `centre` and `right` hold the
+/// row's samples from `x − 1`, `x` and `x + 1` (the row read three times, one sample
+/// apart, so each pixel's neighbours share its lane), `up` and `down` samples `x .. x + 4`
+/// of the rows above and below. Returns `[even, odd]`: pixels `x` and `x + 2` in the low
+/// and high lanes of `even`, `x + 1` and `x + 3` in those of `odd`.
+#[inline(always)]
+fn laplacian_quad([up, left, centre, right, down]: [&[u8; 4]; 5]) -> [u32; 2] {
+    let word = |b: &[u8; 4]| u32::from_le_bytes(*b);
+    let (up_e, up_o) = lanes(word(up));
+    let (down_e, down_o) = lanes(word(down));
+    let (left_e, left_o) = lanes(word(left));
+    let (c_e, c_o) = lanes(word(centre));
+    let (right_e, right_o) = lanes(word(right));
+    // Per lane: 4c + bias ≤ 2044 and the neighbours' sum ≤ 1020, so both stay in 16 bits
+    // and the difference is at least 4.
+    let even = (BIAS_LANES + (c_e << 2)) - (up_e + down_e + left_e + right_e);
+    let odd = (BIAS_LANES + (c_o << 2)) - (up_o + down_o + left_o + right_o);
+    [even, odd]
+}
+
+/// Pixels of a row of `width` that [`laplacian_quads`] covers: `1 .. 1 + 4·n`, every group
+/// of four whose right neighbours are inside the row.
+#[inline(always)]
+pub(crate) fn quad_pixels(width: usize) -> core::ops::Range<usize> {
+    1..1 + 4 * (width.saturating_sub(2) / 4)
+}
+
+/// The biased Laplacians of row `mid` over [`quad_pixels`], four pixels at a time (see
+/// [`laplacian_quad`] for the lanes), with `up` and `down` the rows above and below (as
+/// [`crate::saliency::row_and_neighbours`] gives them, mirrored at the image's ends).
+/// Shorter `up` or `down` rows end the groups early.
+#[inline(always)]
+pub(crate) fn laplacian_quads<'r>(
+    [up, mid, down]: [&'r [u8]; 3],
+) -> impl Iterator<Item = [u32; 2]> + 'r {
+    // Words from sample `k` on: the groups from `x = 1` read `x − 1`, `x` and `x + 1` of
+    // `mid`. Each group needs its right neighbours, so `mid` from 2 has the fewest words.
+    let from = |r: &'r [u8], k: usize| r.get(k..).unwrap_or_default().as_chunks::<4>().0;
+    from(mid, 0)
+        .iter()
+        .zip(from(mid, 1))
+        .zip(from(mid, 2))
+        .zip(from(up, 1).iter().zip(from(down, 1)))
+        .map(|(((l, c), r), (u, d))| laplacian_quad([u, l, c, r, d]))
+}
+
+/// The biased Laplacian of pixel `x` of row `mid`, the row mirrored at its ends (`x − 1`
+/// reads `x + 1` at the left end, and the other way round at the right); `None` past
+/// the rows' ends.
+#[inline(always)]
+pub(crate) fn laplacian_at([up, mid, down]: [&[u8]; 3], x: usize) -> Option<u32> {
+    let w = mid.len();
+    let at = |row: &[u8], i: usize| row.get(i).map(|&v| u32::from(v));
+    let left = at(mid, mirror(x as isize - 1, w))?;
+    let right = at(mid, mirror(x as isize + 1, w))?;
+    let sum = at(up, x)? + at(down, x)? + left + right;
+    Some(LAPLACIAN_BIAS + 4 * at(mid, x)? - sum)
+}
+
+/// The pixels of a row of `width` that [`laplacian_quads`] leaves out: the first, and
+/// those past the last group of four.
+#[inline(always)]
+pub(crate) fn single_pixels(width: usize) -> impl Iterator<Item = usize> {
+    let quads = quad_pixels(width);
+    (0..width.min(1)).chain(quads.end.max(1).min(width)..width)
+}
+
+/// Tells whether any lane of a group of biased Laplacians is further than `max` from the
+/// bias, in a few instructions: most groups of an image are below its maximum found so far.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct AboveMax {
+    /// Per lane `2¹⁵ − bias − 1 − max`: a lane's sum with it reaches bit 15 when the
+    /// Laplacian exceeds `max`.
+    over: u32,
+    /// Per lane `2¹⁵ + bias − 1 − max`: a lane subtracted from it keeps bit 15 when the
+    /// Laplacian is below `−max`.
+    under: u32,
+}
+
+impl AboveMax {
+    /// The test against `max` (at most 1020, the largest `|∇²I|` of 8-bit samples; larger
+    /// values are taken as 1020, which no lane exceeds).
+    #[inline(always)]
+    pub(crate) fn new(max: u32) -> Self {
+        let max = max.min(1020);
+        let lane = |v: u32| v * 0x0001_0001;
+        Self {
+            over: lane(0x8000 - LAPLACIAN_BIAS - 1 - max),
+            under: lane(0x8000 + LAPLACIAN_BIAS - 1 - max),
+        }
+    }
+
+    /// Whether a lane of `even` or `odd` holds a biased Laplacian `v` with
+    /// `|v − bias| > max`. Lanes lie in `4..=2044`: `v + over` and `under − v` stay inside
+    /// `0..2¹⁶`, and reach bit 15 exactly when `v > bias + max` or `v < bias − max`.
+    #[inline(always)]
+    pub(crate) fn any(self, [even, odd]: [u32; 2]) -> bool {
+        let flags = even.wrapping_add(self.over)
+            | self.under.wrapping_sub(even)
+            | odd.wrapping_add(self.over)
+            | self.under.wrapping_sub(odd);
+        flags & LANE_SIGNS != 0
+    }
+}
+
+/// Sets `dst[i] = src[i] << SHIFT` (`SHIFT` at most 8) over their common length, four
+/// samples per word read.
+#[inline(always)]
+pub(crate) fn widen_shifted<const SHIFT: u32>(src: &[u8], dst: &mut [i32]) {
+    const { assert!(SHIFT <= 8) };
+    let shift = SHIFT;
+    let (src4, src_rest) = src.as_chunks::<4>();
+    let (dst4, dst_rest) = dst.as_chunks_mut::<4>();
+    let mask = 0xFF << shift;
+    for (d, s) in dst4.iter_mut().zip(src4) {
+        let w = u32::from_le_bytes(*s);
+        // Each byte moved to bits `shift..shift + 8` and cut out there: one instruction
+        // each on Arm, where a shifted operand is free.
+        *d = [
+            (w << shift) & mask,
+            (w >> (8 - shift)) & mask,
+            (w >> (16 - shift)) & mask,
+            (w >> (24 - shift)) & mask,
+        ]
+        .map(|v| v as i32);
+    }
+    for (d, &s) in dst_rest.iter_mut().zip(src_rest) {
+        *d = i32::from(s) << shift;
+    }
+}
+
+/// The sum of a row of 8-bit samples, four per word read.
+#[inline(always)]
+pub(crate) fn row_sum(row: &[u8]) -> u32 {
+    let (words, rest) = row.as_chunks::<4>();
+    let mut total: u32 = rest.iter().map(|&v| u32::from(v)).sum();
+    // A lane gains at most 2·255 per word: 128 words keep it below 2¹⁶.
+    for block in words.chunks(128) {
+        let mut acc = 0u32;
+        for w in block {
+            let (even, odd) = lanes(u32::from_le_bytes(*w));
+            acc += even + odd;
+        }
+        total += (acc & 0xFFFF) + (acc >> 16);
+    }
+    total
+}
+
+/// The rounded mean of the four lane sums `a` and `b` (lane sums of two samples each):
+/// `(a₀ + a₁ + b₀ + b₁ + 2) / 4`, as a byte.
+#[inline(always)]
+fn mean_of_lanes(a: u32, b: u32) -> u8 {
+    let both = a + b;
+    // The low lane plus the high one: the garbage above bit 16 is cut off with the shift.
+    (((both + (both >> 16) + 2) >> 2) & 0xFF) as u8
+}
+
+/// One output row of a 2× downsampling of YUYV camera rows `r0` and `r1`: each output
+/// pixel the rounded mean of the lumas (bytes 0 and 2) of one four-byte group of each row.
+#[inline(always)]
+pub(crate) fn halve_yuyv_row(out: &mut [u8], r0: &[u8], r1: &[u8]) {
+    let pairs = r0.as_chunks::<4>().0.iter().zip(r1.as_chunks::<4>().0);
+    for (o, (a, b)) in out.iter_mut().zip(pairs) {
+        let word = |g: &[u8; 4]| u32::from_le_bytes(*g) & EVEN_BYTES;
+        *o = mean_of_lanes(word(a), word(b));
+    }
+}
+
+/// One output row of a 2× downsampling of 8-bit camera rows `r0` and `r1`: each output
+/// pixel the rounded mean of a 2×2 box.
+#[inline(always)]
+pub(crate) fn halve_gray_row(out: &mut [u8], r0: &[u8], r1: &[u8]) {
+    let (out2, out_rest) = out.as_chunks_mut::<2>();
+    let words = r0.as_chunks::<4>().0.iter().zip(r1.as_chunks::<4>().0);
+    for (o, (a, b)) in out2.iter_mut().zip(words) {
+        // Each lane: the two samples of a box's row, for output pixels 0 and 1.
+        let (a_e, a_o) = lanes(u32::from_le_bytes(*a));
+        let (b_e, b_o) = lanes(u32::from_le_bytes(*b));
+        let sums = a_e + a_o + b_e + b_o + 0x0002_0002;
+        *o = [((sums >> 2) & 0xFF) as u8, ((sums >> 18) & 0xFF) as u8];
+    }
+    // An odd last output pixel.
+    let done = 2 * out2.len();
+    if let (Some(o), Some(a), Some(b)) = (
+        out_rest.first_mut(),
+        r0.get(2 * done..2 * done + 2),
+        r1.get(2 * done..2 * done + 2),
+    ) {
+        let sum: u32 = a.iter().chain(b).map(|&v| u32::from(v)).sum();
+        *o = ((sum + 2) >> 2) as u8;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use std::{vec, vec::Vec};
+
+    /// The plain statement: `4c − Σ neighbours + bias` with mirrored ends.
+    fn plain(rows: [&[u8]; 3], x: usize) -> u32 {
+        let w = rows[1].len();
+        let at = |r: &[u8], i: usize| i32::from(r[i]);
+        let l = at(rows[1], mirror(x as isize - 1, w));
+        let r = at(rows[1], mirror(x as isize + 1, w));
+        (1024 + 4 * at(rows[1], x) - at(rows[0], x) - at(rows[2], x) - l - r) as u32
+    }
+
+    /// Every pixel of rows of every width up to 40, extreme and mixed samples: the groups
+    /// and the single pixels together cover each pixel once, with the plain value.
+    #[test]
+    fn quads_and_singles_give_every_pixels_laplacian() {
+        let mut seed = 7u32;
+        for w in 1..=40 {
+            for pattern in 0..6 {
+                let mut row = || -> Vec<u8> {
+                    (0..w)
+                        .map(|i| match pattern {
+                            0 => 0,
+                            1 => 255,
+                            2 => {
+                                if i % 2 == 0 {
+                                    255
+                                } else {
+                                    0
+                                }
+                            }
+                            _ => {
+                                seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+                                (seed >> 16) as u8
+                            }
+                        })
+                        .collect()
+                };
+                let (up, mid, down) = (row(), row(), row());
+                let rows = [&up[..], &mid[..], &down[..]];
+                let mut got = vec![None; w];
+                let quads = quad_pixels(w);
+                for (q, lanes) in laplacian_quads(rows).enumerate() {
+                    let x = quads.start + 4 * q;
+                    let [e0, e1] = unpack(lanes[0]);
+                    let [o0, o1] = unpack(lanes[1]);
+                    for (dx, v) in [(0, e0), (1, o0), (2, e1), (3, o1)] {
+                        assert!(got[x + dx].replace(v).is_none(), "w {w}: {x} twice");
+                    }
+                }
+                for x in single_pixels(w) {
+                    let v = laplacian_at(rows, x).unwrap();
+                    assert!(got[x].replace(v).is_none(), "w {w}: {x} twice");
+                }
+                for (x, v) in got.iter().enumerate() {
+                    assert_eq!(*v, Some(plain(rows, x)), "w {w} pattern {pattern} x {x}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn above_max_flags_exactly_the_lanes_past_the_maximum() {
+        for max in [0, 1, 5, 100, 1019, 1020] {
+            let test = AboveMax::new(max);
+            for lap in -1020i32..=1020 {
+                let v = (1024 + lap) as u32;
+                let expected = lap.unsigned_abs() > max;
+                // `v` in each of the four lanes, the others holding a zero Laplacian.
+                let zero = BIAS_LANES;
+                let (low, high) = (zero & 0xFFFF_0000 | v, v << 16 | (zero & 0xFFFF));
+                for lanes in [[low, zero], [high, zero], [zero, low], [zero, high]] {
+                    assert_eq!(test.any(lanes), expected, "max {max} lap {lap}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn widening_shifts_every_sample() {
+        let src: Vec<u8> = (0..23)
+            .map(|i| (i * 37 % 256) as u8)
+            .chain([255, 0])
+            .collect();
+        fn check<const SHIFT: u32>(src: &[u8]) {
+            let mut dst = vec![-1; src.len()];
+            widen_shifted::<SHIFT>(src, &mut dst);
+            let want: Vec<i32> = src.iter().map(|&v| i32::from(v) << SHIFT).collect();
+            assert_eq!(dst, want, "shift {SHIFT}");
+        }
+        check::<0>(&src);
+        check::<3>(&src);
+        check::<8>(&src);
+    }
+
+    #[test]
+    fn row_sums_and_halved_rows_match_the_plain_ones() {
+        let mut seed = 5u32;
+        let mut bytes = |n: usize| -> Vec<u8> {
+            (0..n)
+                .map(|i| {
+                    seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+                    if i % 7 == 0 { 255 } else { (seed >> 16) as u8 }
+                })
+                .collect()
+        };
+        for n in [0, 1, 3, 4, 5, 511, 512, 513, 2050] {
+            let row = bytes(n);
+            let plain: u32 = row.iter().map(|&v| u32::from(v)).sum();
+            assert_eq!(row_sum(&row), plain, "{n}");
+            assert_eq!(row_sum(&[255; 4096]), 255 * 4096);
+        }
+        for w in [1, 2, 3, 8, 33] {
+            let (r0, r1) = (bytes(4 * w), bytes(4 * w));
+            let mut out = vec![0; w];
+            halve_yuyv_row(&mut out, &r0, &r1);
+            let want: Vec<u8> = (0..w)
+                .map(|x| {
+                    let s: u32 = [r0[4 * x], r0[4 * x + 2], r1[4 * x], r1[4 * x + 2]]
+                        .iter()
+                        .map(|&v| u32::from(v))
+                        .sum();
+                    ((s + 2) >> 2) as u8
+                })
+                .collect();
+            assert_eq!(out, want, "yuyv {w}");
+            let (g0, g1) = (bytes(2 * w), bytes(2 * w));
+            let mut out = vec![0; w];
+            halve_gray_row(&mut out, &g0, &g1);
+            let want: Vec<u8> = (0..w)
+                .map(|x| {
+                    let s: u32 = [g0[2 * x], g0[2 * x + 1], g1[2 * x], g1[2 * x + 1]]
+                        .iter()
+                        .map(|&v| u32::from(v))
+                        .sum();
+                    ((s + 2) >> 2) as u8
+                })
+                .collect();
+            assert_eq!(out, want, "gray {w}");
+        }
+    }
+}
