@@ -7,8 +7,8 @@
 //!    Laplacian, with whole-sample symmetric extension at the borders.
 //! 2. `Sal = L · 255 / max L`, rounded down, where `max L` is taken over the region being
 //!    fused ([`SaliencyNorm::Local`]: the whole image, or the tile on the device) or given
-//!    by the caller ([`SaliencyNorm::Reference`]: e.g. the maximum over a frame's
-//!    observation window when its tiles are fused). A flat region (`max L = 0`) has
+//!    by the caller ([`SaliencyNorm::Reference`]: e.g. the maximum over the rows of a
+//!    frame whose tiles are fused). A flat region (`max L = 0`) has
 //!    `Sal = 0` everywhere.
 //! 3. `S = exp(Sal/255) − 1`, looked up in [`EXP_TABLE`] (Q24, built at compile time).
 //!    `Sal` keeps 8 fraction bits and the table is interpolated linearly between entries:
@@ -89,9 +89,9 @@ pub enum SaliencyNorm {
     /// By the maximum over the region being fused: the whole image, or one tile.
     Local,
     /// By a caller-supplied level-1 maximum, in the input's units (8-bit gray levels for
-    /// [`crate::fusion::fuse_u8`]), e.g. that of the frame's observation window, where the
-    /// device pipeline takes its tiles (see [`laplacian_max`]), so every tile of a frame
-    /// is judged on one scale. Deeper levels scale it by the transform's LL gain
+    /// [`crate::fusion::fuse_u8`]), e.g. that of the rows of a frame the device pipeline
+    /// takes its tiles from (see [`laplacian_max_u8`]), so every tile of a frame is judged
+    /// on one scale. Deeper levels scale it by the transform's LL gain
     /// ([`ll_gain_q16`]: both paths run the same unscaled lifting); larger values
     /// saturate at 255. `Reference(0)` treats both images as flat: every weight ½.
     Reference(u32),

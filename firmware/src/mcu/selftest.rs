@@ -10,7 +10,7 @@ const N: usize = 16;
 /// across the middle of the first row (160 in the edge tile, 0 in the flat one).
 pub fn run() -> Result<u32, rollfuse_core::Error> {
     let dims = Dims::new(N, N)?;
-    let edge: [u8; N * N] = core::array::from_fn(|i| if i % N < N / 2 { 40 } else { 200 });
+    let mut edge: [u8; N * N] = core::array::from_fn(|i| if i % N < N / 2 { 40 } else { 200 });
     let flat = [120u8; N * N];
     let (mut a, mut b) = ([0i32; N * N], [0i32; N * N]);
     let mut scratch = [0i32; fuse_scratch_words(N, N)];
@@ -20,11 +20,12 @@ pub fn run() -> Result<u32, rollfuse_core::Error> {
         scratch: &mut scratch,
     };
     fuse_u8(
-        (&edge, dims),
+        (&mut edge, dims),
         (&flat, dims),
         &FuseConfig::default(),
         LlWeight::HALF,
         work,
     )?;
-    Ok(a[N / 2].abs_diff(a[N / 2 - 1]))
+    // The fused tile replaced `edge`.
+    Ok(u32::from(edge[N / 2].abs_diff(edge[N / 2 - 1])))
 }

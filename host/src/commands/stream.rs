@@ -18,7 +18,7 @@ use std::time::Duration;
 pub enum NormArg {
     /// Saliency normalized by each tile's own maximum.
     PerTile,
-    /// By the maximum of the frame's observation window (the rows its tiles come from).
+    /// By the maximum over the rows of the frame its tiles come from.
     PerFrame,
 }
 

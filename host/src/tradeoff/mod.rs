@@ -243,7 +243,7 @@ pub fn run_device(acq: &Acquisition, setup: &Setup, repeats: usize) -> anyhow::R
 /// The reference for configurations of `setup`'s wavelet, levels and downsampling: the
 /// same schedule at full resolution (tiles `d` times taller, so each covers the same belt
 /// rows; frames at the belt offsets the device placed them at, `offsets` in its
-/// downsampled rows), fused in `f64`, normalized per frame (over its observation window).
+/// downsampled rows), fused in `f64`, normalized per frame (over the rows its tiles cover).
 pub fn reference(acq: &Acquisition, setup: &Setup, offsets: &[u64]) -> anyhow::Result<Tiles<f64>> {
     let wire = setup.wire(&acq.base);
     let d = usize::from(setup.downsample);

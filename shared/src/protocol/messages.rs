@@ -17,8 +17,8 @@ pub enum WaveletId {
 pub enum NormMode {
     /// By the tile's own Laplacian maximum.
     PerTile,
-    /// By the maximum over the (downsampled) frame's observation window, the rows its
-    /// tiles come from, so every tile of a frame is judged on one scale.
+    /// By the maximum over the rows of the (downsampled) frame its tiles come from (the
+    /// tiles it observes), so every tile of a frame is judged on one scale.
     PerFrame,
 }
 
