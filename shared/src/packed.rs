@@ -36,23 +36,27 @@ pub(crate) fn unpack(lanes: u32) -> [u32; 2] {
     [lanes & 0xFFFF, lanes >> 16]
 }
 
-/// Biased Laplacians of pixels `x .. x + 4` of a row: `left`, `centre` and `right` hold the
-/// row's samples from `x − 1`, `x` and `x + 1` (the row read three times, one sample
-/// apart, so each pixel's neighbours share its lane), `up` and `down` samples `x .. x + 4`
-/// of the rows above and below. Returns `[even, odd]`: pixels `x` and `x + 2` in the low
-/// and high lanes of `even`, `x + 1` and `x + 3` in those of `odd`.
+/// Biased Laplacians of pixels `x .. x + 4` of a row: `left` and `right` hold the row's
+/// samples from `x − 1` and from `x + 1`, `up` and `down` samples `x .. x + 4` of the rows
+/// above and below. Returns `[even, odd]`: pixels `x` and `x + 2` in the low and high
+/// lanes of `even`, `x + 1` and `x + 3` in those of `odd`.
+///
+/// The two reads of the row serve all three of its roles: `left`'s lanes are pixels
+/// `[x − 1, x + 1]` (even bytes) and `[x, x + 2]` (odd), `right`'s `[x + 1, x + 3]` and
+/// `[x + 2, x + 4]`. So the even pixels' centres are `left`'s odd lanes and their
+/// neighbours its even lanes and `right`'s even lanes; the odd pixels' centres are
+/// `right`'s even lanes, their neighbours `left`'s odd lanes and `right`'s odd lanes.
 #[inline(always)]
-fn laplacian_quad([up, left, centre, right, down]: [&[u8; 4]; 5]) -> [u32; 2] {
+fn laplacian_quad([up, left, right, down]: [&[u8; 4]; 4]) -> [u32; 2] {
     let word = |b: &[u8; 4]| u32::from_le_bytes(*b);
     let (up_e, up_o) = lanes(word(up));
     let (down_e, down_o) = lanes(word(down));
     let (left_e, left_o) = lanes(word(left));
-    let (c_e, c_o) = lanes(word(centre));
     let (right_e, right_o) = lanes(word(right));
     // Per lane: 4c + bias ≤ 2044 and the neighbours' sum ≤ 1020, so both stay in 16 bits
     // and the difference is at least 4.
-    let even = (BIAS_LANES + (c_e << 2)) - (up_e + down_e + left_e + right_e);
-    let odd = (BIAS_LANES + (c_o << 2)) - (up_o + down_o + left_o + right_o);
+    let even = (BIAS_LANES + (left_o << 2)) - (up_e + down_e + left_e + right_e);
+    let odd = (BIAS_LANES + (right_e << 2)) - (up_o + down_o + left_o + right_o);
     [even, odd]
 }
 
@@ -71,15 +75,14 @@ pub(crate) fn quad_pixels(width: usize) -> core::ops::Range<usize> {
 pub(crate) fn laplacian_quads<'r>(
     [up, mid, down]: [&'r [u8]; 3],
 ) -> impl Iterator<Item = [u32; 2]> + 'r {
-    // Words from sample `k` on: the groups from `x = 1` read `x − 1`, `x` and `x + 1` of
-    // `mid`. Each group needs its right neighbours, so `mid` from 2 has the fewest words.
+    // Words from sample `k` on: the groups from `x = 1` read `x − 1` and `x + 1` of `mid`.
+    // Each group needs its right neighbours, so `mid` from 2 has the fewest words.
     let from = |r: &'r [u8], k: usize| r.get(k..).unwrap_or_default().as_chunks::<4>().0;
     from(mid, 0)
         .iter()
-        .zip(from(mid, 1))
         .zip(from(mid, 2))
         .zip(from(up, 1).iter().zip(from(down, 1)))
-        .map(|(((l, c), r), (u, d))| laplacian_quad([u, l, c, r, d]))
+        .map(|((l, r), (u, d))| laplacian_quad([u, l, r, d]))
 }
 
 /// The biased Laplacian of pixel `x` of row `mid`, the row mirrored at its ends (`x − 1`

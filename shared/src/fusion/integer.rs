@@ -48,20 +48,25 @@ impl Arith for i32 {
         saliency::saliency_row(norm, rows, out);
     }
 
+    /// `W₁` in Q15, kept shifted left by 15 more bits (at most 2³⁰) as `blend` takes it.
     fn weight(s1: i32, s2: i32) -> i32 {
-        i32::from(saliency::weight(s1.unsigned_abs(), s2.unsigned_abs()).to_bits())
+        i32::from(saliency::weight(s1.unsigned_abs(), s2.unsigned_abs()).to_bits()) << 15
     }
 
+    /// `(h1·w + h2·(2¹⁵ − w) + 2¹⁴) >> 15` for the Q15 weight `w` (`w1 = w·2¹⁵`), to the
+    /// bit: that is `h2 + ((h1 − h2)·w + 2¹⁴) >> 15` (`h2·2¹⁵` leaves the floor whole),
+    /// and with `(h1 − h2)·4` against `w·2¹⁵` the shift becomes the high word of a
+    /// rounded 32×32-bit product, one instruction on the Cortex-M7 (SMMLAR). The bounds
+    /// keep `|h1 − h2|` below 2²⁹ (test `band_differences_fit_the_rounded_product`).
     #[inline(always)]
     fn blend(h1: i32, h2: i32, w1: i32) -> i32 {
-        let w1 = i64::from(w1);
-        ((i64::from(h1) * w1 + i64::from(h2) * ((1 << 15) - w1) + (1 << 14)) >> 15) as i32
+        h2 + rounded_high_word((h1 - h2) << 2, w1)
     }
 
     #[inline(always)]
     fn mix(a: i32, b: i32, w: LlWeight) -> i32 {
-        let w = i64::from(w.0);
-        ((i64::from(a) * ((1 << 15) - w) + i64::from(b) * w + (1 << 14)) >> 15) as i32
+        // `blend` with the weight on `b`.
+        a + rounded_high_word((b - a) << 2, i32::from(w.0) << 15)
     }
 
     #[inline(always)]
@@ -72,6 +77,12 @@ impl Arith for i32 {
     fn check_samples(buf: &[i32], dims: Dims) -> Result<(), Error> {
         lifting::check_samples(buf, dims)
     }
+}
+
+/// `(x·y + 2³¹) >> 32`: what LLVM turns into SMMULR / SMMLAR on Arm.
+#[inline(always)]
+fn rounded_high_word(x: i32, y: i32) -> i32 {
+    ((i64::from(x) * i64::from(y) + (1 << 31)) >> 32) as i32
 }
 
 /// Scratch length (in `i32`) that [`fuse_pair`] and [`fuse_u8`] need for `dims`: a
@@ -289,4 +300,50 @@ fn byte_saliency(
         true => ByteSaliency::Table(LaplacianTable::fill(table, norm, GUARD_BITS)),
         false => ByteSaliency::Computed(norm, GUARD_BITS),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lifting::MAX_SAMPLE;
+
+    /// `blend` and `mix` take `(a − b)·4` into a 32-bit product: every band's
+    /// difference of two coefficients, at most twice its bound, must stay below 2²⁹.
+    #[test]
+    fn band_differences_fit_the_rounded_product() {
+        for wavelet in [Wavelet::Haar, Wavelet::Db2] {
+            for b in level_bounds(wavelet, 4) {
+                let largest = [b.ll, b.hl, b.lh, b.hh].into_iter().max().unwrap_or(0);
+                assert!(2 * largest < 1 << 29, "{wavelet:?}: {b:?}");
+            }
+        }
+        assert_eq!(MAX_SAMPLE, 4095, "the bounds above are for this input");
+    }
+
+    /// The one-product forms give the bits of the two-product definitions, over the
+    /// whole range of weights and the largest differences the bounds allow.
+    #[test]
+    fn blend_and_mix_match_the_two_products() {
+        let limit = (1 << 28) - 1;
+        let mut values = [0, 1, -1, 2, -3, 16384, -16385, 255 << 3, limit, -limit].to_vec();
+        // A few thousand more, spread over the range by a multiplicative hash.
+        values.extend((0..3000u32).map(|k| {
+            let v = k.wrapping_mul(2_654_435_761) >> 3;
+            (v as i32 % limit) * if k % 2 == 0 { 1 } else { -1 }
+        }));
+        let mut weights = [0, 1, 2, 16383, 16384, 16385, 32767, 32768].to_vec();
+        weights.extend((0..40u32).map(|k| (k.wrapping_mul(2_654_435_761) >> 17) as i32));
+        for &w in &weights {
+            let w64 = i64::from(w);
+            for (&h1, &h2) in values.iter().zip(values.iter().rev().cycle().skip(7)) {
+                let (a, b) = (i64::from(h1), i64::from(h2));
+                let want = (a * w64 + b * ((1 << 15) - w64) + (1 << 14)) >> 15;
+                let got = <i32 as Arith>::blend(h1, h2, w << 15);
+                assert_eq!(i64::from(got), want, "blend({h1}, {h2}, {w})");
+                let want = (a * ((1 << 15) - w64) + b * w64 + (1 << 14)) >> 15;
+                let got = <i32 as Arith>::mix(h1, h2, LlWeight(w as u16));
+                assert_eq!(i64::from(got), want, "mix({h1}, {h2}, {w})");
+            }
+        }
+    }
 }
