@@ -49,8 +49,9 @@ impl Arith for i32 {
     }
 
     /// `W₁` in Q15, kept shifted left by 15 more bits (at most 2³⁰) as `blend` takes it.
+    /// Saliency sums are never negative: they pass as they are, no absolute value.
     fn weight(s1: i32, s2: i32) -> i32 {
-        i32::from(saliency::weight(s1.unsigned_abs(), s2.unsigned_abs()).to_bits()) << 15
+        i32::from(saliency::weight(s1 as u32, s2 as u32).to_bits()) << 15
     }
 
     /// `(h1·w + h2·(2¹⁵ − w) + 2¹⁴) >> 15` for the Q15 weight `w` (`w1 = w·2¹⁵`), to the
