@@ -131,16 +131,16 @@ impl AboveMax {
         }
     }
 
-    /// Whether a lane of `even` or `odd` holds a biased Laplacian `v` with
-    /// `|v − bias| > max`. Lanes lie in `4..=2044`: `v + over` and `under − v` stay inside
-    /// `0..2¹⁶`, and reach bit 15 exactly when `v > bias + max` or `v < bias − max`.
+    /// Nonzero exactly when a lane of `even` or `odd` holds a biased Laplacian `v` with
+    /// `|v − bias| > max`: flags of several groups may be ORed and tested once. Lanes lie in `4..=2044`: `v + over` and `under − v` stay inside `0..2¹⁶`, and
+    /// reach bit 15 exactly when `v > bias + max` or `v < bias − max`.
     #[inline(always)]
-    pub(crate) fn any(self, [even, odd]: [u32; 2]) -> bool {
+    pub(crate) fn flags(self, [even, odd]: [u32; 2]) -> u32 {
         let flags = even.wrapping_add(self.over)
             | self.under.wrapping_sub(even)
             | odd.wrapping_add(self.over)
             | self.under.wrapping_sub(odd);
-        flags & LANE_SIGNS != 0
+        flags & LANE_SIGNS
     }
 }
 
@@ -307,7 +307,7 @@ mod tests {
                 let zero = BIAS_LANES;
                 let (low, high) = (zero & 0xFFFF_0000 | v, v << 16 | (zero & 0xFFFF));
                 for lanes in [[low, zero], [high, zero], [zero, low], [zero, high]] {
-                    assert_eq!(test.any(lanes), expected, "max {max} lap {lap}");
+                    assert_eq!(test.flags(lanes) != 0, expected, "max {max} lap {lap}");
                 }
             }
         }
