@@ -351,27 +351,20 @@ mod tests {
             let (r0, r1) = (bytes(4 * w), bytes(4 * w));
             let mut out = vec![0; w];
             halve_yuyv_row(&mut out, &r0, &r1);
+            // The rounded mean of a box's four samples.
+            let mean = |box4: [u8; 4]| {
+                let s: u32 = box4.iter().map(|&v| u32::from(v)).sum();
+                ((s + 2) >> 2) as u8
+            };
             let want: Vec<u8> = (0..w)
-                .map(|x| {
-                    let s: u32 = [r0[4 * x], r0[4 * x + 2], r1[4 * x], r1[4 * x + 2]]
-                        .iter()
-                        .map(|&v| u32::from(v))
-                        .sum();
-                    ((s + 2) >> 2) as u8
-                })
+                .map(|x| mean([r0[4 * x], r0[4 * x + 2], r1[4 * x], r1[4 * x + 2]]))
                 .collect();
             assert_eq!(out, want, "yuyv {w}");
             let (g0, g1) = (bytes(2 * w), bytes(2 * w));
             let mut out = vec![0; w];
             halve_gray_row(&mut out, &g0, &g1);
             let want: Vec<u8> = (0..w)
-                .map(|x| {
-                    let s: u32 = [g0[2 * x], g0[2 * x + 1], g1[2 * x], g1[2 * x + 1]]
-                        .iter()
-                        .map(|&v| u32::from(v))
-                        .sum();
-                    ((s + 2) >> 2) as u8
-                })
+                .map(|x| mean([g0[2 * x], g0[2 * x + 1], g1[2 * x], g1[2 * x + 1]]))
                 .collect();
             assert_eq!(out, want, "gray {w}");
         }

@@ -3,7 +3,7 @@
 
 use super::{
     Arith, FuseConfig, LlWeight, Sequential, TABLE_WORDS, WindowLayout, WindowMap, fuse_generic,
-    fuse_pair_checked, maps_len, split_scratch,
+    fuse_pair_checked, maps_len, split_maps, split_scratch,
 };
 use crate::lifting::{self, Coefficients, bounds::level_bounds};
 use crate::packed::widen_shifted;
@@ -238,15 +238,12 @@ fn first_level_maps(
 ) -> Result<(), Error> {
     let dims = Dims::new(images[0].1.width(), images[0].1.height())?;
     let layout = WindowLayout::of(cfg.wavelet);
-    let (mw, mh) = layout.map_dims(dims);
+    let [map_a, map_b] = split_maps(maps, layout, dims)?;
     let too_small = |needed, got| Error::BufferTooSmall {
         which: "scratch",
         needed,
         got,
     };
-    let maps_error = too_small(2 * mw * mh, maps.len());
-    let (map_a, rest) = maps.split_at_mut_checked(mw * mh).ok_or(maps_error)?;
-    let map_b = rest.get_mut(..mw * mh).ok_or(maps_error)?;
     let table_len = table.len();
     let table = table
         .first_chunk_mut()

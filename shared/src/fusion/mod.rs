@@ -320,6 +320,26 @@ pub(crate) fn split_scratch<T>(
     Ok((work, table_part))
 }
 
+/// What too short a `maps` scratch (of `got` elements) reports for a level input of `dims`.
+fn maps_too_small(layout: WindowLayout, dims: Dims, got: usize) -> Error {
+    let (mw, mh) = layout.map_dims(dims);
+    Error::BufferTooSmall {
+        which: "scratch",
+        needed: 2 * mw * mh,
+        got,
+    }
+}
+
+/// The two window maps (image A's, image B's) of a level input of `dims`, from the front
+/// of `maps`.
+fn split_maps<T>(maps: &mut [T], layout: WindowLayout, dims: Dims) -> Result<[&mut [T]; 2], Error> {
+    let (mw, mh) = layout.map_dims(dims);
+    let too_small = maps_too_small(layout, dims, maps.len());
+    let (map_a, rest) = maps.split_at_mut_checked(mw * mh).ok_or(too_small)?;
+    let map_b = rest.get_mut(..mw * mh).ok_or(too_small)?;
+    Ok([map_a, map_b])
+}
+
 /// A level's map of 2×2 window sums of saliency ([`WindowLayout`]), filled from the level
 /// input's rows of saliency, taken in order.
 struct WindowMap<'m, T> {
@@ -655,14 +675,9 @@ fn transform_level<'m, T: Arith>(
 ) -> Result<LevelFusion<'m, T>, Error> {
     let with_weights = cfg.ablation.uses_saliency();
     let (wl, layout) = (cfg.wavelet, WindowLayout::of(cfg.wavelet));
-    let (mw, mh) = layout.map_dims(d);
-    let maps_error = Error::BufferTooSmall {
-        which: "scratch",
-        needed: 2 * mw * mh,
-        got: maps.len(),
-    };
-    let (map_a, rest) = maps.split_at_mut_checked(mw * mh).ok_or(maps_error)?;
-    let map_b = rest.get_mut(..mw * mh).ok_or(maps_error)?;
+    let mw = layout.map_dims(d).0;
+    let maps_error = maps_too_small(layout, d, maps.len());
+    let [map_a, map_b] = split_maps(maps, layout, d)?;
     let scale_of = |img: &[T], max| {
         let known_max = if level == 1 { max } else { None };
         T::saliency_scale(img, d, cfg.norm, cfg.wavelet, level, known_max)
