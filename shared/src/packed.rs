@@ -132,8 +132,9 @@ impl AboveMax {
     }
 
     /// Nonzero exactly when a lane of `even` or `odd` holds a biased Laplacian `v` with
-    /// `|v − bias| > max`: flags of several groups may be ORed and tested once. Lanes lie in `4..=2044`: `v + over` and `under − v` stay inside `0..2¹⁶`, and
-    /// reach bit 15 exactly when `v > bias + max` or `v < bias − max`.
+    /// `|v − bias| > max` (flags of groups may be ORed and tested once). Lanes lie in
+    /// `4..=2044`: `v + over` and `under − v` stay in `0..2¹⁶`; they reach bit 15 exactly
+    /// when `v > bias + max` or `v < bias − max`.
     #[inline(always)]
     pub(crate) fn flags(self, [even, odd]: [u32; 2]) -> u32 {
         let flags = even.wrapping_add(self.over)
