@@ -1,5 +1,6 @@
 //! Images on the host: planes of `f32` gray levels, loaded from and saved to PNG.
 
+use crate::files::{PngLayout, write_png};
 use anyhow::{Context, bail, ensure};
 use std::path::Path;
 
@@ -137,35 +138,18 @@ impl Planes {
     }
 
     /// Saves as a gray or RGB PNG of 8 or 16 bits per sample (16 keeps the fractions of
-    /// gray levels that fusion produces).
+    /// gray levels that fusion produces), whole or not at all ([`crate::files`]).
     pub fn save_png_bits(&self, path: &Path, bits: u8) -> anyhow::Result<()> {
-        if bits == 8 {
-            return self.save_png(path);
-        }
-        ensure!(bits == 16, "PNG output is 8 or 16 bits, not {bits}");
-        let (w, h) = (self.width as u32, self.height as u32);
-        let samples = self.to_u16();
-        let result = if self.is_rgb() {
-            image::ImageBuffer::<image::Rgb<u16>, _>::from_raw(w, h, samples).map(|i| i.save(path))
-        } else {
-            image::ImageBuffer::<image::Luma<u16>, _>::from_raw(w, h, samples).map(|i| i.save(path))
+        let layout = PngLayout::new(self.planes.len(), bits)?;
+        let bytes = match bits {
+            8 => self.to_u8(),
+            _ => self.to_u16().iter().flat_map(|v| v.to_ne_bytes()).collect(),
         };
-        result
-            .context("image buffer does not match its size")?
-            .with_context(|| format!("cannot write {}", path.display()))
+        write_png(path, &bytes, (self.width, self.height), layout)
     }
 
-    /// Saves as an 8-bit gray or RGB PNG.
+    /// Saves as an 8-bit gray or RGB PNG, whole or not at all.
     pub fn save_png(&self, path: &Path) -> anyhow::Result<()> {
-        let (w, h) = (self.width as u32, self.height as u32);
-        let bytes = self.to_u8();
-        let result = if self.is_rgb() {
-            image::RgbImage::from_raw(w, h, bytes).map(|img| img.save(path))
-        } else {
-            image::GrayImage::from_raw(w, h, bytes).map(|img| img.save(path))
-        };
-        result
-            .context("image buffer does not match its size")?
-            .with_context(|| format!("cannot write {}", path.display()))
+        self.save_png_bits(path, 8)
     }
 }

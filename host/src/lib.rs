@@ -5,12 +5,14 @@
 //! cyclic fuser — is the `no_std` crate [`rollfuse_core`], re-exported here as [`core`].
 //! This crate adds what needs `std`:
 //!
+//! - [`files`]: outputs written whole or not at all.
 //! - [`image`]: images as `f32` planes, PNG in and out.
 //! - [`sim`]: the tactile simulator (scenes, effects on demand, ground truth).
 //! - [`fullres`]: full-resolution fusion of aligned frames into one mosaic.
 //! - [`depth`]: photometric stereo, Poisson integration, light calibration.
 //! - [`eval`]: the paper's metrics.
 //! - [`link`]: the device link — USB, the virtual device, recorded streams.
+//! - [`strip_file`]: a strip written as it grows, in indexed PNG segments.
 //! - [`stream`]: a streaming session — tiles received, checked and stitched into a strip.
 //! - [`tradeoff`]: what each device configuration buys in accuracy and costs in time.
 //! - [`demo`]: the whole system end to end, and its HTML report.
@@ -23,10 +25,12 @@ pub mod commands;
 pub mod demo;
 pub mod depth;
 pub mod eval;
+pub mod files;
 pub mod fullres;
 pub mod image;
 pub mod link;
 pub mod npy;
 pub mod sim;
 pub mod stream;
+pub mod strip_file;
 pub mod tradeoff;

@@ -1,7 +1,10 @@
-//! `rollfuse fuse`: full-resolution cyclic fusion of a folder's worth of frames.
+//! `rollfuse fuse`: full-resolution cyclic fusion of frames — a few frames of one object
+//! into one image (the mosaic, paper Tables II–III), or a whole roll into a strip fused
+//! over the contact window (docs/fusion.md, "Whole rolls").
 
 use super::{AblationArg, LlWeightingArg, WaveletArg, check_writable, simulate::progress};
 use crate::fullres::align::{Aligned, Match, Offset, TemplateParams, align_chain};
+use crate::fullres::track::Tracker;
 use crate::fullres::{Precision, fuse_mosaic_mut};
 use crate::image::Planes;
 use anyhow::{Context, bail};
@@ -19,6 +22,19 @@ pub enum AlignArg {
     Motion,
 }
 
+/// `--mode`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ModeArg {
+    /// A roll when the frames cannot all see one object (they span more than a frame
+    /// height), otherwise a mosaic.
+    Auto,
+    /// Contact-window fusion of a roll into a strip, streamed.
+    Roll,
+    /// Every frame fused over its whole footprint into one image (a few frames of one
+    /// object).
+    Mosaic,
+}
+
 /// `--out-bits`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum OutBits {
@@ -33,12 +49,37 @@ pub enum OutBits {
 /// Arguments of `rollfuse fuse`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The frames, in acquisition order (PNG, 8- or 16-bit, gray or RGB).
+    /// The frames, in acquisition order (PNG, 8- or 16-bit, gray or RGB), or a folder:
+    /// its `frame_*.png` files (if none, its `.png` files) in name order.
     #[arg(required = true)]
     pub frames: Vec<PathBuf>,
-    /// The fused image (PNG).
+    /// The fused image (PNG). A roll longer than --segment-rows is written as numbered
+    /// segments OUT_STEM.0000.png … listed with their belt rows in OUT_STEM.json.
     #[arg(long)]
     pub out: PathBuf,
+    /// Roll or mosaic.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub mode: ModeArg,
+    /// Roll: rows of the contact window, centred on the middle row (default: from the
+    /// manifest's roller geometry, else measured on the first frames).
+    #[arg(long)]
+    pub window_rows: Option<usize>,
+    /// Roll: rows per fused band.
+    #[arg(long, default_value_t = 32)]
+    pub band_rows: usize,
+    /// Roll: rows over which neighbouring bands are cross-faded (even, at most --band-rows).
+    #[arg(long, default_value_t = 8)]
+    pub blend_rows: usize,
+    /// Roll: most rows per output segment.
+    #[arg(long, default_value_t = crate::strip_file::DEFAULT_SEGMENT_ROWS)]
+    pub segment_rows: usize,
+    /// Roll, --align template: rows searched either side of the predicted position
+    /// (default: 3 plus 30 % of the predicted step).
+    #[arg(long)]
+    pub search_rows: Option<usize>,
+    /// Roll, --align template: whole-row positions only (no sub-pixel refinement).
+    #[arg(long)]
+    pub no_subpixel: bool,
     /// Bits per sample of the output PNG: 8, or 16 to keep the fused values' fractions.
     #[arg(long, value_enum, default_value = "8")]
     pub out_bits: OutBits,
@@ -52,14 +93,16 @@ pub struct Args {
     #[arg(long, value_enum, default_value = "template")]
     pub align: AlignArg,
     /// With --align motion: the manifest (default: manifest.json beside the first frame).
+    /// Given with --align template on a roll, its commanded rows predict each position.
     #[arg(long)]
     pub manifest: Option<PathBuf>,
     /// With --align template: the template band, as fractions of the frame height.
     #[arg(long, value_delimiter = ',', num_args = 2, default_values_t = [1.0 / 3.0, 2.0 / 3.0])]
     pub template_rows: Vec<f64>,
-    /// With --align template: the largest shift searched along the belt, pixels.
-    #[arg(long, default_value_t = 200)]
-    pub max_shift: usize,
+    /// With --align template: the largest shift searched along the belt, pixels (a roll:
+    /// before the motion is known; default half a frame).
+    #[arg(long)]
+    pub max_shift: Option<usize>,
     /// With --align template: the lowest correlation accepted (0..1).
     #[arg(long, default_value_t = 0.5)]
     pub min_score: f32,
@@ -182,8 +225,55 @@ pub fn motion_offsets(manifest: &Path, paths: &[PathBuf]) -> anyhow::Result<Vec<
         .collect()
 }
 
+/// Frames an automatic choice of mode loads at once to find their span (a mosaic holds
+/// them all anyway; more are always a roll).
+const AUTO_LOAD_FRAMES: usize = 64;
+
+/// The frames named on the command line: files as given, a folder as its `.png` files in
+/// name order.
+pub fn expand_frames(given: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for p in given {
+        if p.is_dir() {
+            let mut pngs: Vec<PathBuf> = std::fs::read_dir(p)
+                .with_context(|| format!("cannot list folder {}", p.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| {
+                    f.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"))
+                        && !f
+                            .file_name()
+                            .is_some_and(|n| n.to_string_lossy().starts_with('.'))
+                })
+                .collect();
+            pngs.sort();
+            // A simulator's folder also holds a contact sheet: keep its frames only.
+            let is_frame = |f: &PathBuf| {
+                f.file_name()
+                    .is_some_and(|n| n.to_string_lossy().starts_with("frame_"))
+            };
+            if pngs.iter().any(is_frame) {
+                pngs.retain(is_frame);
+            }
+            if pngs.is_empty() {
+                bail!("folder {} holds no .png frames", p.display());
+            }
+            out.extend(pngs);
+        } else {
+            out.push(p.clone());
+        }
+    }
+    Ok(out)
+}
+
+/// What the command will do, with the frames it already loaded to decide.
+enum Plan {
+    Mosaic(Vec<Planes>),
+    Roll(Option<Vec<Planes>>),
+}
+
 /// Runs the command.
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub fn run(mut args: Args) -> anyhow::Result<()> {
+    args.frames = expand_frames(&args.frames)?;
     if args.frames.len() < 2 {
         bail!(
             "fusion needs at least two frames, got {}",
@@ -200,12 +290,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !(0.0 <= t0 && t0 < t1 && t1 <= 1.0) {
         bail!("--template-rows must be two fractions 0 ≤ top < bottom ≤ 1, got {t0},{t1}");
     }
-    let offsets_path = args.out.with_extension("offsets.json");
-    check_writable(&args.out)?;
-    check_writable(&offsets_path)?;
-    refuse_overwriting_inputs(&args.out, &args.frames)?;
-    refuse_overwriting_inputs(&offsets_path, &args.frames)?;
-    let frames = load_frames(&args.frames)?;
     let cfg = FuseConfig {
         wavelet: args.wavelet.into(),
         levels: args.levels,
@@ -213,7 +297,62 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         norm: SaliencyNorm::Local,
         ll_weighting: args.ll_weighting.into(),
     };
+    match plan(&args)? {
+        Plan::Mosaic(frames) => run_mosaic(&args, frames, &cfg),
+        Plan::Roll(loaded) => super::fuse_roll::run(&args, loaded, &cfg),
+    }
+}
 
+/// Chooses roll or mosaic (`--mode auto`: a roll when the frames span more than a frame
+/// height along the belt, so they cannot all see one object).
+fn plan(args: &Args) -> anyhow::Result<Plan> {
+    let auto = match (args.mode, args.align) {
+        (ModeArg::Mosaic, _) | (ModeArg::Auto, AlignArg::None) => {
+            return Ok(Plan::Mosaic(load_frames(&args.frames)?));
+        }
+        (ModeArg::Roll, _) => return Ok(Plan::Roll(None)),
+        (ModeArg::Auto, align) => align,
+    };
+    let (_, h) = image::image_dimensions(&args.frames[0])
+        .with_context(|| format!("cannot read image {}", args.frames[0].display()))?;
+    let h = f64::from(h);
+    let span = |rows: &mut dyn Iterator<Item = f64>| {
+        let (lo, hi) = rows.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), r| {
+            (a.min(r), b.max(r))
+        });
+        hi - lo
+    };
+    if auto == AlignArg::Motion {
+        let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
+        let offsets = motion_offsets(&manifest, &args.frames)?;
+        return Ok(if span(&mut offsets.iter().map(|o| o.dy as f64)) >= h {
+            Plan::Roll(None)
+        } else {
+            Plan::Mosaic(load_frames(&args.frames)?)
+        });
+    }
+    if args.frames.len() > AUTO_LOAD_FRAMES {
+        return Ok(Plan::Roll(None));
+    }
+    let frames = load_frames(&args.frames)?;
+    let params = super::fuse_roll::track_params(args, frames[0].height);
+    let mut tracker = Tracker::new(frames[0].width, frames[0].height, params);
+    let rows: Vec<f64> = frames.iter().map(|f| tracker.place(f, None).row).collect();
+    Ok(if span(&mut rows.into_iter()) >= h {
+        Plan::Roll(Some(frames))
+    } else {
+        Plan::Mosaic(frames)
+    })
+}
+
+/// Fuses every frame over its whole footprint into one image (a few frames of one object).
+fn run_mosaic(args: &Args, frames: Vec<Planes>, cfg: &FuseConfig) -> anyhow::Result<()> {
+    let offsets_path = args.out.with_extension("offsets.json");
+    check_writable(&args.out)?;
+    check_writable(&offsets_path)?;
+    refuse_overwriting_inputs(&args.out, &args.frames)?;
+    refuse_overwriting_inputs(&offsets_path, &args.frames)?;
+    let (t0, t1) = (args.template_rows[0], args.template_rows[1]);
     let mut placed = Vec::new();
     let mut record = OffsetsFile {
         align: "",
@@ -249,7 +388,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             record.align = "template";
             let params = TemplateParams {
                 rows: (t0, t1),
-                max_dy: args.max_shift,
+                max_dy: args.max_shift.unwrap_or(200),
                 max_dx: 8,
                 min_score: args.min_score,
             };
@@ -289,15 +428,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .filter_map(|(k, at)| Some((frames.get_mut(k)?.take()?, at)))
         .collect();
     let started = std::time::Instant::now();
-    let fused = fuse_mosaic_mut(&mut placed, &cfg, args.precision)?;
+    let fused = fuse_mosaic_mut(&mut placed, cfg, args.precision)?;
     let took = started.elapsed().as_secs_f64();
     let bits = match args.out_bits {
         OutBits::Eight => 8,
         OutBits::Sixteen => 16,
     };
     fused.save_png_bits(&args.out, bits)?;
-    std::fs::write(&offsets_path, serde_json::to_string_pretty(&record)? + "\n")
-        .with_context(|| format!("cannot write {}", offsets_path.display()))?;
+    let json = serde_json::to_string_pretty(&record)? + "\n";
+    crate::files::write_bytes_atomic(&offsets_path, json.as_bytes())?;
     println!("offsets (rows, columns) on the canvas:");
     for f in &record.frames {
         println!("  {:>6} {:>4}  {}", f.at.dy, f.at.dx, f.file.display());

@@ -4,6 +4,7 @@ pub mod demo;
 pub mod depth;
 pub mod eval;
 pub mod fuse;
+pub mod fuse_roll;
 pub mod metrics;
 pub mod simulate;
 pub mod splice;

@@ -57,14 +57,29 @@ impl Simulator {
         let s = &scene.sensor;
         let mmpp = s.mm_per_px;
         let fov_mm = s.height_px as f64 * mmpp;
-        let travel = (s.frames - 1) as f64 * s.frame_spacing_mm;
+        // Each frame's travel from the one before: steady, or varied by `speed`.
+        let steps: Vec<f64> = (1..s.frames)
+            .map(|k| {
+                let j = scene.params.speed_jitter;
+                let change = if scene.has(Effect::Speed) && j > 0.0 {
+                    Self::draw(scene.seed, k, Effect::Speed).random_range(-j..=j)
+                } else {
+                    0.0
+                };
+                s.frame_spacing_mm * (1.0 + change)
+            })
+            .collect();
+        let travel: f64 = steps.iter().sum();
         let canvas = Canvas {
             width_mm: s.width_px as f64 * mmpp,
             length_mm: travel.max(0.5 * fov_mm),
         };
         let first_apex = (canvas.length_mm - travel) / 2.0;
-        let apex_mm: Vec<f64> = (0..s.frames)
-            .map(|k| first_apex + k as f64 * s.frame_spacing_mm)
+        let apex_mm: Vec<f64> = std::iter::once(first_apex)
+            .chain(steps.iter().scan(first_apex, |at, step| {
+                *at += step;
+                Some(*at)
+            }))
             .collect();
         let jitter_mm = if scene.has(Effect::Jitter) {
             scene.params.jitter_px * mmpp
@@ -143,7 +158,12 @@ impl Simulator {
     /// A seeded generator for `stage` of frame `k`: frames and stages draw independently,
     /// so the same scene and seed give the same bytes however frames are rendered.
     fn rng(&self, k: usize, stage: Effect) -> Pcg64Mcg {
-        let mix = (self.scene.seed ^ 0x5DEE_CE66_D1CE_4E5B)
+        Self::draw(self.scene.seed, k, stage)
+    }
+
+    /// [`Self::rng`] before the simulator exists.
+    fn draw(seed: u64, k: usize, stage: Effect) -> Pcg64Mcg {
+        let mix = (seed ^ 0x5DEE_CE66_D1CE_4E5B)
             .wrapping_mul(0x9E37_79B9_7F4A_7C15)
             .wrapping_add(((k as u64) << 8) | stage as u64);
         Pcg64Mcg::seed_from_u64(mix)
@@ -157,6 +177,9 @@ impl Simulator {
         let mut stages = Vec::new();
         let offset_mm = self.apex_mm[k];
         let mut actual = offset_mm;
+        if scene.has(Effect::Speed) {
+            stages.push(Effect::Speed);
+        }
         if scene.has(Effect::Jitter) {
             stages.push(Effect::Jitter);
             let j = scene.params.jitter_px * s.mm_per_px;

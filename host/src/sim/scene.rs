@@ -58,11 +58,16 @@ pub enum Effect {
     Jitter,
     /// Uneven illumination (vignetting and a gradient).
     Background,
+    /// A belt whose speed varies: each frame's travel differs from `frame_spacing_mm` by
+    /// up to `speed_jitter` of it, at random. The motion system counts the steps, so the
+    /// commanded positions follow it (unlike `jitter`).
+    Speed,
 }
 
 impl Effect {
     /// Every effect, in stage order.
-    pub const ALL: [Effect; 8] = [
+    pub const ALL: [Effect; 9] = [
+        Effect::Speed,
         Effect::Jitter,
         Effect::Contact,
         Effect::Gel,
@@ -83,6 +88,7 @@ impl Effect {
             Effect::Defocus => "defocus",
             Effect::Noise => "noise",
             Effect::Jitter => "jitter",
+            Effect::Speed => "speed",
             Effect::Background => "background",
         }
     }
@@ -303,6 +309,8 @@ pub struct EffectParams {
     pub shot_noise: f64,
     /// `jitter`: largest belt-position error per frame, pixels.
     pub jitter_px: f64,
+    /// `speed`: largest relative change of a frame's travel (0.25: ±25 %).
+    pub speed_jitter: f64,
     /// `background`: relative brightness loss at the image corners.
     pub vignetting: f64,
     /// `background`: relative brightness change from the left edge to the right.
@@ -317,6 +325,7 @@ impl Default for EffectParams {
             read_noise: 2.0,
             shot_noise: 0.05,
             jitter_px: 2.0,
+            speed_jitter: 0.25,
             vignetting: 0.25,
             gradient: 0.1,
         }
@@ -383,7 +392,12 @@ impl Scene {
             );
         }
         // The belt strip every frame sees, in pixels: bounded so the ground truth fits in memory.
-        let travel_px = (s.frames - 1) as f64 * s.frame_spacing_mm / s.mm_per_px;
+        let speed = if self.has(Effect::Speed) {
+            1.0 + self.params.speed_jitter
+        } else {
+            1.0
+        };
+        let travel_px = (s.frames - 1) as f64 * s.frame_spacing_mm * speed / s.mm_per_px;
         let strip_px = (travel_px + s.height_px as f64 * 2.0 + 2.0 * self.params.jitter_px)
             * s.width_px as f64;
         if strip_px.is_nan() || strip_px > MAX_STRIP_PIXELS as f64 {
@@ -430,6 +444,12 @@ impl Scene {
         non_negative("params.read_noise", p.read_noise)?;
         non_negative("params.shot_noise", p.shot_noise)?;
         non_negative("params.jitter_px", p.jitter_px)?;
+        if !(0.0..1.0).contains(&p.speed_jitter) {
+            bail!(
+                "params.speed_jitter must be in 0..1, got {}",
+                p.speed_jitter
+            );
+        }
         if !(0.0..1.0).contains(&p.vignetting) {
             bail!("params.vignetting must be in 0..1, got {}", p.vignetting);
         }

@@ -1,0 +1,264 @@
+//! `rollfuse fuse` on a roll: frames decoded on a second thread, aligned, fused over the
+//! contact window and written as strip segments as they are finished.
+
+use super::fuse::{
+    AlignArg, Args, OutBits, manifest_path, motion_offsets, refuse_overwriting_inputs,
+};
+use super::{check_writable, simulate::progress};
+use crate::files::PendingFile;
+use crate::fullres::roll::Bands;
+use crate::fullres::strip::{Placing, StripOptions, StripReport, WindowChoice, fuse_strip};
+use crate::fullres::track::TrackParams;
+use crate::fullres::window::Geometry;
+use crate::image::Planes;
+use crate::strip_file::{Segment, StripWriter};
+use anyhow::{Context, bail};
+use rollfuse_core::FuseConfig;
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::sync_channel;
+
+/// Frames decoded ahead of the fusion.
+const DECODE_AHEAD: usize = 4;
+
+/// The aligner's settings from the command line, for frames `height` rows high.
+pub fn track_params(args: &Args, height: usize) -> TrackParams {
+    let mut p = TrackParams::for_height(height);
+    p.search_rows = args.search_rows;
+    if let Some(m) = args.max_shift {
+        p.first_search_rows = m;
+    }
+    p.min_score = args.min_score;
+    p.subpixel = !args.no_subpixel;
+    p
+}
+
+/// The roller geometry recorded in a simulator manifest, if the manifest is there and its
+/// frames are `width × height`.
+fn manifest_geometry(manifest: &Path, (width, height): (u32, u32)) -> Option<Geometry> {
+    let text = std::fs::read_to_string(manifest).ok()?;
+    let doc: serde_json::Value = serde_json::from_str(&text).ok()?;
+    let size = doc["image_size"].as_array()?;
+    if size.len() != 2
+        || size[0].as_u64() != Some(u64::from(width))
+        || size[1].as_u64() != Some(u64::from(height))
+    {
+        return None;
+    }
+    let sensor = &doc["scene_file"]["sensor"];
+    let apex = sensor["focal_row"]
+        .as_f64()
+        .unwrap_or(f64::from(height) / 2.0);
+    Some(Geometry {
+        roller_radius_mm: sensor["roller_radius_mm"].as_f64()?,
+        press_depth_mm: sensor["press_depth_mm"].as_f64()?,
+        mm_per_px: sensor["mm_per_px"].as_f64()?,
+        apex_row: apex,
+    })
+}
+
+/// Refuses an output segment name (`STEM.NNNN.EXT` beside `out`) that an input has.
+fn refuse_segment_names(out: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> {
+    let stem = out.file_stem().unwrap_or_default().to_string_lossy();
+    let ext = out.extension().unwrap_or_default().to_string_lossy();
+    let dir = std::fs::canonicalize(
+        out.parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new(".")),
+    )
+    .ok();
+    for input in inputs {
+        let name = input.file_name().unwrap_or_default().to_string_lossy();
+        let numbered = name
+            .strip_prefix(&format!("{stem}."))
+            .and_then(|r| r.strip_suffix(&format!(".{ext}")))
+            .is_some_and(|n| n.len() == 4 && n.bytes().all(|b| b.is_ascii_digit()));
+        let same_dir = input.parent().and_then(|p| {
+            std::fs::canonicalize(if p.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                p
+            })
+            .ok()
+        }) == dir;
+        if numbered && same_dir {
+            bail!(
+                "--out {} would write segments named like the input {}",
+                out.display(),
+                input.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// What the strip's index records besides its segments.
+#[derive(serde::Serialize)]
+struct Details<'a> {
+    mode: &'static str,
+    align: &'static str,
+    frames_csv: String,
+    #[serde(flatten)]
+    report: &'a StripReport,
+}
+
+/// Fuses the roll named by `args` (frames already decoded in `loaded`, if any).
+pub fn run(args: &Args, loaded: Option<Vec<Planes>>, cfg: &FuseConfig) -> anyhow::Result<()> {
+    let out = &args.out;
+    let csv_path = out.with_extension("frames.csv");
+    let index_path = StripWriter::index_path(out);
+    for p in [out, &csv_path, &index_path] {
+        check_writable(p)?;
+        refuse_overwriting_inputs(p, &args.frames)?;
+    }
+    refuse_segment_names(out, &args.frames)?;
+    if args.precision == crate::fullres::Precision::Fixed && args.out_bits == OutBits::Sixteen {
+        eprintln!("note: --precision fixed makes 8-bit values; the 16-bit file holds them scaled");
+    }
+    let (w, h) = image::image_dimensions(&args.frames[0])
+        .with_context(|| format!("cannot read image {}", args.frames[0].display()))?;
+    let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
+    let commanded = || -> anyhow::Result<Vec<f64>> {
+        Ok(motion_offsets(&manifest, &args.frames)?
+            .into_iter()
+            .map(|o| o.dy as f64)
+            .collect())
+    };
+    let placing = match args.align {
+        AlignArg::None => {
+            bail!("a roll must be aligned: use --align template or motion, or --mode mosaic")
+        }
+        AlignArg::Motion => Placing::Commanded(commanded()?),
+        AlignArg::Template => Placing::Track {
+            params: Some(track_params(args, h as usize)),
+            commanded: args.manifest.is_some().then(commanded).transpose()?,
+        },
+    };
+    let window = match (args.window_rows, manifest_geometry(&manifest, (w, h))) {
+        (Some(0), _) => bail!("--window-rows must be at least 1"),
+        (Some(rows), _) => WindowChoice::Rows(rows),
+        (None, Some(g)) => WindowChoice::Geometry(g),
+        (None, None) => WindowChoice::Measure,
+    };
+    let opts = StripOptions {
+        window,
+        bands: Bands {
+            band_rows: args.band_rows,
+            blend_rows: args.blend_rows,
+        },
+        cfg: *cfg,
+        precision: args.precision,
+        placing,
+    };
+    let bits = match args.out_bits {
+        OutBits::Eight => 8,
+        OutBits::Sixteen => 16,
+    };
+    let mut csv = PendingFile::create(&csv_path)?;
+    csv.write_all(b"frame,file,row,source,score\n")?;
+    let bar = progress(args.frames.len(), "frames", "fusing the roll".into());
+    let started = std::time::Instant::now();
+    let files = &args.frames;
+    let on_frame = |k: usize, p: &crate::fullres::track::Placement| {
+        bar.set_position(k as u64 + 1);
+        let score = p.score.map(|s| format!("{s:.4}")).unwrap_or_default();
+        csv.write_all(
+            format!(
+                "{k},{},{:.3},{},{score}\n",
+                files[k].display(),
+                p.row,
+                p.source.name()
+            )
+            .as_bytes(),
+        )
+    };
+    let make_sink = |width: usize, channels: usize| {
+        StripWriter::new(out, width, channels, bits, args.segment_rows)
+    };
+    let (writer, report) = match loaded {
+        Some(frames) => fuse_strip(frames.into_iter().map(Ok), &opts, make_sink, on_frame)?,
+        None => std::thread::scope(|scope| {
+            // Decoding on a second thread overlaps with fusion.
+            let (tx, rx) = sync_channel(DECODE_AHEAD);
+            scope.spawn(move || {
+                for path in files {
+                    let frame = Planes::load(path);
+                    let failed = frame.is_err();
+                    if tx.send(frame).is_err() || failed {
+                        break;
+                    }
+                }
+            });
+            fuse_strip(rx.into_iter(), &opts, make_sink, on_frame)
+        })?,
+    };
+    bar.finish_and_clear();
+    let took = started.elapsed().as_secs_f64();
+    let details = Details {
+        mode: "roll",
+        align: match args.align {
+            AlignArg::Template => "template",
+            AlignArg::Motion => "motion",
+            AlignArg::None => "none",
+        },
+        frames_csv: csv_path
+            .file_name()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned(),
+        report: &report,
+    };
+    csv.commit()?;
+    let segments = writer.finish(&details)?;
+    print_summary(args, &report, &segments, took, &index_path);
+    Ok(())
+}
+
+fn print_summary(args: &Args, r: &StripReport, segments: &[Segment], took: f64, index: &Path) {
+    let n = args.frames.len();
+    println!(
+        "contact window: frame rows {}..{} ({} rows, {})",
+        r.window.top,
+        r.window.top + r.window.rows,
+        r.window.rows,
+        match r.window_source {
+            crate::fullres::window::WindowSource::Option => "--window-rows",
+            crate::fullres::window::WindowSource::Geometry =>
+                "from the roller geometry in the manifest",
+            crate::fullres::window::WindowSource::Measured => "measured on the first frames",
+            crate::fullres::window::WindowSource::Default =>
+                "the middle half: no contact could be measured",
+        }
+    );
+    if args.align == AlignArg::Template {
+        println!(
+            "alignment: {} matched, {} predicted (no texture to match), 1 first",
+            r.matched, r.predicted
+        );
+    }
+    let s = &r.summary;
+    if s.bands_outside_window + s.gap_bands > 0 {
+        eprintln!(
+            "warning: {} band(s) outside every contact window (fused from the nearest frame), {} band(s) no frame covered (written as zeros)",
+            s.bands_outside_window, s.gap_bands
+        );
+    }
+    let files: Vec<&str> = segments.iter().map(|s| s.file.as_str()).collect();
+    println!(
+        "fused {n} frames into {} strip rows ({} bands) → {} (index {}); {:.2} s, {:.2} ms a frame",
+        s.rows,
+        s.bands,
+        if files.len() == 1 {
+            files[0].to_string()
+        } else {
+            format!(
+                "{} segments {} … {}",
+                files.len(),
+                files[0],
+                files[files.len() - 1]
+            )
+        },
+        index.display(),
+        took,
+        1e3 * took / n as f64
+    );
+}

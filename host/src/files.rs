@@ -1,0 +1,222 @@
+//! Writing files whole or not at all.
+//!
+//! Every output is written beside its target under a hidden temporary name, flushed with
+//! every error checked, synced to disk and renamed into place. A reader never sees half a
+//! file; a failure (full disk, a closed pipe, an encoder error) removes the temporary and
+//! leaves the previous file, if any, as it was.
+
+use anyhow::{Context, ensure};
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+/// A temporary path beside `target`: same folder (so the rename stays on one file
+/// system), hidden, unique to this process.
+pub fn temporary_beside(target: &Path, tag: &str) -> PathBuf {
+    let name = target
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "output".into());
+    let parent = target
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    parent.join(format!(".{name}.{tag}-{}", std::process::id()))
+}
+
+/// Writes `target` whole or not at all: `fill` writes the content into a buffered
+/// temporary beside it, which is flushed, synced and renamed over `target` only if every
+/// step succeeded.
+pub fn write_atomic(
+    target: &Path,
+    fill: impl FnOnce(&mut BufWriter<File>) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
+    let tmp = temporary_beside(target, "part");
+    let result = (|| {
+        let file =
+            File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+        let mut writer = BufWriter::with_capacity(1 << 16, file);
+        fill(&mut writer)?;
+        let file = writer
+            .into_inner()
+            .map_err(|e| e.into_error())
+            .with_context(|| format!("cannot write {}", target.display()))?;
+        file.sync_all()
+            .with_context(|| format!("cannot write {} to disk", target.display()))?;
+        std::fs::rename(&tmp, target)
+            .with_context(|| format!("cannot move {} into place", target.display()))
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// [`write_atomic`] of a byte string.
+pub fn write_bytes_atomic(target: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    write_atomic(target, |w| {
+        w.write_all(bytes)
+            .with_context(|| format!("cannot write {}", target.display()))
+    })
+}
+
+/// A file written bit by bit under a temporary name beside its target, moved into place
+/// by [`PendingFile::commit`]; dropped uncommitted (an error on the way), it is removed and
+/// the target is left as it was.
+pub struct PendingFile {
+    target: PathBuf,
+    tmp: PathBuf,
+    writer: Option<BufWriter<File>>,
+}
+
+impl PendingFile {
+    /// Starts writing `target`.
+    pub fn create(target: &Path) -> anyhow::Result<Self> {
+        let tmp = temporary_beside(target, "part");
+        let file =
+            File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+        Ok(Self {
+            target: target.to_path_buf(),
+            tmp,
+            writer: Some(BufWriter::with_capacity(1 << 16, file)),
+        })
+    }
+
+    /// Appends `bytes`.
+    pub fn write_all(&mut self, bytes: &[u8]) -> anyhow::Result<()> {
+        let w = self.writer.as_mut().context("file already committed")?;
+        w.write_all(bytes)
+            .with_context(|| format!("cannot write {}", self.target.display()))
+    }
+
+    /// Flushes, syncs and renames the file into place.
+    pub fn commit(mut self) -> anyhow::Result<()> {
+        let writer = self.writer.take().context("file already committed")?;
+        let result = (|| {
+            let file = writer
+                .into_inner()
+                .map_err(|e| e.into_error())
+                .with_context(|| format!("cannot write {}", self.target.display()))?;
+            file.sync_all()
+                .with_context(|| format!("cannot write {} to disk", self.target.display()))?;
+            std::fs::rename(&self.tmp, &self.target)
+                .with_context(|| format!("cannot move {} into place", self.target.display()))
+        })();
+        if result.is_err() {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+        result
+    }
+}
+
+impl Drop for PendingFile {
+    fn drop(&mut self) {
+        if self.writer.take().is_some() {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// PNG sample layouts written by [`write_png`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PngLayout {
+    /// One 8-bit sample per pixel.
+    Gray8,
+    /// Three interleaved 8-bit samples per pixel.
+    Rgb8,
+    /// One 16-bit sample per pixel (native-endian `u16` values given as bytes).
+    Gray16,
+    /// Three interleaved 16-bit samples per pixel.
+    Rgb16,
+}
+
+impl PngLayout {
+    /// The layout for `channels` (1 or 3) samples of `bits` (8 or 16).
+    pub fn new(channels: usize, bits: u8) -> anyhow::Result<Self> {
+        Ok(match (channels, bits) {
+            (1, 8) => Self::Gray8,
+            (3, 8) => Self::Rgb8,
+            (1, 16) => Self::Gray16,
+            (3, 16) => Self::Rgb16,
+            _ => anyhow::bail!(
+                "PNG output is gray or RGB of 8 or 16 bits, not {channels} channels of {bits} bits"
+            ),
+        })
+    }
+
+    /// Bytes per pixel.
+    pub fn bytes_per_pixel(self) -> usize {
+        match self {
+            Self::Gray8 => 1,
+            Self::Rgb8 => 3,
+            Self::Gray16 => 2,
+            Self::Rgb16 => 6,
+        }
+    }
+
+    fn color(self) -> image::ExtendedColorType {
+        match self {
+            Self::Gray8 => image::ExtendedColorType::L8,
+            Self::Rgb8 => image::ExtendedColorType::Rgb8,
+            Self::Gray16 => image::ExtendedColorType::L16,
+            Self::Rgb16 => image::ExtendedColorType::Rgb16,
+        }
+    }
+}
+
+/// Writes a `width × height` PNG whole or not at all ([`write_atomic`]); `data` holds the
+/// samples row by row in `layout`.
+pub fn write_png(
+    target: &Path,
+    data: &[u8],
+    (width, height): (usize, usize),
+    layout: PngLayout,
+) -> anyhow::Result<()> {
+    use image::ImageEncoder;
+    ensure!(
+        width
+            .checked_mul(height)
+            .and_then(|n| n.checked_mul(layout.bytes_per_pixel()))
+            == Some(data.len()),
+        "{} bytes are not a {width}×{height} image of {layout:?}",
+        data.len()
+    );
+    let (w, h) = (u32::try_from(width)?, u32::try_from(height)?);
+    write_atomic(target, |out| {
+        image::codecs::png::PngEncoder::new(out)
+            .write_image(data, w, h, layout.color())
+            .with_context(|| format!("cannot write {}", target.display()))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_failed_write_keeps_the_previous_file_and_leaves_no_temporary() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out.bin");
+        write_bytes_atomic(&target, b"good").unwrap();
+        let err = write_atomic(&target, |w| {
+            w.write_all(b"half")?;
+            anyhow::bail!("the disk is full")
+        })
+        .unwrap_err();
+        assert!(err.to_string().contains("disk is full"), "{err}");
+        assert_eq!(std::fs::read(&target).unwrap(), b"good");
+        let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert_eq!(names.len(), 1, "a temporary was left behind");
+    }
+
+    #[test]
+    fn png_sizes_that_do_not_match_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("x.png");
+        assert!(write_png(&target, &[0; 5], (2, 2), PngLayout::Gray8).is_err());
+        assert!(!target.exists());
+        write_png(&target, &[0, 64, 128, 255], (2, 2), PngLayout::Gray8).unwrap();
+        let back = image::open(&target).unwrap().to_luma8().into_raw();
+        assert_eq!(back, [0, 64, 128, 255]);
+    }
+}

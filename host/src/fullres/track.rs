@@ -1,0 +1,404 @@
+//! Alignment of a roll that does not drift: each frame's belt row predicted from the
+//! motion, then matched near the prediction against everything aligned so far.
+//!
+//! - **Features.** Each frame is reduced to row profiles: the summed gradient magnitude
+//!   of each row in each of up to 16 column groups, high-passed along the rows (minus the
+//!   mean of the 13 rows around) so that smooth patterns fixed to the frame — vignetting,
+//!   the defocus that smooths noise away from the focal line — cannot pull a match toward
+//!   "no motion". Cost: one pass over the frame.
+//! - **Reference.** The profiles of every frame aligned so far, accumulated at their belt
+//!   rows (sub-pixel positions split between two rows) in a ring of 4 frame heights: the
+//!   strip as aligned, not the previous frame alone, so one poor match does not carry
+//!   into every later position.
+//! - **Prediction.** From the manifest's commanded position when given (plus the
+//!   deviation from it that matching has found, see [`Anchor`]), else the last position
+//!   plus the median of the last five measured steps.
+//! - **Match.** Normalized correlation of the frame's profiles with the reference over
+//!   their overlap, at every whole row within `search_rows` of the prediction; the best
+//!   refined to sub-pixel by a parabola through its neighbours. Accepted when the score
+//!   reaches `min_score`; otherwise (no texture where the frame overlaps the strip) the
+//!   prediction is kept and the frame is reported as predicted.
+//!
+//! Columns are not searched: the belt does not move across the frame unless the
+//! conveyor's tracking is off, and a sideways search in texture-free stretches only finds
+//! shifts that never happened.
+
+use crate::image::Planes;
+use std::collections::VecDeque;
+
+/// Alignment settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackParams {
+    /// Rows searched either side of the prediction; `None`: 3 plus 30 % of the predicted
+    /// step (a belt whose speed varies by ±25 % stays inside).
+    pub search_rows: Option<usize>,
+    /// Rows searched either side of the previous frame before any motion is known.
+    pub first_search_rows: usize,
+    /// Lowest normalized correlation accepted as a match.
+    pub min_score: f32,
+    /// Refine matches to a fraction of a row.
+    pub subpixel: bool,
+}
+
+impl TrackParams {
+    /// The defaults for frames `height` rows high: the first search spans half a frame.
+    pub fn for_height(height: usize) -> Self {
+        Self {
+            search_rows: None,
+            first_search_rows: height / 2,
+            min_score: 0.5,
+            subpixel: true,
+        }
+    }
+}
+
+/// How a frame's position was found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Source {
+    /// The first frame: the origin, or its commanded row.
+    First,
+    /// Matched against the aligned strip.
+    Matched,
+    /// No match good enough (no texture): the prediction kept.
+    Predicted,
+    /// The manifest's commanded row, taken as it is (`--align motion`).
+    Manifest,
+}
+
+impl Source {
+    /// The name used in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Source::First => "first",
+            Source::Matched => "matched",
+            Source::Predicted => "predicted",
+            Source::Manifest => "manifest",
+        }
+    }
+}
+
+/// Where a frame lies: the belt row of its top row.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Placement {
+    /// Belt row of the frame's row 0 (fractional with sub-pixel matching).
+    pub row: f64,
+    /// How it was found.
+    pub source: Source,
+    /// The best correlation found (absent for the first frame and manifest rows).
+    pub score: Option<f32>,
+}
+
+/// Half-width of the high-pass box along the rows.
+const HIGH_PASS: usize = 6;
+/// Most column groups of the profiles.
+const MAX_GROUPS: usize = 16;
+/// Recent steps (and command biases) the prediction takes its median of.
+const HISTORY: usize = 5;
+
+/// The running aligner: feed it frames in acquisition order.
+pub struct Tracker {
+    width: usize,
+    height: usize,
+    groups: usize,
+    params: TrackParams,
+    /// The current frame's high-passed profiles, `height × groups`.
+    profile: Vec<f32>,
+    raw: Vec<f32>,
+    gray: Vec<f32>,
+    /// The reference ring: per slot the belt row it holds, its profile sums and weight.
+    slot_row: Vec<i64>,
+    sums: Vec<f32>,
+    weights: Vec<f32>,
+    last: Option<f64>,
+    steps: VecDeque<f64>,
+    anchor: Anchor,
+}
+
+/// How far the deviation from the commanded rows is kept from one frame to the next: it
+/// follows the belt's unknown position error, and fades where there is nothing to match.
+const ANCHOR_DECAY: f64 = 0.95;
+
+/// Commanded motion as the long-term reference, matches as the short-term one.
+///
+/// Matching measures motion in the images' apparent scale, which is not the belt's: the
+/// gel pulls each feature toward the apex a little more the farther it is from it, so on
+/// the simulator's letters geometry every step measures about 1 % short (20 px steps:
+/// 19.8). Summed over a roll that is a drift; the commanded motion has none. So each
+/// matched step is rescaled by the ratio of all matched to all commanded travel so far,
+/// and the position is the commanded row plus a deviation that follows the matched steps
+/// and decays toward zero by [`ANCHOR_DECAY`] a frame.
+#[derive(Debug, Default)]
+struct Anchor {
+    measured: f64,
+    commanded: f64,
+    deviation: f64,
+    last_commanded: Option<f64>,
+}
+
+impl Anchor {
+    /// Commanded travel after which the matched-to-commanded ratio is used, rows.
+    const SCALE_AFTER: f64 = 100.0;
+
+    /// The row of a frame commanded at `commanded`, the last frame at `last`, matched at
+    /// `matched` if it was.
+    fn follow(&mut self, last: f64, commanded: f64, matched: Option<f64>) -> f64 {
+        let raw = match (matched, self.last_commanded) {
+            (Some(m), Some(prev)) => {
+                let (step, told) = (m - last, commanded - prev);
+                self.measured += step;
+                self.commanded += told;
+                let scale = if self.commanded.abs() >= Self::SCALE_AFTER {
+                    (self.measured / self.commanded).clamp(0.5, 2.0)
+                } else {
+                    1.0
+                };
+                self.deviation + step / scale - told
+            }
+            _ => self.deviation,
+        };
+        self.deviation = ANCHOR_DECAY * raw;
+        commanded + self.deviation
+    }
+}
+
+fn median(values: &VecDeque<f64>) -> Option<f64> {
+    let mut v: Vec<f64> = values.iter().copied().collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    Some(v[v.len() / 2])
+}
+
+fn push_bounded(q: &mut VecDeque<f64>, v: f64) {
+    if q.len() == HISTORY {
+        q.pop_front();
+    }
+    q.push_back(v);
+}
+
+impl Tracker {
+    /// An aligner for frames of `width × height`.
+    pub fn new(width: usize, height: usize, params: TrackParams) -> Self {
+        let groups = (width / 20).clamp(1, MAX_GROUPS);
+        let slots = (4 * height).next_power_of_two();
+        Self {
+            width,
+            height,
+            groups,
+            params,
+            profile: vec![0.0; height * groups],
+            raw: vec![0.0; height * groups],
+            gray: Vec::new(),
+            slot_row: vec![i64::MIN; slots],
+            sums: vec![0.0; slots * groups],
+            weights: vec![0.0; slots],
+            last: None,
+            steps: VecDeque::new(),
+            anchor: Anchor::default(),
+        }
+    }
+
+    /// Places the next frame; `commanded` is its commanded belt row from a manifest, if
+    /// any. The frame must be `width × height`.
+    pub fn place(&mut self, frame: &Planes, commanded: Option<f64>) -> Placement {
+        self.compute_profile(frame);
+        let placement = match self.last {
+            None => Placement {
+                row: commanded.unwrap_or(0.0),
+                source: Source::First,
+                score: None,
+            },
+            Some(last) => {
+                let (pred, reach) = self.predict(last, commanded);
+                let (matched, score) = self.match_near(pred, reach);
+                let row = match commanded {
+                    Some(c) => self.anchor.follow(last, c, matched),
+                    None => matched.unwrap_or(pred),
+                };
+                if let Some(m) = matched {
+                    push_bounded(&mut self.steps, m - last);
+                }
+                Placement {
+                    row,
+                    source: if matched.is_some() {
+                        Source::Matched
+                    } else {
+                        Source::Predicted
+                    },
+                    score,
+                }
+            }
+        };
+        self.anchor.last_commanded = commanded;
+        self.accumulate(placement.row);
+        self.last = Some(placement.row);
+        placement
+    }
+
+    /// The predicted row and the rows to search either side of it.
+    fn predict(&self, last: f64, commanded: Option<f64>) -> (f64, usize) {
+        let (pred, known) = match (commanded, median(&self.steps)) {
+            (Some(c), _) => (c + ANCHOR_DECAY * self.anchor.deviation, true),
+            (None, Some(step)) => (last + step, true),
+            (None, None) => (last, false),
+        };
+        let reach = match (self.params.search_rows, known) {
+            (_, false) => self.params.first_search_rows,
+            (Some(r), true) => r,
+            (None, true) => 3 + (0.3 * (pred - last).abs()).ceil() as usize,
+        };
+        (pred, reach)
+    }
+
+    /// The best match within `reach` rows of `pred` if it reaches the minimum score, and
+    /// the best score found.
+    fn match_near(&self, pred: f64, reach: usize) -> (Option<f64>, Option<f32>) {
+        let centre = pred.round() as i64;
+        let reach = reach as i64;
+        let scores: Vec<Option<f32>> = (centre - reach..=centre + reach)
+            .map(|d| self.score_at(d))
+            .collect();
+        let best = scores
+            .iter()
+            .enumerate()
+            .filter_map(|(i, s)| s.map(|s| (i, s)))
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((i, score)) = best else {
+            return (None, None);
+        };
+        if score < self.params.min_score {
+            return (None, Some(score));
+        }
+        let mut row = (centre - reach + i as i64) as f64;
+        if self.params.subpixel {
+            let at = |j: Option<usize>| j.and_then(|j| scores.get(j).copied().flatten());
+            if let (Some(a), Some(c)) = (at(i.checked_sub(1)), at(Some(i + 1))) {
+                let curvature = a - 2.0 * score + c;
+                if curvature < 0.0 {
+                    row += f64::from((0.5 * (a - c) / curvature).clamp(-0.5, 0.5));
+                }
+            }
+        }
+        (Some(row), Some(score))
+    }
+
+    /// Gray levels of `frame` (the mean of its channels).
+    fn gray_of<'a>(gray: &'a mut Vec<f32>, frame: &'a Planes) -> &'a [f32] {
+        if frame.planes.len() == 1 {
+            return &frame.planes[0];
+        }
+        let n = frame.planes.len() as f32;
+        gray.clear();
+        gray.extend(
+            (0..frame.width * frame.height)
+                .map(|i| frame.planes.iter().map(|p| p[i]).sum::<f32>() / n),
+        );
+        gray
+    }
+
+    /// The frame's high-passed row profiles into `self.profile`.
+    fn compute_profile(&mut self, frame: &Planes) {
+        let (w, h, g) = (self.width, self.height, self.groups);
+        let mut gray = std::mem::take(&mut self.gray);
+        let img = Self::gray_of(&mut gray, frame);
+        self.raw.fill(0.0);
+        for y in 1..h.saturating_sub(1) {
+            let (up, mid, down) = (
+                &img[(y - 1) * w..y * w],
+                &img[y * w..(y + 1) * w],
+                &img[(y + 1) * w..(y + 2) * w],
+            );
+            let out = &mut self.raw[y * g..(y + 1) * g];
+            let _ = mid;
+            for x in 0..w {
+                out[x * g / w] += down[x] - up[x];
+            }
+        }
+        // Rows 0 and h − 1 have no gradient: copy their neighbours' so the box below sees
+        // no step at the frame's edges.
+        if h >= 3 {
+            self.raw.copy_within(g..2 * g, 0);
+            self.raw.copy_within((h - 2) * g..(h - 1) * g, (h - 1) * g);
+        }
+        for y in 0..h {
+            let (lo, hi) = (y.saturating_sub(HIGH_PASS), (y + HIGH_PASS + 1).min(h));
+            for k in 0..g {
+                let mean = (lo..hi).map(|r| self.raw[r * g + k]).sum::<f32>() / (hi - lo) as f32;
+                self.profile[y * g + k] = self.raw[y * g + k] - mean;
+            }
+        }
+        self.gray = gray;
+    }
+
+    fn slot(&self, belt_row: i64) -> usize {
+        belt_row.rem_euclid(self.slot_row.len() as i64) as usize
+    }
+
+    /// The reference's mean profile at `belt_row`, if any frame covered it.
+    fn reference(&self, belt_row: i64) -> Option<&[f32]> {
+        let s = self.slot(belt_row);
+        (self.slot_row[s] == belt_row && self.weights[s] > 0.0).then(|| {
+            let g = self.groups;
+            &self.sums[s * g..(s + 1) * g]
+        })
+    }
+
+    /// Normalized correlation of the frame's profiles with the reference, the frame's top
+    /// at belt row `top`; `None` when they overlap by fewer than a quarter of the frame.
+    fn score_at(&self, top: i64) -> Option<f32> {
+        let g = self.groups;
+        let (mut fr, mut ff, mut rr, mut rows) = (0f64, 0f64, 0f64, 0usize);
+        // The middle half of the frame: the rows in contact, where features stand out.
+        let (ylo, yhi) = (self.height / 4, self.height - self.height / 4);
+        for y in ylo..yhi {
+            let s = self.slot(top + y as i64);
+            let Some(sum) = self.reference(top + y as i64) else {
+                continue;
+            };
+            let wgt = self.weights[s];
+            rows += 1;
+            for (f, r) in self.profile[y * g..(y + 1) * g].iter().zip(sum) {
+                let (f, r) = (f64::from(*f), f64::from(*r / wgt));
+                fr += f * r;
+                ff += f * f;
+                rr += r * r;
+            }
+        }
+        if rows < ((yhi - ylo) / 4).max(4) || ff <= 0.0 || rr <= 0.0 {
+            return None;
+        }
+        Some((fr / (ff * rr).sqrt()) as f32)
+    }
+
+    /// Adds the frame's profiles to the reference at belt row `row` (split between the
+    /// two nearest rows).
+    fn accumulate(&mut self, row: f64) {
+        let g = self.groups;
+        let base = row.floor();
+        let frac = (row - base) as f32;
+        let base = base as i64;
+        for y in 0..self.height {
+            for (dy, wgt) in [(0, 1.0 - frac), (1, frac)] {
+                if wgt <= 0.0 {
+                    continue;
+                }
+                let belt = base + (y + dy) as i64;
+                let s = self.slot(belt);
+                if self.slot_row[s] != belt {
+                    self.slot_row[s] = belt;
+                    self.weights[s] = 0.0;
+                    self.sums[s * g..(s + 1) * g].fill(0.0);
+                }
+                self.weights[s] += wgt;
+                for (acc, v) in self.sums[s * g..(s + 1) * g]
+                    .iter_mut()
+                    .zip(&self.profile[y * g..(y + 1) * g])
+                {
+                    *acc += wgt * v;
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,231 @@
+//! A strip written as it grows: numbered PNG segments and a JSON index of their belt rows.
+//!
+//! A conveyor runs for hours, so a strip is never held whole: rows are collected into a
+//! segment of at most `segment_rows` rows, which is written (whole, [`crate::files`]) as
+//! soon as it is full, and a new segment starts at every jump in the belt rows. A strip
+//! that fits one segment is written as `OUT` itself; a longer one as `STEM.0000.EXT`,
+//! `STEM.0001.EXT`, …; in both cases `STEM.json` lists the segments with their first belt
+//! row and is written last, so it names only segments that are complete and of this run.
+//!
+//! Memory: one segment, `segment_rows × width × channels` samples.
+
+use crate::files::{PngLayout, write_bytes_atomic, write_png};
+use anyhow::{Context, ensure};
+use std::path::{Path, PathBuf};
+
+/// Default rows per segment.
+pub const DEFAULT_SEGMENT_ROWS: usize = 4096;
+
+/// One written segment, as the index lists it.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct Segment {
+    /// File name, beside the index.
+    pub file: String,
+    /// Belt row of its first row.
+    pub first_row: i64,
+    /// Rows.
+    pub rows: usize,
+}
+
+/// The index `STEM.json`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct StripIndex<T: serde::Serialize> {
+    /// Strip width, pixels.
+    pub width: usize,
+    /// 1 (gray) or 3 (RGB).
+    pub channels: usize,
+    /// Bits per sample.
+    pub bits: u8,
+    /// The segments, in belt order.
+    pub segments: Vec<Segment>,
+    /// What the producer reports about the strip.
+    pub details: T,
+}
+
+/// Collects rows and writes segments.
+pub struct StripWriter {
+    out: PathBuf,
+    width: usize,
+    channels: usize,
+    layout: PngLayout,
+    bits: u8,
+    segment_rows: usize,
+    current_first: Option<i64>,
+    current_rows: usize,
+    data: Vec<u8>,
+    /// Segments written, each under its temporary numbered name until `finish`.
+    written: Vec<Segment>,
+}
+
+impl StripWriter {
+    /// A writer of `width`-pixel rows of `channels` (1 or 3) to `out` (a `.png` path) at
+    /// `bits` (8 or 16) per sample.
+    pub fn new(
+        out: &Path,
+        width: usize,
+        channels: usize,
+        bits: u8,
+        segment_rows: usize,
+    ) -> anyhow::Result<Self> {
+        ensure!(segment_rows >= 1, "segments need at least one row");
+        ensure!(width >= 1, "a strip needs at least one column");
+        Ok(Self {
+            out: out.to_path_buf(),
+            width,
+            channels,
+            layout: PngLayout::new(channels, bits)?,
+            bits,
+            segment_rows,
+            current_first: None,
+            current_rows: 0,
+            data: Vec::new(),
+            written: Vec::new(),
+        })
+    }
+
+    /// `STEM.NNNN.EXT` beside `out`.
+    fn numbered(&self, n: usize) -> PathBuf {
+        let stem = self.out.file_stem().unwrap_or_default().to_string_lossy();
+        let ext = self.out.extension().unwrap_or_default().to_string_lossy();
+        self.out.with_file_name(format!("{stem}.{n:04}.{ext}"))
+    }
+
+    /// The index's path, `STEM.json`.
+    pub fn index_path(out: &Path) -> PathBuf {
+        out.with_extension("json")
+    }
+
+    /// Appends belt row `row` (one slice of `width` values per channel, 8-bit scale).
+    pub fn push(&mut self, row: i64, channels: &[&[f32]]) -> anyhow::Result<()> {
+        ensure!(
+            channels.len() == self.channels && channels.iter().all(|c| c.len() == self.width),
+            "a strip row must have {} channels of {} values",
+            self.channels,
+            self.width
+        );
+        let continues = self
+            .current_first
+            .is_some_and(|first| first + self.current_rows as i64 == row);
+        if !continues || self.current_rows == self.segment_rows {
+            self.flush()?;
+            self.current_first = Some(row);
+        }
+        for x in 0..self.width {
+            for c in channels {
+                let v = c[x];
+                match self.bits {
+                    8 => self.data.push(v.round().clamp(0.0, 255.0) as u8),
+                    _ => {
+                        let s = (v * (65535.0 / 255.0)).round().clamp(0.0, 65535.0) as u16;
+                        self.data.extend_from_slice(&s.to_ne_bytes());
+                    }
+                }
+            }
+        }
+        self.current_rows += 1;
+        Ok(())
+    }
+
+    /// Writes the segment being collected, if any.
+    fn flush(&mut self) -> anyhow::Result<()> {
+        let Some(first) = self.current_first.take() else {
+            return Ok(());
+        };
+        let path = self.numbered(self.written.len());
+        write_png(
+            &path,
+            &self.data,
+            (self.width, self.current_rows),
+            self.layout,
+        )?;
+        self.written.push(Segment {
+            file: path
+                .file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned(),
+            first_row: first,
+            rows: self.current_rows,
+        });
+        self.data.clear();
+        self.current_rows = 0;
+        Ok(())
+    }
+
+    /// Writes the last segment, renames a lone segment to `out` itself, and writes the
+    /// index with `details`. Returns the segments written.
+    pub fn finish<T: serde::Serialize>(mut self, details: T) -> anyhow::Result<Vec<Segment>> {
+        self.flush()?;
+        ensure!(
+            !self.written.is_empty(),
+            "the strip has no rows: nothing was written"
+        );
+        if self.written.len() == 1 {
+            let lone = self.numbered(0);
+            std::fs::rename(&lone, &self.out)
+                .with_context(|| format!("cannot move {} into place", self.out.display()))?;
+            self.written[0].file = self
+                .out
+                .file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned();
+        }
+        let index = StripIndex {
+            width: self.width,
+            channels: self.channels,
+            bits: self.bits,
+            segments: self.written.clone(),
+            details,
+        };
+        let json = serde_json::to_string_pretty(&index)? + "\n";
+        write_bytes_atomic(&Self::index_path(&self.out), json.as_bytes())?;
+        Ok(self.written)
+    }
+}
+
+impl crate::fullres::roll::StripSink for StripWriter {
+    fn row(&mut self, row: i64, channels: &[&[f32]]) -> anyhow::Result<()> {
+        self.push(row, channels)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn long_strips_are_cut_into_indexed_segments_and_jumps_start_new_ones() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("strip.png");
+        let mut w = StripWriter::new(&out, 3, 1, 8, 4).unwrap();
+        for row in (10..20).chain(30..32) {
+            w.push(row, &[&[row as f32; 3]]).unwrap();
+        }
+        let segs = w.finish("test").unwrap();
+        let firsts: Vec<(i64, usize)> = segs.iter().map(|s| (s.first_row, s.rows)).collect();
+        assert_eq!(firsts, [(10, 4), (14, 4), (18, 2), (30, 2)]);
+        let third = image::open(dir.path().join("strip.0002.png"))
+            .unwrap()
+            .to_luma8();
+        assert_eq!(third.into_raw(), [18, 18, 18, 19, 19, 19]);
+        let index = std::fs::read_to_string(dir.path().join("strip.json")).unwrap();
+        assert!(index.contains("\"strip.0003.png\""), "{index}");
+        assert!(!out.exists());
+    }
+
+    #[test]
+    fn a_short_strip_is_one_file_named_as_asked() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("s.png");
+        let mut w = StripWriter::new(&out, 2, 3, 16, 100).unwrap();
+        w.push(-5, &[&[1.0, 2.0], &[3.0, 4.0], &[5.0, 6.0]])
+            .unwrap();
+        let segs = w.finish(()).unwrap();
+        assert_eq!(segs[0].file, "s.png");
+        assert_eq!(image::open(&out).unwrap().to_rgb16().len(), 6);
+        assert!(!dir.path().join("s.0000.png").exists());
+        let empty = StripWriter::new(&dir.path().join("e.png"), 2, 1, 8, 10).unwrap();
+        assert!(empty.finish(()).is_err());
+    }
+}
