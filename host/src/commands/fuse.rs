@@ -103,9 +103,10 @@ pub struct Args {
     /// before the motion is known; default half a frame).
     #[arg(long)]
     pub max_shift: Option<usize>,
-    /// With --align template: the lowest correlation accepted (0..1).
-    #[arg(long, default_value_t = 0.5)]
-    pub min_score: f32,
+    /// With --align template: the lowest correlation accepted, 0..1 (default: 0.5 for
+    /// a mosaic's frame-to-frame template, 0.3 for a roll's row profiles).
+    #[arg(long)]
+    pub min_score: Option<f32>,
     /// Remove one part of the method (paper Table II).
     #[arg(long, value_enum, default_value = "none")]
     pub ablation: AblationArg,
@@ -283,8 +284,8 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if !(1..=4).contains(&args.levels) {
         bail!("--levels must be 1..=4, got {}", args.levels);
     }
-    if !(0.0..=1.0).contains(&args.min_score) {
-        bail!("--min-score must be in 0..=1, got {}", args.min_score);
+    if let Some(m) = args.min_score.filter(|m| !(0.0..=1.0).contains(m)) {
+        bail!("--min-score must be in 0..=1, got {m}");
     }
     let (t0, t1) = (args.template_rows[0], args.template_rows[1]);
     if !(0.0 <= t0 && t0 < t1 && t1 <= 1.0) {
@@ -390,7 +391,7 @@ fn run_mosaic(args: &Args, frames: Vec<Planes>, cfg: &FuseConfig) -> anyhow::Res
                 rows: (t0, t1),
                 max_dy: args.max_shift.unwrap_or(200),
                 max_dx: 8,
-                min_score: args.min_score,
+                min_score: args.min_score.unwrap_or(0.5),
             };
             let bar = progress(frames.len(), "frames", "aligning".into());
             let chain = align_chain(&frames, &params, |k| bar.set_position(k as u64));

@@ -27,7 +27,9 @@ pub fn track_params(args: &Args, height: usize) -> TrackParams {
     if let Some(m) = args.max_shift {
         p.first_search_rows = m;
     }
-    p.min_score = args.min_score;
+    if let Some(m) = args.min_score {
+        p.min_score = m;
+    }
     p.subpixel = !args.no_subpixel;
     p
 }

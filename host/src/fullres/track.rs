@@ -10,9 +10,10 @@
 //!   rows (sub-pixel positions split between two rows) in a ring of 4 frame heights: the
 //!   strip as aligned, not the previous frame alone, so one poor match does not carry
 //!   into every later position.
-//! - **Prediction.** From the manifest's commanded position when given (plus the
-//!   deviation from it that matching has found, see [`Anchor`]), else the last position
-//!   plus the median of the last five measured steps.
+//! - **Prediction.** The manifest's commanded position when given, else the last
+//!   position plus the median of the last five measured steps. With commanded positions,
+//!   matches fix each frame's place relative to its neighbours and the commanded rows fix
+//!   where the whole run of them lies (see [`Anchor`]).
 //! - **Match.** Normalized correlation of the frame's profiles with the reference over
 //!   their overlap, at every whole row within `search_rows` of the prediction; the best
 //!   refined to sub-pixel by a parabola through its neighbours. Accepted when the score
@@ -46,7 +47,7 @@ impl TrackParams {
         Self {
             search_rows: None,
             first_search_rows: height / 2,
-            min_score: 0.5,
+            min_score: 0.3,
             subpixel: true,
         }
     }
@@ -113,52 +114,66 @@ pub struct Tracker {
     last: Option<f64>,
     steps: VecDeque<f64>,
     anchor: Anchor,
+    /// Frames placed so far.
+    frame: usize,
+    /// The newest frame of the chain in the reference: its row, commanded row, number.
+    chain_end: (f64, Option<f64>, usize),
+    /// Whether the chain has a matched link.
+    linked: bool,
 }
 
-/// How far the deviation from the commanded rows is kept from one frame to the next: it
-/// follows the belt's unknown position error, and fades where there is nothing to match.
-const ANCHOR_DECAY: f64 = 0.95;
+/// Frames of a chain over which its place is averaged against the commanded rows.
+const ANCHOR_FRAMES: usize = 40;
 
 /// Commanded motion as the long-term reference, matches as the short-term one.
 ///
-/// Matching measures motion in the images' apparent scale, which is not the belt's: the
-/// gel pulls each feature toward the apex a little more the farther it is from it, so on
-/// the simulator's letters geometry every step measures about 1 % short (20 px steps:
-/// 19.8). Summed over a roll that is a drift; the commanded motion has none. So each
-/// matched step is rescaled by the ratio of all matched to all commanded travel so far,
-/// and the position is the commanded row plus a deviation that follows the matched steps
-/// and decays toward zero by [`ANCHOR_DECAY`] a frame.
+/// Matching links each frame to the frames before it: a run of matched frames (a chain)
+/// has a shape known to a fraction of a pixel, but its place inherits every error before
+/// it. The commanded rows have no drift but carry the belt's unknown error of a few pixels
+/// per frame. So a chain's shape comes from its matched steps and its place from the
+/// commanded rows, averaged over its last [`ANCHOR_FRAMES`] frames.
+///
+/// Matched steps are in the images' apparent scale, which is not the belt's: the gel
+/// pulls each feature toward the apex a little more the farther it is from it, so on the
+/// simulator's letters geometry every step measures about 1 % short (20 px: 19.8). Each
+/// step is rescaled by the ratio of all matched to all commanded travel so far.
 #[derive(Debug, Default)]
 struct Anchor {
     measured: f64,
     commanded: f64,
-    deviation: f64,
-    last_commanded: Option<f64>,
+    /// The chain's newest frame's place along it.
+    along: f64,
+    /// Commanded row minus place along the chain, for the chain's newest frames.
+    offsets: VecDeque<f64>,
 }
 
 impl Anchor {
     /// Commanded travel after which the matched-to-commanded ratio is used, rows.
     const SCALE_AFTER: f64 = 100.0;
 
-    /// The row of a frame commanded at `commanded`, the last frame at `last`, matched at
-    /// `matched` if it was.
-    fn follow(&mut self, last: f64, commanded: f64, matched: Option<f64>) -> f64 {
-        let raw = match (matched, self.last_commanded) {
-            (Some(m), Some(prev)) => {
-                let (step, told) = (m - last, commanded - prev);
-                self.measured += step;
-                self.commanded += told;
-                let scale = if self.commanded.abs() >= Self::SCALE_AFTER {
-                    (self.measured / self.commanded).clamp(0.5, 2.0)
-                } else {
-                    1.0
-                };
-                self.deviation + step / scale - told
-            }
-            _ => self.deviation,
+    /// Starts a chain with a frame commanded at `commanded`.
+    fn start(&mut self, commanded: f64) {
+        self.along = 0.0;
+        self.offsets.clear();
+        self.offsets.push_back(commanded);
+    }
+
+    /// Links a frame commanded at `commanded` to the chain: matched `step` rows after the
+    /// chain's newest frame, which was commanded `told` rows before. Returns its row.
+    fn link(&mut self, step: f64, told: f64, commanded: f64) -> f64 {
+        self.measured += step;
+        self.commanded += told;
+        let scale = if self.commanded.abs() >= Self::SCALE_AFTER {
+            (self.measured / self.commanded).clamp(0.5, 2.0)
+        } else {
+            1.0
         };
-        self.deviation = ANCHOR_DECAY * raw;
-        commanded + self.deviation
+        self.along += step / scale;
+        if self.offsets.len() == ANCHOR_FRAMES {
+            self.offsets.pop_front();
+        }
+        self.offsets.push_back(commanded - self.along);
+        self.along + self.offsets.iter().sum::<f64>() / self.offsets.len() as f64
     }
 }
 
@@ -197,50 +212,82 @@ impl Tracker {
             last: None,
             steps: VecDeque::new(),
             anchor: Anchor::default(),
+            frame: 0,
+            chain_end: (0.0, None, 0),
+            linked: false,
         }
     }
 
     /// Places the next frame; `commanded` is its commanded belt row from a manifest, if
     /// any. The frame must be `width × height`.
+    ///
+    /// Frames form chains: each matched frame is linked to the chain the reference holds
+    /// and joins it. A frame without a match is placed at its prediction and left out of
+    /// the reference, unless the chain has no link yet or the frame no longer overlaps it:
+    /// then it starts a new chain, alone in the reference. So the reference only ever
+    /// holds frames placed consistently with each other.
     pub fn place(&mut self, frame: &Planes, commanded: Option<f64>) -> Placement {
         self.compute_profile(frame);
-        let placement = match self.last {
-            None => Placement {
-                row: commanded.unwrap_or(0.0),
+        self.frame += 1;
+        let Some(last) = self.last else {
+            let row = commanded.unwrap_or(0.0);
+            self.start_chain(row, commanded);
+            return Placement {
+                row,
                 source: Source::First,
                 score: None,
-            },
-            Some(last) => {
-                let (pred, reach) = self.predict(last, commanded);
-                let (matched, score) = self.match_near(pred, reach);
-                let row = match commanded {
-                    Some(c) => self.anchor.follow(last, c, matched),
-                    None => matched.unwrap_or(pred),
+            };
+        };
+        let (pred, reach) = self.predict(last, commanded);
+        let (matched, score) = self.match_near(pred, reach);
+        let row = match matched {
+            Some(m) => {
+                let (prev_row, prev_commanded, prev_frame) = self.chain_end;
+                let frames = (self.frame - prev_frame).max(1) as f64;
+                push_bounded(&mut self.steps, (m - prev_row) / frames);
+                let row = match (commanded, prev_commanded) {
+                    (Some(c), Some(pc)) => self.anchor.link(m - prev_row, c - pc, c),
+                    _ => m,
                 };
-                if let Some(m) = matched {
-                    push_bounded(&mut self.steps, m - last);
+                self.accumulate(row);
+                self.chain_end = (row, commanded, self.frame);
+                self.linked = true;
+                row
+            }
+            None => {
+                let row = commanded.unwrap_or(pred);
+                if !self.linked || score.is_none() {
+                    self.start_chain(row, commanded);
                 }
-                Placement {
-                    row,
-                    source: if matched.is_some() {
-                        Source::Matched
-                    } else {
-                        Source::Predicted
-                    },
-                    score,
-                }
+                row
             }
         };
-        self.anchor.last_commanded = commanded;
-        self.accumulate(placement.row);
-        self.last = Some(placement.row);
-        placement
+        self.last = Some(row);
+        Placement {
+            row,
+            source: if matched.is_some() {
+                Source::Matched
+            } else {
+                Source::Predicted
+            },
+            score,
+        }
+    }
+
+    /// Clears the reference and starts a chain with the current frame at `row`.
+    fn start_chain(&mut self, row: f64, commanded: Option<f64>) {
+        self.slot_row.fill(i64::MIN);
+        self.anchor.start(commanded.unwrap_or(row));
+        self.accumulate(row);
+        self.chain_end = (row, commanded, self.frame);
+        self.linked = false;
+        self.last = Some(row);
     }
 
     /// The predicted row and the rows to search either side of it.
     fn predict(&self, last: f64, commanded: Option<f64>) -> (f64, usize) {
         let (pred, known) = match (commanded, median(&self.steps)) {
-            (Some(c), _) => (c + ANCHOR_DECAY * self.anchor.deviation, true),
+            (Some(c), _) => (c, true),
             (None, Some(step)) => (last + step, true),
             (None, None) => (last, false),
         };
@@ -321,6 +368,21 @@ impl Tracker {
         if h >= 3 {
             self.raw.copy_within(g..2 * g, 0);
             self.raw.copy_within((h - 2) * g..(h - 1) * g, (h - 1) * g);
+        }
+        // Smoothed along the rows ([1 2 1] / 4): the row differences of sensor noise
+        // alternate in sign, the gel's smooth features do not.
+        for k in 0..g {
+            let mut before = self.raw[k];
+            for y in 0..h {
+                let here = self.raw[y * g + k];
+                let after = if y + 1 < h {
+                    self.raw[(y + 1) * g + k]
+                } else {
+                    here
+                };
+                self.raw[y * g + k] = 0.25 * (before + 2.0 * here + after);
+                before = here;
+            }
         }
         for y in 0..h {
             let (lo, hi) = (y.saturating_sub(HIGH_PASS), (y + HIGH_PASS + 1).min(h));
