@@ -296,7 +296,7 @@ fn without_commanded_motion_steps_are_matched_through_speed_changes() {
         p90 <= 0.75 && worst <= 1.5,
         "step errors: 90 % within {p90:.2} px, all within {worst:.2}"
     );
-    assert!(checked >= 30, "only {checked} steps matched");
+    assert!(checked >= 20, "only {checked} steps matched");
 }
 
 #[test]
