@@ -6,14 +6,19 @@
 //! is listed, and the device's own counters (frames, tiles emitted, tiles dropped) are
 //! kept from its last status. A stream cut off midway keeps every tile received.
 //!
-//! Outputs, in the session's folder: `strip.png` (rewritten every
-//! [`STRIP_WRITE_INTERVAL`] while tiles arrive, and at the end; missing tiles are black
-//! rows) and `manifest.json`. Both depend only on the messages received, so playing a
-//! recording back ([`crate::link::replay`]) writes the same bytes. Timings are printed,
-//! not written.
+//! Outputs, in the session's folder: the strip, written as it grows
+//! ([`crate::strip_file`]: `strip.png`, or segments `strip.0000.png` … once it is longer
+//! than a segment, with `strip.json` listing their belt rows), and `manifest.json`. Tiles
+//! are written in index order as soon as the tiles before them are in (a late tile may
+//! overtake up to [`REORDER_TILES`] others); up to [`FILL_GAP_TILES`] missing tiles are
+//! black rows where they belong, a longer jump of the index starts a new segment. Memory
+//! does not grow with the stream. Every output depends only on the messages received, so
+//! playing a recording back ([`crate::link::replay`]) writes the same bytes. Timings are
+//! printed, not written.
 
 use crate::link::replay::Recorder;
 use crate::link::{Received, Transport};
+use crate::strip_file::{DEFAULT_SEGMENT_ROWS, StripWriter};
 use anyhow::{Context, bail};
 use rollfuse_core::protocol::{
     self, Command, DecodeError, DeviceConfig, DeviceInfo, DeviceMessage, MAX_MESSAGE, SeqEvent,
@@ -24,8 +29,11 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-/// How often the strip on disk is brought up to date while tiles arrive.
-pub const STRIP_WRITE_INTERVAL: Duration = Duration::from_secs(2);
+/// Tiles held back waiting for a missing index before it is declared lost.
+pub const REORDER_TILES: usize = 16;
+
+/// Missing tiles drawn as black rows in the strip; a longer jump starts a new segment.
+pub const FILL_GAP_TILES: usize = 64;
 
 /// How long a live device may stay silent before the session gives up on it.
 pub const SILENCE_LIMIT: Duration = Duration::from_secs(5);
@@ -70,6 +78,8 @@ pub struct Faults {
     pub repeated: u64,
     /// Tiles whose index had already been received (the first copy is kept).
     pub duplicate_tiles: u64,
+    /// Tiles that arrived after their index had been declared lost (not placed).
+    pub late_tiles: u64,
     /// Tiles of another width or height than the first (not placed).
     pub mismatched_tiles: u64,
 }
@@ -98,6 +108,7 @@ impl Faults {
             + self.sequence_gaps
             + self.repeated
             + self.duplicate_tiles
+            + self.late_tiles
             + self.mismatched_tiles
     }
 }
@@ -133,53 +144,115 @@ pub struct Manifest {
     pub device_stopped: bool,
 }
 
-/// The tiles received, by index.
-#[derive(Default)]
-struct StripTiles {
+/// The strip as tiles arrive: written in index order, late tiles held back a little.
+struct StreamedStrip {
+    out: PathBuf,
     size: Option<(u16, u16)>,
-    tiles: BTreeMap<u32, Vec<u8>>,
+    writer: Option<StripWriter>,
+    /// Tiles received ahead of the next index to write.
+    pending: BTreeMap<u32, Vec<u8>>,
+    /// The next index to write.
+    next: Option<u32>,
 }
 
-impl StripTiles {
-    /// Writes the strip: rows from the first to the last index, missing tiles black.
-    fn write(&self, path: &Path) -> anyhow::Result<()> {
-        let (Some((w, t)), Some((&first, _)), Some((&last, _))) = (
-            self.size,
-            self.tiles.first_key_value(),
-            self.tiles.last_key_value(),
-        ) else {
+/// Why a tile was not taken.
+enum Refused {
+    Mismatched,
+    Duplicate,
+    Late,
+}
+
+impl StreamedStrip {
+    fn new(out: PathBuf) -> Self {
+        Self {
+            out,
+            size: None,
+            writer: None,
+            pending: BTreeMap::new(),
+            next: None,
+        }
+    }
+
+    /// Takes a tile; writes every tile that is now in order.
+    fn take(
+        &mut self,
+        index: u32,
+        size: (u16, u16),
+        pixels: &[u8],
+        m: &mut Manifest,
+    ) -> anyhow::Result<Result<(), Refused>> {
+        if *self.size.get_or_insert(size) != size {
+            return Ok(Err(Refused::Mismatched));
+        }
+        if self.pending.contains_key(&index) {
+            return Ok(Err(Refused::Duplicate));
+        }
+        if self.next.is_some_and(|n| index < n) {
+            let lost = m.gaps.iter().any(|[a, b]| (*a..=*b).contains(&index));
+            return Ok(Err(if lost {
+                Refused::Late
+            } else {
+                Refused::Duplicate
+            }));
+        }
+        self.next.get_or_insert(index);
+        self.pending.insert(index, pixels.to_vec());
+        m.index_range = Some(match m.index_range {
+            Some([lo, hi]) => [lo.min(index), hi.max(index)],
+            None => [index, index],
+        });
+        self.drain(m, REORDER_TILES)?;
+        Ok(Ok(()))
+    }
+
+    /// Writes pending tiles in order, declaring missing indices lost while more than
+    /// `hold` tiles wait.
+    fn drain(&mut self, m: &mut Manifest, hold: usize) -> anyhow::Result<()> {
+        while let Some((&lowest, _)) = self.pending.first_key_value() {
+            let next = self.next.unwrap_or(lowest);
+            if lowest != next {
+                if self.pending.len() <= hold {
+                    break;
+                }
+                m.gaps.push([next, lowest - 1]);
+            }
+            let pixels = self.pending.remove(&lowest).unwrap_or_default();
+            self.write_tile(lowest, &pixels)?;
+            self.next = lowest.checked_add(1);
+        }
+        Ok(())
+    }
+
+    fn write_tile(&mut self, index: u32, pixels: &[u8]) -> anyhow::Result<()> {
+        let Some((w, t)) = self.size else {
             return Ok(());
         };
-        let tile_bytes = usize::from(w) * usize::from(t);
-        let count = (last - first) as usize + 1;
-        let mut pixels = vec![0u8; count * tile_bytes];
-        for (&index, tile) in &self.tiles {
-            let at = (index - first) as usize * tile_bytes;
-            pixels[at..at + tile_bytes].copy_from_slice(tile);
+        let (w, t) = (usize::from(w), usize::from(t));
+        if self.writer.is_none() {
+            self.writer = Some(
+                StripWriter::new(&self.out, w, 1, 8, DEFAULT_SEGMENT_ROWS)?
+                    .fill_gaps(FILL_GAP_TILES * t),
+            );
         }
-        let img = image::GrayImage::from_raw(u32::from(w), (count * usize::from(t)) as u32, pixels)
-            .context("strip buffer does not match its size")?;
-        // Written aside and renamed, so a reader never sees half a file.
-        let tmp = path.with_extension("png.part");
-        img.save_with_format(&tmp, image::ImageFormat::Png)
-            .with_context(|| format!("cannot write {}", tmp.display()))?;
-        std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
+        let writer = self.writer.as_mut().context("no strip writer")?;
+        let mut row = vec![0f32; w];
+        for (r, line) in pixels.chunks_exact(w).take(t).enumerate() {
+            for (v, &p) in row.iter_mut().zip(line) {
+                *v = f32::from(p);
+            }
+            writer.push(i64::from(index) * t as i64 + r as i64, &[&row])?;
+        }
+        Ok(())
     }
-}
 
-/// Missing indices between the first and last present, as inclusive ranges.
-fn gaps(indices: impl Iterator<Item = u32>) -> Vec<[u32; 2]> {
-    let mut out = Vec::new();
-    let mut prev: Option<u32> = None;
-    for i in indices {
-        if let Some(p) = prev
-            && i > p + 1
-        {
-            out.push([p + 1, i - 1]);
+    /// Writes every tile still held and the strip's index.
+    fn finish(mut self, m: &mut Manifest) -> anyhow::Result<()> {
+        self.drain(m, 0)?;
+        if let Some(writer) = self.writer {
+            writer.finish(serde_json::json!({ "tile_size": m.tile_size }))?;
         }
-        prev = Some(i);
+        Ok(())
     }
-    out
 }
 
 /// Why the session stopped asking for tiles (printed, not in the manifest).
@@ -250,13 +323,12 @@ pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> 
         indicatif::ProgressBar::hidden()
     };
     let mut manifest = Manifest::default();
-    let mut strip = StripTiles::default();
+    let mut strip = StreamedStrip::new(strip_path);
     let mut seqs = SeqTracker::new();
     // Room beyond the largest message, so an oversized transfer arrives whole enough to
     // be counted as too long rather than failing the read.
     let mut buf = vec![0u8; 2 * MAX_MESSAGE];
     let mut last_message = Instant::now();
-    let mut last_write = Instant::now();
     let mut stop_sent = false;
     let mut stop = StopReason::LinkClosed;
     loop {
@@ -354,15 +426,21 @@ pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> 
             }
             DeviceMessage::Tile(tile) => {
                 let size = (tile.width, tile.height);
-                if *strip.size.get_or_insert(size) != size {
-                    manifest.faults.mismatched_tiles += 1;
-                    continue;
+                match strip.take(tile.index, size, tile.pixels, &mut manifest)? {
+                    Ok(()) => {}
+                    Err(Refused::Mismatched) => {
+                        manifest.faults.mismatched_tiles += 1;
+                        continue;
+                    }
+                    Err(Refused::Duplicate) => {
+                        manifest.faults.duplicate_tiles += 1;
+                        continue;
+                    }
+                    Err(Refused::Late) => {
+                        manifest.faults.late_tiles += 1;
+                        continue;
+                    }
                 }
-                if strip.tiles.contains_key(&tile.index) {
-                    manifest.faults.duplicate_tiles += 1;
-                    continue;
-                }
-                strip.tiles.insert(tile.index, tile.pixels.to_vec());
                 *manifest.observations.entry(tile.observations).or_default() += 1;
                 manifest.tiles_received += 1;
                 let secs = started.elapsed().as_secs_f64().max(1e-9);
@@ -373,10 +451,6 @@ pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> 
                     manifest.bytes as f64 / secs / 1e6
                 ));
                 bar.tick();
-                if last_write.elapsed() >= STRIP_WRITE_INTERVAL {
-                    strip.write(&strip_path)?;
-                    last_write = Instant::now();
-                }
             }
         }
     }
@@ -385,13 +459,7 @@ pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> 
         r.finish()?;
     }
     manifest.tile_size = strip.size.map(|(w, t)| [w, t]);
-    manifest.index_range = strip
-        .tiles
-        .first_key_value()
-        .zip(strip.tiles.last_key_value())
-        .map(|((&a, _), (&b, _))| [a, b]);
-    manifest.gaps = gaps(strip.tiles.keys().copied());
-    strip.write(&strip_path)?;
+    strip.finish(&mut manifest)?;
     write_manifest(&manifest_path, &manifest)?;
     Ok(Outcome {
         manifest,
@@ -401,18 +469,6 @@ pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> 
 }
 
 fn write_manifest(path: &Path, manifest: &Manifest) -> anyhow::Result<()> {
-    std::fs::write(path, serde_json::to_string_pretty(manifest)? + "\n")
-        .with_context(|| format!("cannot write {}", path.display()))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::gaps;
-
-    #[test]
-    fn gaps_are_inclusive_ranges_between_present_indices() {
-        assert_eq!(gaps([3, 4, 7, 8, 10].into_iter()), vec![[5, 6], [9, 9]]);
-        assert!(gaps([1, 2, 3].into_iter()).is_empty());
-        assert!(gaps(std::iter::empty()).is_empty());
-    }
+    let json = serde_json::to_string_pretty(manifest)? + "\n";
+    crate::files::write_bytes_atomic(path, json.as_bytes())
 }

@@ -50,6 +50,7 @@ pub struct StripWriter {
     layout: PngLayout,
     bits: u8,
     segment_rows: usize,
+    fill_gaps: usize,
     current_first: Option<i64>,
     current_rows: usize,
     data: Vec<u8>,
@@ -76,11 +77,19 @@ impl StripWriter {
             layout: PngLayout::new(channels, bits)?,
             bits,
             segment_rows,
+            fill_gaps: 0,
             current_first: None,
             current_rows: 0,
             data: Vec::new(),
             written: Vec::new(),
         })
+    }
+
+    /// Fills a jump of at most `rows` missing rows with zeros inside the segment instead
+    /// of starting a new one (a stream's lost tiles show as black rows where they were).
+    pub fn fill_gaps(mut self, rows: usize) -> Self {
+        self.fill_gaps = rows;
+        self
     }
 
     /// `STEM.NNNN.EXT` beside `out`.
@@ -103,6 +112,16 @@ impl StripWriter {
             self.channels,
             self.width
         );
+        let expected = self
+            .current_first
+            .map(|first| first + self.current_rows as i64);
+        if let Some(next) = expected.filter(|&e| row > e && row - e <= self.fill_gaps as i64) {
+            let zeros = vec![0f32; self.width];
+            let blank: Vec<&[f32]> = (0..self.channels).map(|_| zeros.as_slice()).collect();
+            for missing in next..row {
+                self.push(missing, &blank)?;
+            }
+        }
         let continues = self
             .current_first
             .is_some_and(|first| first + self.current_rows as i64 == row);
@@ -212,6 +231,23 @@ mod tests {
         let index = std::fs::read_to_string(dir.path().join("strip.json")).unwrap();
         assert!(index.contains("\"strip.0003.png\""), "{index}");
         assert!(!out.exists());
+    }
+
+    #[test]
+    fn short_jumps_are_filled_with_zeros_and_long_ones_start_a_segment() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("g.png");
+        let mut w = StripWriter::new(&out, 1, 1, 8, 100).unwrap().fill_gaps(2);
+        for row in [0, 1, 4, 5, 9] {
+            w.push(row, &[&[7.0]]).unwrap();
+        }
+        let segs = w.finish(()).unwrap();
+        let spans: Vec<(i64, usize)> = segs.iter().map(|s| (s.first_row, s.rows)).collect();
+        assert_eq!(spans, [(0, 6), (9, 1)]);
+        let first = image::open(dir.path().join("g.0000.png"))
+            .unwrap()
+            .to_luma8();
+        assert_eq!(first.into_raw(), [7, 7, 0, 0, 7, 7]);
     }
 
     #[test]

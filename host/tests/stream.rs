@@ -300,3 +300,57 @@ fn bad_stream_arguments_are_refused_clearly() {
         assert!(!err.contains("panicked"), "{err}");
     }
 }
+
+/// A tile message with index `index`, `w × t` pixels of `value`, sequence `seq`.
+fn tile_message(seq: u32, index: u32, (w, t): (u16, u16), value: u8) -> Vec<u8> {
+    let pixels = vec![value; usize::from(w) * usize::from(t)];
+    let tile = DeviceMessage::Tile(protocol::Tile {
+        index,
+        width: w,
+        height: t,
+        observations: 1,
+        pixels: &pixels,
+    });
+    let mut buf = vec![0u8; MAX_MESSAGE];
+    let n = protocol::encode(seq, &tile, &mut buf).unwrap();
+    buf.truncate(n);
+    buf
+}
+
+#[test]
+fn a_far_jump_of_the_index_starts_a_segment_and_late_tiles_are_counted() {
+    // Indices 0, 1, 3 (2 lost: a black tile), then 4 000 000 000: never a canvas between.
+    let size = (8, 4);
+    let indices = [0u32, 1, 3, 4_000_000_000, 4_000_000_001];
+    let mut messages: Vec<Vec<u8>> = indices
+        .iter()
+        .enumerate()
+        .map(|(k, &i)| tile_message(k as u32, i, size, 10 + k as u8))
+        .collect();
+    // Tile 1 again: a duplicate, not placed.
+    messages.push(tile_message(5, 1, size, 99));
+    let tmp = tempfile::tempdir().unwrap();
+    let mut link = Scripted {
+        messages: messages.into_iter(),
+    };
+    let out = stream::run(&mut link, &options(tmp.path(), None)).unwrap();
+    let m = &out.manifest;
+    assert_eq!(m.tiles_received, 5);
+    assert_eq!(m.faults.duplicate_tiles, 1);
+    assert_eq!(m.gaps, vec![[2, 2], [4, 3_999_999_999]]);
+    let index: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("strip.json")).unwrap())
+            .unwrap();
+    let segments = index["segments"].as_array().unwrap();
+    assert_eq!(segments.len(), 2, "{index}");
+    assert_eq!(segments[1]["first_row"], 16_000_000_000i64);
+    let first = image::open(tmp.path().join(segments[0]["file"].as_str().unwrap()))
+        .unwrap()
+        .to_luma8();
+    // Tiles 0, 1, the lost 2 in black, 3.
+    let rows: Vec<u8> = first.as_raw().chunks(8).map(|r| r[0]).collect();
+    assert_eq!(
+        rows,
+        [10, 10, 10, 10, 11, 11, 11, 11, 0, 0, 0, 0, 12, 12, 12, 12]
+    );
+}
