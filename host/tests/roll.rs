@@ -367,3 +367,24 @@ fn a_band_is_the_cyclic_fusion_of_its_windows_frames() {
         assert_eq!(got, want, "strip row {row}");
     }
 }
+
+#[test]
+fn the_contact_window_strip_beats_time_splicing_under_a_varying_belt_speed() {
+    for name in ["letters", "lines"] {
+        let path = format!("{}/scenes/{name}.toml", env!("CARGO_MANIFEST_DIR"));
+        let scene = Scene::load(std::path::Path::new(&path)).unwrap();
+        let rows = rollfuse::eval::roll::evaluate_roll(&scene, 10).unwrap();
+        let ms = |method: &str| {
+            rows.iter()
+                .find(|r| r.method.starts_with(method))
+                .and_then(|r| r.report.ms_ssim)
+                .unwrap()
+        };
+        let (ours, splice) = (ms("contact-window strip"), ms("time splicing"));
+        assert!(
+            ours >= splice,
+            "{name}: MS-SSIM {ours:.4} for the contact-window strip, {splice:.4} for time splicing"
+        );
+        assert!(ours > ms("single apex frame"), "{name}");
+    }
+}

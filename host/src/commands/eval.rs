@@ -21,6 +21,11 @@ pub struct Args {
     /// Table IV instead: depth from single and fused frames of the three-sphere scene.
     #[arg(long)]
     pub depth: bool,
+    /// The whole-roll table instead: each scene rolled with a varying belt speed, four
+    /// ways to a strip against the ideal contact (default scenes: letters and the three
+    /// matrices).
+    #[arg(long, conflicts_with = "depth")]
+    pub roll: bool,
 }
 
 /// The built-in standardized samples.
@@ -58,10 +63,44 @@ fn run_depth(args: &Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Runs `rollfuse eval --roll`.
+fn run_roll(args: &Args) -> anyhow::Result<()> {
+    let scenes = if args.scene.is_empty() {
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes");
+        let mut s = vec![dir.join("letters.toml")];
+        s.extend(default_scenes());
+        s
+    } else {
+        args.scene.clone()
+    };
+    let loaded: Vec<Scene> = scenes
+        .iter()
+        .map(|p| Scene::load(p))
+        .collect::<anyhow::Result<_>>()?;
+    let bar = progress(loaded.len(), "scenes", "rolling".into());
+    let mut rows = Vec::new();
+    for (k, scene) in loaded.iter().enumerate() {
+        rows.extend(crate::eval::roll::evaluate_roll(scene, 10)?);
+        bar.set_position(k as u64 + 1);
+    }
+    bar.finish_and_clear();
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let md = crate::eval::roll::markdown(&rows);
+    crate::files::write_bytes_atomic(&args.out.join("roll.csv"), csv(&rows).as_bytes())?;
+    crate::files::write_bytes_atomic(&args.out.join("roll.md"), md.as_bytes())?;
+    print!("{md}");
+    println!("\nwritten: {}/roll.md, roll.csv", args.out.display());
+    Ok(())
+}
+
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.depth {
         return run_depth(&args);
+    }
+    if args.roll {
+        return run_roll(&args);
     }
     let scenes = if args.scene.is_empty() {
         default_scenes()

@@ -3,4 +3,5 @@
 
 pub mod depth;
 pub mod metrics;
+pub mod roll;
 pub mod tables;

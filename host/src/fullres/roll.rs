@@ -1,9 +1,10 @@
 //! Contact-window fusion of a whole roll, streamed: frames in, strip rows out.
 //!
 //! Belt rows are cut into bands of `band_rows`. Band `b` (rows `b·B .. (b+1)·B`, centre
-//! `c`) is fused cyclically, in acquisition order, from the frames whose contact window
-//! held `c` (the device fuses a tile the same way, from the frames that saw it near the
-//! apex). Each band is fused over its rows plus a margin either side — half the blend
+//! `c`) is fused cyclically from the frames whose contact window held `c` (the device
+//! fuses a tile the same way, from the frames that saw it near the apex), in order of
+//! their distance from the apex, farthest first: the last frame of a cyclic fusion
+//! weighs most in the LL band, and that should be the deepest contact. Each band is fused over its rows plus a margin either side — half the blend
 //! zone, and enough rows that the wavelet's boundary extension does not reach the rows
 //! kept — and neighbouring bands are cross-faded linearly over `blend_rows` rows around
 //! their boundary, so the change of frames from one band to the next leaves no seam.
@@ -304,7 +305,14 @@ impl<S: StripSink> RollFuser<S> {
                 self.summary.bands_outside_window += 1;
             }
         }
-        chosen.sort_by_key(|&i| self.frames[i].index);
+        // From the window's edges toward its centre: the newest frame of a cyclic fusion
+        // weighs most in the LL band (½ with the paper's weighting), so it is the one that
+        // saw the band nearest the apex, deepest in contact. Ties in acquisition order.
+        let from_apex = |f: &Held| (f.top + start + rows / 2 - c).abs();
+        chosen.sort_by_key(|&i| {
+            let f = &self.frames[i];
+            (std::cmp::Reverse(from_apex(f)), f.index)
+        });
         let band = if chosen.is_empty() {
             self.summary.gap_bands += 1;
             None

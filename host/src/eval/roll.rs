@@ -1,0 +1,223 @@
+//! `rollfuse eval --roll`: whole rolls. Each scene is rolled as a conveyor would: 120
+//! frames 0.35 mm apart (7 px at the built-in scenes' scale), the belt's speed varying by
+//! ±25 % from frame to frame (commanded) and its position off by up to 2 px (unknown).
+//! Four ways to a strip are measured against the ideal contact image of the same belt
+//! rows, over every row all of them cover:
+//!
+//! - **single apex frame**: the middle frame alone, over its own rows (the paper's
+//!   single-image baseline; it cannot cover the strip);
+//! - **time splicing**: each row from the frame whose apex is nearest, by the commanded
+//!   motion, blended over 4 rows at the seams;
+//! - **device strip, upsampled**: the virtual device's fused tiles (the firmware's
+//!   pipeline, 2× downsampled) brought back to full resolution bilinearly;
+//! - **contact-window strip**: `rollfuse fuse` on the roll, aligned by matching
+//!   (commanded rows as the prediction), fused over the contact window.
+
+use super::tables::{Row, acquire, crop_rows};
+use crate::commands::metrics::measure;
+use crate::eval::metrics::StripAxis;
+use crate::fullres::Precision;
+use crate::fullres::align::Offset;
+use crate::fullres::roll::{Bands, StripInMemory};
+use crate::fullres::strip::{Placing, StripOptions, WindowChoice, fuse_strip};
+use crate::fullres::window::Geometry;
+use crate::fullres::{Placed, splice};
+use crate::image::Planes;
+use crate::link::sim::SimDevice;
+use crate::sim::{Effect, Scene, Simulator};
+use anyhow::{Context, ensure};
+use rollfuse_core::FuseConfig;
+
+/// Frames of a rolled scene.
+pub const ROLL_FRAMES: usize = 120;
+/// Belt travel between frames, mm.
+pub const ROLL_SPACING_MM: f64 = 0.35;
+
+/// `scene` rolled as a conveyor: [`ROLL_FRAMES`] frames [`ROLL_SPACING_MM`] apart, with
+/// `speed` and `jitter` added to its effects.
+pub fn rolled(scene: &Scene) -> anyhow::Result<Scene> {
+    let mut s = scene.clone();
+    s.sensor.frames = ROLL_FRAMES;
+    s.sensor.frame_spacing_mm = ROLL_SPACING_MM;
+    for e in [Effect::Speed, Effect::Jitter] {
+        if !s.has(e) {
+            s.effects.insert(0, e);
+        }
+    }
+    s.validate().context("the rolled scene")?;
+    Ok(s)
+}
+
+/// A `w × h` gray image upsampled `d`× bilinearly (sample centres aligned).
+fn upsample(img: &Planes, d: usize) -> Planes {
+    let (w, h) = (img.width, img.height);
+    let (ow, oh) = (w * d, h * d);
+    let src = &img.planes[0];
+    let at = |x: isize, y: isize| {
+        let (x, y) = (x.clamp(0, w as isize - 1), y.clamp(0, h as isize - 1));
+        src[y as usize * w + x as usize]
+    };
+    let mut out = vec![0f32; ow * oh];
+    for oy in 0..oh {
+        let fy = (oy as f32 + 0.5) / d as f32 - 0.5;
+        let (y0, ty) = (fy.floor() as isize, fy - fy.floor());
+        for ox in 0..ow {
+            let fx = (ox as f32 + 0.5) / d as f32 - 0.5;
+            let (x0, tx) = (fx.floor() as isize, fx - fx.floor());
+            let top = at(x0, y0) + tx * (at(x0 + 1, y0) - at(x0, y0));
+            let bottom = at(x0, y0 + 1) + tx * (at(x0 + 1, y0 + 1) - at(x0, y0 + 1));
+            out[oy * ow + ox] = top + ty * (bottom - top);
+        }
+    }
+    Planes {
+        width: ow,
+        height: oh,
+        planes: vec![out],
+    }
+}
+
+/// The virtual device's strip of `scene`, upsampled to camera pixels, and the strip row
+/// of its first row.
+fn device_strip(scene: &Scene, sim: &Simulator) -> anyhow::Result<(i64, Planes)> {
+    let tmp = std::env::temp_dir().join(format!("rollfuse-eval-roll-{}", std::process::id()));
+    let mut device = SimDevice::start(scene)?;
+    let d = usize::from(device.default_config().downsample);
+    let opts = crate::stream::Options {
+        out: tmp.clone(),
+        config: None,
+        max_tiles: None,
+        max_duration: None,
+        record: None,
+        progress: false,
+    };
+    let result = (|| {
+        crate::stream::run(&mut device, &opts)?;
+        let index: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(tmp.join("strip.json"))?)?;
+        let segments = index["segments"].as_array().context("no segments")?;
+        ensure!(
+            segments.len() == 1,
+            "the device's strip of {} has {} segments (lost tiles)",
+            scene.name,
+            segments.len()
+        );
+        let first = segments[0]["first_row"].as_i64().context("no first row")?;
+        let file = segments[0]["file"].as_str().context("no file")?;
+        let strip = Planes::load(&tmp.join(file))?;
+        // Device rows count from the first frame's top, in downsampled rows.
+        let origin = sim.strip_row_of_top(sim.frame(0).offset_mm).round() as i64;
+        Ok((origin + first * d as i64, upsample(&strip, d)))
+    })();
+    let _ = std::fs::remove_dir_all(&tmp);
+    result
+}
+
+/// The whole-roll table for one scene (rolled by [`rolled`] first).
+pub fn evaluate_roll(scene: &Scene, strips: usize) -> anyhow::Result<Vec<Row>> {
+    let scene = rolled(scene)?;
+    let sim = Simulator::new(&scene)?;
+    let acq = acquire(&scene)?;
+    let commanded: Vec<f64> = (0..sim.frames())
+        .map(|k| sim.strip_row_of_top(sim.frame(k).offset_mm))
+        .collect();
+    let s = &scene.sensor;
+    let opts = StripOptions {
+        window: WindowChoice::Geometry(Geometry {
+            roller_radius_mm: s.roller_radius_mm,
+            press_depth_mm: s.press_depth_mm,
+            mm_per_px: s.mm_per_px,
+            apex_row: s.height_px as f64 / 2.0,
+        }),
+        bands: Bands::default(),
+        cfg: FuseConfig::default(),
+        precision: Precision::F32,
+        placing: Placing::Track {
+            params: None,
+            commanded: Some(commanded),
+        },
+    };
+    let (sink, _) = fuse_strip(
+        acq.frames.iter().cloned().map(Ok),
+        &opts,
+        |_, _| Ok(StripInMemory::default()),
+        |_, _| Ok(()),
+    )?;
+    let host_first = sink.first_row.context("empty strip")?;
+    let host = sink.image.context("empty strip")?;
+    let placed: Vec<Placed> = acq
+        .frames
+        .iter()
+        .zip(&acq.rows)
+        .map(|(image, &dy)| Placed {
+            image,
+            at: Offset { dy, dx: 0 },
+        })
+        .collect();
+    let spliced = splice(&placed, 4)?;
+    let splice_first = acq.rows.iter().copied().min().unwrap_or(0);
+    let (device_first, device) = device_strip(&scene, &sim)?;
+    // Rows every strip and the ideal cover.
+    let spans = [
+        (host_first, host.height),
+        (splice_first, spliced.height),
+        (device_first, device.height),
+        (0, acq.ideal.height),
+    ];
+    let top = spans.iter().map(|s| s.0).max().unwrap_or(0);
+    let end = spans.iter().map(|s| s.0 + s.1 as i64).min().unwrap_or(0);
+    ensure!(end > top, "the strips of {} share no rows", scene.name);
+    let rows = (end - top) as usize;
+    let crop = |img: &Planes, first: i64| crop_rows(img, (top - first) as usize, rows);
+    let reference = crop(&acq.ideal, 0)?;
+    let row = |method: String, img: &Planes, reference: &Planes| -> anyhow::Result<Row> {
+        Ok(Row {
+            scene: scene.name.clone(),
+            method,
+            report: measure(img, Some(reference), strips, StripAxis::Rows)?,
+        })
+    };
+    let m = acq.frames.len() / 2;
+    let h = acq.frames[m].height;
+    let own = crop_rows(&acq.ideal, usize::try_from(acq.rows[m])?, h)?;
+    Ok(vec![
+        row(
+            format!("single apex frame ({h} rows)"),
+            &acq.frames[m],
+            &own,
+        )?,
+        row(
+            format!("time splicing, commanded motion ({rows} rows)"),
+            &crop(&spliced, splice_first)?,
+            &reference,
+        )?,
+        row(
+            format!("device strip 2×, upsampled ({rows} rows)"),
+            &crop(&device, device_first)?,
+            &reference,
+        )?,
+        row(
+            format!("contact-window strip ({rows} rows)"),
+            &crop(&host, host_first)?,
+            &reference,
+        )?,
+    ])
+}
+
+/// The rows as a Markdown table.
+pub fn markdown(rows: &[Row]) -> String {
+    let mut out = String::from(
+        "| scene | method (rows compared) | IE | IE_std | MS-SSIM | MS-SSIM_std |\n|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        out.push_str(&format!(
+            "| {} | {} | {:.4} | {:.4} | {:.4} | {:.4} |\n",
+            r.scene,
+            r.method,
+            r.report.ie,
+            r.report.ie_std,
+            r.report.ms_ssim.unwrap_or(f64::NAN),
+            r.report.ms_ssim_std.unwrap_or(f64::NAN)
+        ));
+    }
+    out
+}
