@@ -70,29 +70,31 @@ pub fn report(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
     let a = &demo.alignment;
     writeln!(
         body,
-        "<h2>3. Full-resolution fusion on the host</h2>\n<p>{} of {} frames aligned by \
-         template matching (largest disagreement with the belt's motion: {} rows){}, fused \
-         with db2, one level, f32. The mosaic ({}×{}) fuses every frame: each belt point is \
-         seen by about {:.0} of them, and the mean of that many LL bands dilutes the contact, \
-         which is why the device fuses a few frames per tile. Beside it, the middle frame \
-         alone and the fusion of the four frames around it (Table III's \"fusion of 4\") \
-         over the same footprint.</p>\n<div class=row><figure class=tall>{}<figcaption>the \
-         mosaic of all frames (fused.png)</figcaption></figure><figure class=pair>{}\
+        "<h2>3. Full-resolution fusion on the host</h2>\n<p>The roll at full resolution: \
+         {} of {} frames matched against the strip aligned so far ({} placed at their \
+         prediction; largest disagreement with the belt's motion: {} rows), and each band \
+         of 32 belt rows fused (db2, one level, f32) from the frames in whose contact \
+         window, frame rows {}..{}, it lay; each belt point is seen by about {:.0} frames, \
+         of which the window keeps the ones pressing it. The strip is {}×{}, beside the \
+         device's. Then the middle frame alone and the fusion of the four frames around it \
+         (Table III's \"fusion of 4\") over the same footprint.</p>\n<div class=row>\
+         <figure class=tall>{}<figcaption>the host's strip, full resolution (fused.png)\
+         </figcaption></figure><figure class=tall>{}<figcaption>the device's strip, 2× \
+         downsampled (stream/strip.png)</figcaption></figure><figure class=pair>{}\
          <figcaption>the middle frame alone (single.png)</figcaption></figure><figure \
          class=pair>{}<figcaption>fusion of 4 over the same footprint (fused_middle.png)\
          </figcaption></figure></div>",
-        a.placed,
+        a.matched,
         a.frames,
+        a.predicted,
         a.max_motion_disagreement,
-        if a.skipped.is_empty() {
-            String::new()
-        } else {
-            format!(", {} skipped", a.skipped.len())
-        },
-        demo.mosaic_size.0,
-        demo.mosaic_size.1,
+        a.window.top,
+        a.window.top + a.window.rows,
         demo.frames_per_point,
-        png(Files::MOSAIC, "the full-resolution mosaic")?,
+        demo.host_strip_size.0,
+        demo.host_strip_size.1,
+        png(Files::HOST_STRIP, "the host's full-resolution strip")?,
+        png(Files::STRIP, "the device-fused strip")?,
         png(Files::SINGLE, "the middle frame")?,
         png(Files::FUSED_MIDDLE, "the fused image over the middle frame")?
     )?;

@@ -23,7 +23,10 @@ pub mod html;
 
 use crate::eval::depth::{self as depth_eval, DepthRow};
 use crate::eval::tables::{self, Row, acquire, evaluate_acquired};
-use crate::fullres::align::{Aligned, TemplateParams, align_chain};
+use crate::fullres::align::Offset;
+use crate::fullres::roll::{Bands, StripInMemory};
+use crate::fullres::strip::{Placing, StripOptions, WindowChoice, fuse_strip};
+use crate::fullres::window::{ContactWindow, Geometry};
 use crate::fullres::{Placed, Precision, fuse_mosaic};
 use crate::image::Planes;
 use crate::link::sim::SimDevice;
@@ -59,18 +62,20 @@ pub struct Stage {
     pub secs: f64,
 }
 
-/// How the template alignment went.
+/// How the roll's alignment went.
 #[derive(Debug, Clone)]
 pub struct Alignment {
-    /// Frames placed, of all frames.
-    pub placed: usize,
     /// Frames in the sequence.
     pub frames: usize,
-    /// Frames left out, with the reason.
-    pub skipped: Vec<(usize, String)>,
-    /// Largest difference, rows, between a placed frame's template offset and its belt
-    /// travel by motion (relative to the first frame).
+    /// Frames placed by a match (all but the first, when every frame has texture).
+    pub matched: usize,
+    /// Frames placed at their prediction (nothing to match).
+    pub predicted: usize,
+    /// Largest difference, rows, between a frame's row on the strip and its belt travel
+    /// by motion (relative to the first frame).
     pub max_motion_disagreement: i64,
+    /// The contact window used, frame rows.
+    pub window: ContactWindow,
 }
 
 /// Everything the demo produced. Images are written to the output folder under the names
@@ -90,8 +95,8 @@ pub struct Demo {
     pub strip_size: (usize, usize),
     /// The template alignment.
     pub alignment: Alignment,
-    /// The full-resolution mosaic's size.
-    pub mosaic_size: (usize, usize),
+    /// The full-resolution strip's size.
+    pub host_strip_size: (usize, usize),
     /// How many frames see each belt point: frame height over belt travel per frame.
     pub frames_per_point: f64,
     /// Tables II and III on the letters scene.
@@ -114,8 +119,8 @@ impl Files {
     pub const STRIP: &'static str = "stream/strip.png";
     /// The streaming session's manifest.
     pub const STREAM_MANIFEST: &'static str = "stream/manifest.json";
-    /// The full-resolution mosaic.
-    pub const MOSAIC: &'static str = "fused.png";
+    /// The host's full-resolution strip (contact-window fusion of every frame).
+    pub const HOST_STRIP: &'static str = "fused.png";
     /// The middle frame alone.
     pub const SINGLE: &'static str = "single.png";
     /// The mosaic over the middle frame's footprint.
@@ -203,16 +208,16 @@ pub fn run(opts: &Options, mut stage: impl FnMut(usize, &str)) -> anyhow::Result
     );
 
     stage(2, STAGES[2]);
-    let (mosaic, alignment, middle) = fuse_full_resolution(&acq.frames, &acq.rows)?;
-    mosaic.save_png(&out(Files::MOSAIC))?;
+    let (host_strip, alignment, middle) = fuse_full_resolution(&letters, &acq.frames, &acq.rows)?;
+    host_strip.save_png(&out(Files::HOST_STRIP))?;
     let m = (n - 1) / 2;
     acq.frames[m].save_png(&out(Files::SINGLE))?;
     middle.save_png(&out(Files::FUSED_MIDDLE))?;
     clock.lap(
         STAGES[2],
         format!(
-            "{} of {n} frames aligned by template matching and fused (db2, 1 level, f32)",
-            alignment.placed
+            "{} of {n} frames matched, the roll fused over the contact window (db2, 1 level, f32)",
+            alignment.matched + 1
         ),
     );
 
@@ -271,7 +276,7 @@ pub fn run(opts: &Options, mut stage: impl FnMut(usize, &str)) -> anyhow::Result
         stream: streamed.manifest,
         stream_stop: streamed.stop,
         alignment,
-        mosaic_size: (mosaic.width, mosaic.height),
+        host_strip_size: (host_strip.width, host_strip.height),
         frames_per_point: fh as f64 * (n - 1) as f64
             / (acq.rows[n - 1] - acq.rows[0]).max(1) as f64,
         eval,
@@ -327,35 +332,64 @@ fn write(path: &Path, text: &str) -> anyhow::Result<()> {
     std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
 }
 
-/// Aligns `frames` by template matching and fuses them at full resolution (the host's
-/// defaults: db2, one level, f32). Returns the mosaic of every frame, how the alignment
-/// went, and the fusion of the four frames around the middle one (Table III's "fusion of
-/// 4") over the middle frame's footprint. `rows` are the frames' belt rows by motion, used
-/// only to check the template offsets.
+/// The roll at full resolution: `frames` aligned by matching (their belt rows by motion,
+/// `rows`, as the prediction) and fused over the contact window of `scene`'s roller (the
+/// host's defaults: db2, one level, f32). Returns the strip, how the alignment went, and
+/// the fusion of the four frames around the middle one (Table III's "fusion of 4") over
+/// the middle frame's footprint.
 fn fuse_full_resolution(
+    scene: &Scene,
     frames: &[Planes],
     rows: &[i64],
 ) -> anyhow::Result<(Planes, Alignment, Planes)> {
-    let chain = align_chain(frames, &TemplateParams::default(), |_| {});
-    let mut placed = Vec::new();
-    let mut skipped = Vec::new();
-    let mut disagreement = 0;
-    for (k, (frame, aligned)) in frames.iter().zip(chain).enumerate() {
-        match aligned {
-            Aligned::Placed { at, .. } => {
-                disagreement = disagreement.max((at.dy - (rows[k] - rows[0])).abs());
-                placed.push((k, Placed { image: frame, at }));
-            }
-            Aligned::Skipped(reason) => skipped.push((k, reason)),
-        }
-    }
-    ensure!(
-        placed.len() >= 2,
-        "only {} frame(s) could be aligned by template matching; nothing to fuse",
-        placed.len()
-    );
-    let all: Vec<Placed> = placed.iter().map(|(_, p)| *p).collect();
-    let mosaic = fuse_mosaic(&all, &FuseConfig::default(), Precision::F32)?;
+    let s = &scene.sensor;
+    let opts = StripOptions {
+        window: WindowChoice::Geometry(Geometry {
+            roller_radius_mm: s.roller_radius_mm,
+            press_depth_mm: s.press_depth_mm,
+            mm_per_px: s.mm_per_px,
+            apex_row: s.height_px as f64 / 2.0,
+        }),
+        bands: Bands::default(),
+        cfg: FuseConfig::default(),
+        precision: Precision::F32,
+        placing: Placing::Track {
+            params: None,
+            commanded: Some(rows.iter().map(|&r| r as f64).collect()),
+        },
+    };
+    let mut disagreement = 0i64;
+    let (sink, report) = fuse_strip(
+        frames.iter().cloned().map(Ok),
+        &opts,
+        |_, _| Ok(StripInMemory::default()),
+        |k, p| {
+            disagreement = disagreement.max((p.row.round() as i64 - rows[k]).abs());
+            Ok(())
+        },
+    )?;
+    let strip = sink.image.context("the roll gave an empty strip")?;
+    let alignment = Alignment {
+        frames: frames.len(),
+        matched: report.matched,
+        predicted: report.predicted,
+        max_motion_disagreement: disagreement,
+        window: report.window,
+    };
+    let placed: Vec<(usize, Placed)> = frames
+        .iter()
+        .zip(rows)
+        .enumerate()
+        .map(|(k, (image, &dy))| {
+            (
+                k,
+                Placed {
+                    image,
+                    at: Offset { dy, dx: 0 },
+                },
+            )
+        })
+        .collect();
     // Frames m − 1 ..= m + 2, as the evaluation fuses them.
     let m = (frames.len() - 1) / 2;
     let four: Vec<Placed> = placed
@@ -377,11 +411,5 @@ fn fuse_full_resolution(
         middle.image.height,
         middle.image.width,
     )?;
-    let alignment = Alignment {
-        placed: placed.len(),
-        frames: frames.len(),
-        skipped,
-        max_motion_disagreement: disagreement,
-    };
-    Ok((mosaic, alignment, over_middle))
+    Ok((strip, alignment, over_middle))
 }
