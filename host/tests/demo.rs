@@ -164,8 +164,8 @@ fn the_demo_writes_a_self_contained_report_with_sane_figures() {
     let images = html.matches("<img src=\"data:image/png;base64,").count();
     assert_eq!(
         images,
-        6 + 1 + 3 + 3,
-        "frames, strip, mosaic pair, depth maps"
+        6 + 1 + 4 + 3,
+        "frames, device strip, the host's strip beside it and the pair, depth maps"
     );
     assert_eq!(html.matches("src=").count(), images, "only data URIs");
     assert!(!html.contains("<script") && !html.contains("<link"));

@@ -331,3 +331,109 @@ fn sixteen_bit_frames_fuse_like_their_eight_bit_scaling() {
         image::open(&b).unwrap().to_luma8()
     );
 }
+
+#[test]
+fn a_roll_given_as_a_folder_becomes_a_strip_with_its_index_and_frame_report() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames_dir = tmp.path().join("letters");
+    simulate(&frames_dir, "letters", 20);
+    let out = tmp.path().join("strip.png");
+    let run = fuse(&[frames_dir.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let said = String::from_utf8_lossy(&run.stdout);
+    // 20 frames 20 rows apart span more than a frame: a roll, the window from geometry.
+    assert!(
+        said.contains("from the roller geometry in the manifest"),
+        "{said}"
+    );
+    assert!(said.contains("19 matched, 0 predicted"), "{said}");
+    let strip = image::open(&out).unwrap().to_luma8();
+    let index: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("strip.json")).unwrap())
+            .unwrap();
+    assert_eq!(index["segments"][0]["rows"], strip.height());
+    assert_eq!(index["details"]["window_source"], "geometry");
+    let csv = std::fs::read_to_string(tmp.path().join("strip.frames.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 21, "a header and a line per frame");
+    assert!(csv.lines().nth(2).unwrap().contains(",matched,"), "{csv}");
+    // Cut into segments of 100 rows: the same rows, in order.
+    let seg = tmp.path().join("seg.png");
+    let run = fuse(&[
+        frames_dir.to_str().unwrap(),
+        "--out",
+        seg.to_str().unwrap(),
+        "--segment-rows",
+        "100",
+    ]);
+    assert!(run.status.success());
+    let index: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("seg.json")).unwrap())
+            .unwrap();
+    let mut joined = Vec::new();
+    for s in index["segments"].as_array().unwrap() {
+        let part = image::open(tmp.path().join(s["file"].as_str().unwrap())).unwrap();
+        joined.extend(part.to_luma8().into_raw());
+    }
+    assert_eq!(joined, strip.into_raw());
+    assert!(
+        !seg.exists(),
+        "a strip of several segments has no single file"
+    );
+}
+
+#[test]
+fn a_roll_that_fails_midway_leaves_no_output_behind() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = simulate(tmp.path(), "letters", 12);
+    // Frame 8 is not an image.
+    std::fs::write(&frames[8], b"not a png").unwrap();
+    let out = tmp.path().join("out").join("strip.png");
+    std::fs::create_dir(tmp.path().join("out")).unwrap();
+    let err = fails(&args(
+        &frames,
+        &["--out", out.to_str().unwrap(), "--mode", "roll"],
+    ));
+    assert!(err.contains("frame_0008.png"), "{err}");
+    let left: Vec<_> = std::fs::read_dir(tmp.path().join("out")).unwrap().collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
+#[test]
+fn a_roll_needs_alignment_and_its_options_are_checked() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = simulate(tmp.path(), "letters", 12);
+    let o = tmp.path().join("o.png");
+    let o = o.to_str().unwrap();
+    assert!(
+        fails(&args(
+            &frames,
+            &["--out", o, "--mode", "roll", "--align", "none"]
+        ))
+        .contains("aligned")
+    );
+    assert!(
+        fails(&args(
+            &frames,
+            &["--out", o, "--mode", "roll", "--blend-rows", "7"]
+        ))
+        .contains("cross-faded")
+    );
+    assert!(fails(&args(&frames, &["--out", o, "--window-rows", "0"])).contains("--window-rows"));
+    // Segment names that are inputs' names are refused.
+    let clash = tmp.path().join("frame.png");
+    let named = tmp.path().join("frame.0003.png");
+    std::fs::copy(&frames[3], &named).unwrap();
+    let mut with_clash = frames.clone();
+    with_clash.push(named);
+    assert!(
+        fails(&args(
+            &with_clash,
+            &["--out", clash.to_str().unwrap(), "--mode", "roll"]
+        ))
+        .contains("segments")
+    );
+}

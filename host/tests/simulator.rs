@@ -125,6 +125,7 @@ fn only_listed_effects_run_in_stage_order() {
             "noise",
             "jitter",
             "background",
+            "speed",
         ],
         DOTS,
         "",
@@ -417,4 +418,31 @@ fn walk(dir: &Path) -> Vec<std::path::PathBuf> {
             if p.is_dir() { walk(&p) } else { vec![p] }
         })
         .collect()
+}
+
+#[test]
+fn speed_varies_each_frames_travel_within_its_bound_and_the_commands_follow() {
+    let steps = |effects: &[&str]| {
+        let mut sc = scene(effects, DOTS, "[params]\nspeed_jitter = 0.25");
+        sc.sensor.frames = 40;
+        let sim = Simulator::new(&sc).unwrap();
+        let frames: Vec<_> = (0..40).map(|k| sim.frame(k)).collect();
+        // Commanded and true positions agree: the motion system counts the varied steps.
+        assert!(frames.iter().all(|f| f.offset_mm == f.actual_offset_mm));
+        frames
+            .windows(2)
+            .map(|w| w[1].offset_mm - w[0].offset_mm)
+            .collect::<Vec<f64>>()
+    };
+    let steady = steps(&["contact", "gray"]);
+    assert!(steady.iter().all(|s| (s - 1.0).abs() < 1e-9), "{steady:?}");
+    let varied = steps(&["speed", "contact", "gray"]);
+    assert!(
+        varied
+            .iter()
+            .all(|s| (0.75 - 1e-9..=1.25 + 1e-9).contains(s)),
+        "{varied:?}"
+    );
+    let spread = varied.iter().fold(0f64, |m, s| m.max((s - 1.0).abs()));
+    assert!(spread > 0.15, "speed barely varies: {spread}");
 }

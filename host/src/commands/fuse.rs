@@ -291,6 +291,20 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if !(0.0 <= t0 && t0 < t1 && t1 <= 1.0) {
         bail!("--template-rows must be two fractions 0 ≤ top < bottom ≤ 1, got {t0},{t1}");
     }
+    if args.window_rows == Some(0) {
+        bail!("--window-rows must be at least 1");
+    }
+    if args.band_rows < 2 || args.blend_rows % 2 != 0 || args.blend_rows > args.band_rows {
+        bail!(
+            "bands of {} rows cannot be cross-faded over {} rows: --blend-rows must be even \
+             and at most --band-rows (at least 2)",
+            args.band_rows,
+            args.blend_rows
+        );
+    }
+    if args.segment_rows == 0 {
+        bail!("--segment-rows must be at least 1");
+    }
     let cfg = FuseConfig {
         wavelet: args.wavelet.into(),
         levels: args.levels,
