@@ -294,7 +294,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if args.window_rows == Some(0) {
         bail!("--window-rows must be at least 1");
     }
-    if args.band_rows < 2 || args.blend_rows % 2 != 0 || args.blend_rows > args.band_rows {
+    if args.band_rows < 2 || !args.blend_rows.is_multiple_of(2) || args.blend_rows > args.band_rows {
         bail!(
             "bands of {} rows cannot be cross-faded over {} rows: --blend-rows must be even \
              and at most --band-rows (at least 2)",

@@ -190,7 +190,7 @@ pub fn run(args: &Args, loaded: Option<Vec<Planes>>, cfg: &FuseConfig) -> anyhow
                     }
                 }
             });
-            fuse_strip(rx.into_iter(), &opts, make_sink, on_frame)
+            fuse_strip(rx, &opts, make_sink, on_frame)
         })?,
     };
     bar.finish_and_clear();

@@ -148,7 +148,7 @@ impl<S: StripSink> RollFuser<S> {
     ) -> anyhow::Result<Self> {
         ensure!(
             bands.band_rows >= 2
-                && bands.blend_rows % 2 == 0
+                && bands.blend_rows.is_multiple_of(2)
                 && bands.blend_rows <= bands.band_rows,
             "bands of {} rows cannot be cross-faded over {} rows (an even number, at most the band)",
             bands.band_rows,

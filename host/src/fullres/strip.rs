@@ -74,7 +74,7 @@ pub struct StripReport {
 /// fuser running.
 enum Stage<S: StripSink> {
     Measuring(Vec<(usize, i64, Planes)>),
-    Fusing(RollFuser<S>),
+    Fusing(Box<RollFuser<S>>),
 }
 
 /// Fuses a roll. `frames` yields decoded frames in acquisition order; `make_sink(width,
@@ -123,7 +123,7 @@ pub fn fuse_strip<S: StripSink>(
         )
     };
     let mut stage = match window {
-        Some(win) => Stage::Fusing(start(win, sink.take().context("sink")?)?),
+        Some(win) => Stage::Fusing(Box::new(start(win, sink.take().context("sink")?)?)),
         None => Stage::Measuring(Vec::new()),
     };
     let (mut matched, mut predicted) = (0, 0);
@@ -164,13 +164,13 @@ pub fn fuse_strip<S: StripSink>(
                     Stage::Measuring(held)
                 } else {
                     let win = measured(&held, &mut window_source, h);
-                    Stage::Fusing(feed(start(win, sink.take().context("sink")?)?, held)?)
+                    Stage::Fusing(Box::new(feed(start(win, sink.take().context("sink")?)?, held)?))
                 }
             }
         };
     }
     let fuser = match stage {
-        Stage::Fusing(f) => f,
+        Stage::Fusing(f) => *f,
         Stage::Measuring(held) => {
             let win = measured(&held, &mut window_source, h);
             feed(start(win, sink.take().context("sink")?)?, held)?

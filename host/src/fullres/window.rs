@@ -121,7 +121,7 @@ impl ContactWindow {
             .max_by(|a, b| a.1.total_cmp(&b.1))?;
         let floor = smooth.iter().copied().fold(f64::INFINITY, f64::min);
         // Contact must stand out of the floor (noise, background) by a tenth of it.
-        if !(peak - floor > 0.1 * floor.max(f64::MIN_POSITIVE)) {
+        if peak - floor <= 0.1 * floor.max(f64::MIN_POSITIVE) || peak.is_nan() {
             return None;
         }
         let half = floor + 0.5 * (peak - floor);
@@ -185,7 +185,7 @@ mod tests {
                     .map(|i| {
                         let (x, y) = (i % w, i / w);
                         let amp = 100.0 / (1.0 + ((y as f32 - 60.0) / 15.0).powi(2));
-                        let sign = if (x + y + seed) % 2 == 0 { 1.0 } else { -1.0 };
+                        let sign = if (x + y + seed).is_multiple_of(2) { 1.0 } else { -1.0 };
                         120.0 + amp * sign
                     })
                     .collect(),
