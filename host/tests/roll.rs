@@ -388,3 +388,48 @@ fn the_contact_window_strip_beats_time_splicing_under_a_varying_belt_speed() {
         assert!(ours > ms("single apex frame"), "{name}");
     }
 }
+
+/// `img` with its content moved `dx` columns to the right (edges repeated).
+fn moved_sideways(img: &Planes, dx: i64) -> Planes {
+    let w = img.width as i64;
+    Planes {
+        width: img.width,
+        height: img.height,
+        planes: img
+            .planes
+            .iter()
+            .map(|p| {
+                p.chunks_exact(img.width)
+                    .flat_map(|row| (0..w).map(move |x| row[(x - dx).clamp(0, w - 1) as usize]))
+                    .collect()
+            })
+            .collect(),
+    }
+}
+
+#[test]
+fn sideways_drift_is_followed_only_where_allowed() {
+    // The letters roll with the belt drifting one column to the right every third frame.
+    let sim = letters();
+    let drift = |k: usize| (k / 3) as i64;
+    let run = |allowed: usize| {
+        let mut t = Tracker::new(
+            320,
+            240,
+            TrackParams {
+                max_drift_cols: allowed,
+                ..TrackParams::for_height(240)
+            },
+        );
+        (0..sim.frames())
+            .map(|k| t.place(&moved_sideways(&sim.frame(k).image, drift(k)), None))
+            .collect::<Vec<_>>()
+    };
+    // Allowed: every frame's column follows the drift (content moved right, so the frame's
+    // column 0 shows a belt column further left).
+    for (k, p) in run(2).iter().enumerate() {
+        assert_eq!(p.col, -drift(k), "frame {k}");
+    }
+    // Not allowed: no column moves.
+    assert!(run(0).iter().all(|p| p.col == 0));
+}

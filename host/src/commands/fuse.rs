@@ -80,6 +80,10 @@ pub struct Args {
     /// Roll, --align template: whole-row positions only (no sub-pixel refinement).
     #[arg(long)]
     pub no_subpixel: bool,
+    /// Roll, --align template: columns the belt may drift sideways between matched frames
+    /// (default 0: the belt moves along the frame only).
+    #[arg(long, default_value_t = 0)]
+    pub max_drift_cols: usize,
     /// Bits per sample of the output PNG: 8, or 16 to keep the fused values' fractions.
     #[arg(long, value_enum, default_value = "8")]
     pub out_bits: OutBits,
@@ -294,7 +298,8 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if args.window_rows == Some(0) {
         bail!("--window-rows must be at least 1");
     }
-    if args.band_rows < 2 || !args.blend_rows.is_multiple_of(2) || args.blend_rows > args.band_rows {
+    if args.band_rows < 2 || !args.blend_rows.is_multiple_of(2) || args.blend_rows > args.band_rows
+    {
         bail!(
             "bands of {} rows cannot be cross-faded over {} rows: --blend-rows must be even \
              and at most --band-rows (at least 2)",

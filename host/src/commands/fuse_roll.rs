@@ -31,6 +31,7 @@ pub fn track_params(args: &Args, height: usize) -> TrackParams {
         p.min_score = m;
     }
     p.subpixel = !args.no_subpixel;
+    p.max_drift_cols = args.max_drift_cols;
     p
 }
 
@@ -156,7 +157,7 @@ pub fn run(args: &Args, loaded: Option<Vec<Planes>>, cfg: &FuseConfig) -> anyhow
         OutBits::Sixteen => 16,
     };
     let mut csv = PendingFile::create(&csv_path)?;
-    csv.write_all(b"frame,file,row,source,score\n")?;
+    csv.write_all(b"frame,file,row,col,source,score\n")?;
     let bar = progress(args.frames.len(), "frames", "fusing the roll".into());
     let started = std::time::Instant::now();
     let files = &args.frames;

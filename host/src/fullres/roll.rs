@@ -97,6 +97,8 @@ pub struct RollSummary {
 struct Held {
     index: usize,
     top: i64,
+    /// Belt column of the frame's column 0.
+    left: i64,
     image: Planes,
 }
 
@@ -206,9 +208,15 @@ impl<S: StripSink> RollFuser<S> {
         top + self.window.top as i64
     }
 
-    /// Adds frame `index` with its top at belt row `top`; fuses and writes every band it
-    /// completes.
-    pub fn push(&mut self, index: usize, top: i64, image: Planes) -> anyhow::Result<()> {
+    /// Adds frame `index` with its pixel (0, 0) at belt row `top`, column `left` (the
+    /// strip's columns are the first frame's; a frame shifted sideways is read with its
+    /// edge columns repeated); fuses and writes every band it completes.
+    pub fn push(
+        &mut self,
+        index: usize,
+        (top, left): (i64, i64),
+        image: Planes,
+    ) -> anyhow::Result<()> {
         ensure!(
             (image.width, image.height, image.planes.len())
                 == (self.width, self.height, self.channels),
@@ -230,7 +238,12 @@ impl<S: StripSink> RollFuser<S> {
         }
         // A frame that went back along the belt still serves the bands to come.
         self.last_top = Some(self.last_top.map_or(top, |t| t.max(top)));
-        self.frames.push_back(Held { index, top, image });
+        self.frames.push_back(Held {
+            index,
+            top,
+            left,
+            image,
+        });
         let ready_below = self.window_start(self.last_top.unwrap_or(top));
         while let Some(b) = self.next_band {
             if self.centre(b) >= ready_below {
@@ -350,7 +363,17 @@ impl<S: StripSink> RollFuser<S> {
         let region_rows = self.bands.band_rows + 2 * self.margin;
         let rows_of = |f: &Held, c: usize| -> Vec<f32> {
             let y0 = (region_top - f.top) as usize;
-            f.image.planes[c][y0 * w..(y0 + region_rows) * w].to_vec()
+            let rows = &f.image.planes[c][y0 * w..(y0 + region_rows) * w];
+            if f.left == 0 {
+                return rows.to_vec();
+            }
+            // Strip column X is the frame's column X − left, edges repeated.
+            let last = w as i64 - 1;
+            rows.chunks_exact(w)
+                .flat_map(|row| {
+                    (0..w as i64).map(move |x| row[(x - f.left).clamp(0, last) as usize])
+                })
+                .collect()
         };
         let mut planes = Vec::with_capacity(self.channels);
         for c in 0..self.channels {

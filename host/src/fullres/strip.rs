@@ -73,7 +73,7 @@ pub struct StripReport {
 /// The state while frames arrive: the window not yet known (frames buffered), or the
 /// fuser running.
 enum Stage<S: StripSink> {
-    Measuring(Vec<(usize, i64, Planes)>),
+    Measuring(Vec<(usize, (i64, i64), Planes)>),
     Fusing(Box<RollFuser<S>>),
 }
 
@@ -143,6 +143,7 @@ pub fn fuse_strip<S: StripSink>(
                 row: commanded(rows)?,
                 source: Source::Manifest,
                 score: None,
+                col: 0,
             },
             (Placing::Track { .. }, None) => bail!("no aligner"),
         };
@@ -152,19 +153,22 @@ pub fn fuse_strip<S: StripSink>(
             Source::First | Source::Manifest => {}
         }
         on_frame(k, &placement)?;
-        let top = placement.row.round() as i64;
+        let at = (placement.row.round() as i64, placement.col);
         stage = match stage {
             Stage::Fusing(mut fuser) => {
-                fuser.push(k, top, frame)?;
+                fuser.push(k, at, frame)?;
                 Stage::Fusing(fuser)
             }
             Stage::Measuring(mut held) => {
-                held.push((k, top, frame));
+                held.push((k, at, frame));
                 if held.len() < MEASURE_FRAMES {
                     Stage::Measuring(held)
                 } else {
                     let win = measured(&held, &mut window_source, h);
-                    Stage::Fusing(Box::new(feed(start(win, sink.take().context("sink")?)?, held)?))
+                    Stage::Fusing(Box::new(feed(
+                        start(win, sink.take().context("sink")?)?,
+                        held,
+                    )?))
                 }
             }
         };
@@ -191,7 +195,11 @@ pub fn fuse_strip<S: StripSink>(
 }
 
 /// The window measured on `held`, or the default (and the source says which).
-fn measured(held: &[(usize, i64, Planes)], source: &mut WindowSource, h: usize) -> ContactWindow {
+fn measured(
+    held: &[(usize, (i64, i64), Planes)],
+    source: &mut WindowSource,
+    h: usize,
+) -> ContactWindow {
     let frames: Vec<&Planes> = held.iter().map(|(_, _, f)| f).collect();
     match ContactWindow::measure(&frames) {
         Some(win) => {
@@ -207,10 +215,10 @@ fn measured(held: &[(usize, i64, Planes)], source: &mut WindowSource, h: usize) 
 
 fn feed<S: StripSink>(
     mut fuser: RollFuser<S>,
-    held: Vec<(usize, i64, Planes)>,
+    held: Vec<(usize, (i64, i64), Planes)>,
 ) -> anyhow::Result<RollFuser<S>> {
-    for (k, top, frame) in held {
-        fuser.push(k, top, frame)?;
+    for (k, at, frame) in held {
+        fuser.push(k, at, frame)?;
     }
     Ok(fuser)
 }

@@ -20,9 +20,11 @@
 //!   reaches `min_score`; otherwise (no texture where the frame overlaps the strip) the
 //!   prediction is kept and the frame is reported as predicted.
 //!
-//! Columns are not searched: the belt does not move across the frame unless the
-//! conveyor's tracking is off, and a sideways search in texture-free stretches only finds
-//! shifts that never happened.
+//! Columns are searched only when the user allows a drift (`max_drift_cols`): the belt does
+//! not move across the frame unless the conveyor's tracking is off, and a sideways search
+//! in texture-free stretches only finds shifts that never happened. When allowed, each
+//! matched frame's column profiles (summed horizontal differences of its middle rows) are
+//! correlated with those of the same belt rows in the chain's newest frame.
 
 use crate::image::Planes;
 use std::collections::VecDeque;
@@ -39,6 +41,8 @@ pub struct TrackParams {
     pub min_score: f32,
     /// Refine matches to a fraction of a row.
     pub subpixel: bool,
+    /// Columns the belt may drift sideways from one matched frame to the next (0: none).
+    pub max_drift_cols: usize,
 }
 
 impl TrackParams {
@@ -49,6 +53,7 @@ impl TrackParams {
             first_search_rows: height / 2,
             min_score: 0.3,
             subpixel: true,
+            max_drift_cols: 0,
         }
     }
 }
@@ -88,6 +93,8 @@ pub struct Placement {
     pub source: Source,
     /// The best correlation found (absent for the first frame and manifest rows).
     pub score: Option<f32>,
+    /// Belt column of the frame's column 0 (always 0 unless sideways drift is allowed).
+    pub col: i64,
 }
 
 /// Half-width of the high-pass box along the rows.
@@ -120,6 +127,10 @@ pub struct Tracker {
     chain_end: (f64, Option<f64>, usize),
     /// Whether the chain has a matched link.
     linked: bool,
+    /// Belt column of the newest frame's column 0.
+    col: i64,
+    /// The chain's newest frame, gray, when sideways drift is allowed.
+    drift_reference: Vec<f32>,
 }
 
 /// Frames of a chain over which its place is averaged against the commanded rows.
@@ -177,6 +188,21 @@ impl Anchor {
     }
 }
 
+/// `values` minus the mean of the 13 around each, after a [1 2 1] / 4 smoothing.
+fn high_pass(values: &[f32]) -> Vec<f32> {
+    let n = values.len();
+    let at = |i: isize| values[i.clamp(0, n as isize - 1) as usize];
+    let smooth: Vec<f32> = (0..n as isize)
+        .map(|i| 0.25 * (at(i - 1) + 2.0 * at(i) + at(i + 1)))
+        .collect();
+    (0..n)
+        .map(|i| {
+            let (lo, hi) = (i.saturating_sub(HIGH_PASS), (i + HIGH_PASS + 1).min(n));
+            smooth[i] - smooth[lo..hi].iter().sum::<f32>() / (hi - lo) as f32
+        })
+        .collect()
+}
+
 fn median(values: &VecDeque<f64>) -> Option<f64> {
     let mut v: Vec<f64> = values.iter().copied().collect();
     if v.is_empty() {
@@ -215,6 +241,8 @@ impl Tracker {
             frame: 0,
             chain_end: (0.0, None, 0),
             linked: false,
+            col: 0,
+            drift_reference: Vec::new(),
         }
     }
 
@@ -232,10 +260,12 @@ impl Tracker {
         let Some(last) = self.last else {
             let row = commanded.unwrap_or(0.0);
             self.start_chain(row, commanded);
+            self.keep_for_drift(frame);
             return Placement {
                 row,
                 source: Source::First,
                 score: None,
+                col: 0,
             };
         };
         let (pred, reach) = self.predict(last, commanded);
@@ -249,6 +279,10 @@ impl Tracker {
                     (Some(c), Some(pc)) => self.anchor.link(m - prev_row, c - pc, c),
                     _ => m,
                 };
+                if self.params.max_drift_cols > 0 {
+                    self.col -= self.sideways(frame, (m - prev_row).round() as i64);
+                    self.keep_for_drift(frame);
+                }
                 self.accumulate(row);
                 self.chain_end = (row, commanded, self.frame);
                 self.linked = true;
@@ -258,6 +292,7 @@ impl Tracker {
                 let row = commanded.unwrap_or(pred);
                 if !self.linked || score.is_none() {
                     self.start_chain(row, commanded);
+                    self.keep_for_drift(frame);
                 }
                 row
             }
@@ -271,7 +306,68 @@ impl Tracker {
                 Source::Predicted
             },
             score,
+            col: self.col,
         }
+    }
+
+    /// Keeps `frame`'s gray levels as the chain's newest, for the sideways search.
+    fn keep_for_drift(&mut self, frame: &Planes) {
+        if self.params.max_drift_cols > 0 {
+            let mut scratch = Vec::new();
+            let gray = Self::gray_of(&mut scratch, frame).to_vec();
+            self.drift_reference = gray;
+        }
+    }
+
+    /// The sideways shift, columns, of `frame`'s content against the chain's newest frame,
+    /// `step` rows before it along the belt: the shift within `max_drift_cols` whose column
+    /// profiles correlate best, or 0 when none reaches `min_score`.
+    fn sideways(&self, frame: &Planes, step: i64) -> i64 {
+        let (w, h) = (self.width, self.height);
+        let mut scratch = Vec::new();
+        let cur = Self::gray_of(&mut scratch, frame);
+        let prev = &self.drift_reference;
+        if prev.len() != w * h || w < 3 {
+            return 0;
+        }
+        // Rows of the middle half that the previous frame saw too (at row y + step).
+        let rows: Vec<usize> = (h / 4..h - h / 4)
+            .filter(|&y| (0..h as i64).contains(&(y as i64 + step)))
+            .collect();
+        let profile = |img: &[f32], shift: i64| -> Vec<f32> {
+            let mut p = vec![0f32; w];
+            for &y in &rows {
+                let row = &img[(y as i64 + shift) as usize * w..][..w];
+                for x in 1..w - 1 {
+                    p[x] += row[x + 1] - row[x - 1];
+                }
+            }
+            high_pass(&p)
+        };
+        let (a, b) = (profile(cur, 0), profile(prev, step));
+        let reach = self.params.max_drift_cols as i64;
+        let mut best = (0i64, self.params.min_score);
+        for s in -reach..=reach {
+            // cur[x] shows what prev showed at x − s.
+            let (mut ab, mut aa, mut bb) = (0f64, 0f64, 0f64);
+            for x in 0..w as i64 {
+                let xp = x - s;
+                if !(0..w as i64).contains(&xp) {
+                    continue;
+                }
+                let (va, vb) = (f64::from(a[x as usize]), f64::from(b[xp as usize]));
+                ab += va * vb;
+                aa += va * va;
+                bb += vb * vb;
+            }
+            if aa > 0.0 && bb > 0.0 {
+                let score = (ab / (aa * bb).sqrt()) as f32;
+                if score > best.1 {
+                    best = (s, score);
+                }
+            }
+        }
+        best.0
     }
 
     /// Clears the reference and starts a chain with the current frame at `row`.
@@ -369,26 +465,15 @@ impl Tracker {
             self.raw.copy_within(g..2 * g, 0);
             self.raw.copy_within((h - 2) * g..(h - 1) * g, (h - 1) * g);
         }
-        // Smoothed along the rows ([1 2 1] / 4): the row differences of sensor noise
-        // alternate in sign, the gel's smooth features do not.
+        // Smoothed along the rows ([1 2 1] / 4: the row differences of sensor noise
+        // alternate in sign, the gel's smooth features do not) and high-passed.
+        let mut column = vec![0f32; h];
         for k in 0..g {
-            let mut before = self.raw[k];
-            for y in 0..h {
-                let here = self.raw[y * g + k];
-                let after = if y + 1 < h {
-                    self.raw[(y + 1) * g + k]
-                } else {
-                    here
-                };
-                self.raw[y * g + k] = 0.25 * (before + 2.0 * here + after);
-                before = here;
+            for (y, v) in column.iter_mut().enumerate() {
+                *v = self.raw[y * g + k];
             }
-        }
-        for y in 0..h {
-            let (lo, hi) = (y.saturating_sub(HIGH_PASS), (y + HIGH_PASS + 1).min(h));
-            for k in 0..g {
-                let mean = (lo..hi).map(|r| self.raw[r * g + k]).sum::<f32>() / (hi - lo) as f32;
-                self.profile[y * g + k] = self.raw[y * g + k] - mean;
+            for (y, v) in high_pass(&column).into_iter().enumerate() {
+                self.profile[y * g + k] = v;
             }
         }
         self.gray = gray;

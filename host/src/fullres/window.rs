@@ -185,7 +185,11 @@ mod tests {
                     .map(|i| {
                         let (x, y) = (i % w, i / w);
                         let amp = 100.0 / (1.0 + ((y as f32 - 60.0) / 15.0).powi(2));
-                        let sign = if (x + y + seed).is_multiple_of(2) { 1.0 } else { -1.0 };
+                        let sign = if (x + y + seed).is_multiple_of(2) {
+                            1.0
+                        } else {
+                            -1.0
+                        };
                         120.0 + amp * sign
                     })
                     .collect(),
