@@ -239,10 +239,12 @@ fn print_summary(args: &Args, r: &StripReport, segments: &[Segment], took: f64, 
         );
     }
     let s = &r.summary;
-    if s.bands_outside_window + s.gap_bands > 0 {
+    if s.bands_outside_window + s.gap_bands > 0 || s.bands_skipped > 0 {
         eprintln!(
-            "warning: {} band(s) outside every contact window (fused from the nearest frame), {} band(s) no frame covered (written as zeros)",
-            s.bands_outside_window, s.gap_bands
+            "warning: {} band(s) outside every contact window (fused from the nearest frame), \
+             {} band(s) no frame covered (written as zeros), {} band(s) passed over where the \
+             belt jumped (a new segment)",
+            s.bands_outside_window, s.gap_bands, s.bands_skipped
         );
     }
     let files: Vec<&str> = segments.iter().map(|s| s.file.as_str()).collect();

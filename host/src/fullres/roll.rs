@@ -90,9 +90,17 @@ pub struct RollSummary {
     pub bands_outside_window: usize,
     /// Bands no frame covered, written as zeros.
     pub gap_bands: usize,
+    /// Bands passed over without writing where the belt jumped (after
+    /// [`MAX_GAP_BANDS`] bands no frame covered).
+    pub bands_skipped: u64,
     /// Strip rows written.
     pub rows: usize,
 }
+
+/// Bands no frame covers written as zeros in a row before the fuser passes over the rest
+/// of a jump: the strip then resumes at the first band a frame covers, and a sink sees the
+/// jump in its rows (a file sink starts a new segment there).
+pub const MAX_GAP_BANDS: usize = 8;
 
 struct Held {
     index: usize,
@@ -135,6 +143,8 @@ pub struct RollFuser<S: StripSink> {
     previous: Before,
     summary: RollSummary,
     last_top: Option<i64>,
+    /// Bands in a row no frame covered.
+    gap_run: usize,
 }
 
 impl<S: StripSink> RollFuser<S> {
@@ -191,6 +201,7 @@ impl<S: StripSink> RollFuser<S> {
             previous: Before::Start,
             summary: RollSummary::default(),
             last_top: None,
+            gap_run: 0,
         })
     }
 
@@ -250,7 +261,7 @@ impl<S: StripSink> RollFuser<S> {
                 break;
             }
             self.fuse_band(b)?;
-            self.next_band = Some(b + 1);
+            self.next_band = Some(self.after(b));
             self.drop_spent();
         }
         Ok(())
@@ -263,7 +274,7 @@ impl<S: StripSink> RollFuser<S> {
             let end = self.window_start(last) + self.window.rows as i64;
             while self.centre(b) < end {
                 self.fuse_band(b)?;
-                b += 1;
+                b = self.after(b);
             }
             self.next_band = Some(b);
         }
@@ -277,6 +288,33 @@ impl<S: StripSink> RollFuser<S> {
             }
         }
         Ok((self.sink, self.summary))
+    }
+
+    /// The band to fuse after band `b`: the next, unless `b` ended a run of
+    /// [`MAX_GAP_BANDS`] bands no frame covered; then the first band a held frame covers.
+    fn after(&mut self, b: i64) -> i64 {
+        if !matches!(self.previous, Before::Gap) {
+            self.gap_run = 0;
+            return b + 1;
+        }
+        self.gap_run += 1;
+        let band_rows = self.bands.band_rows as i64;
+        let margin = self.margin as i64;
+        let resume = self
+            .frames
+            .iter()
+            .map(|f| (f.top + margin).div_euclid(band_rows) + 1)
+            .filter(|&r| r > b)
+            .min();
+        match resume {
+            Some(r) if self.gap_run >= MAX_GAP_BANDS && r > b + 1 => {
+                self.summary.bands_skipped += (r - b - 1) as u64;
+                self.previous = Before::Start;
+                self.gap_run = 0;
+                r
+            }
+            _ => b + 1,
+        }
     }
 
     /// Drops the frames no band to come can use, keeping the newest two for bands the
@@ -436,5 +474,58 @@ impl<S: StripSink> RollFuser<S> {
             self.summary.rows += 1;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Records the belt rows it is given.
+    #[derive(Default)]
+    struct Rows(Vec<i64>);
+
+    impl StripSink for Rows {
+        fn row(&mut self, row: i64, _: &[&[f32]]) -> anyhow::Result<()> {
+            self.0.push(row);
+            Ok(())
+        }
+    }
+
+    fn flat(w: usize, h: usize) -> Planes {
+        Planes {
+            width: w,
+            height: h,
+            planes: vec![vec![100.0; w * h]],
+        }
+    }
+
+    #[test]
+    fn a_jump_of_the_belt_is_passed_over_not_filled() {
+        let (w, h) = (16, 96);
+        let window = ContactWindow { top: 28, rows: 40 };
+        let mut fuser = RollFuser::new(
+            Rows::default(),
+            (w, h, 1),
+            window,
+            Bands::default(),
+            &FuseConfig::default(),
+            Precision::F32,
+        )
+        .unwrap();
+        let tops = [0i64, 4, 8, 1_000_000_000, 1_000_000_004];
+        for (k, &top) in tops.iter().enumerate() {
+            fuser.push(k, (top, 0), flat(w, h)).unwrap();
+        }
+        let (rows, summary) = fuser.finish().unwrap();
+        // A few hundred rows, in two runs, none of the billion between.
+        assert!(rows.0.len() < 1000, "{} rows", rows.0.len());
+        assert!(summary.bands_skipped > 1000, "{summary:?}");
+        let jumps = rows.0.windows(2).filter(|p| p[1] != p[0] + 1).count();
+        assert_eq!(jumps, 1, "{:?}", rows.0);
+        assert!(
+            rows.0.windows(2).all(|p| p[1] > p[0]),
+            "rows only go forward"
+        );
     }
 }
