@@ -5,6 +5,7 @@ mod counters;
 mod leds;
 mod link;
 mod motion;
+mod outbox;
 mod pipeline;
 mod selftest;
 
@@ -24,7 +25,7 @@ use embassy_sync::signal::Signal;
 use embassy_time::{Instant, Timer};
 use rollfuse_core::device::{Controller, Effect, Sensor};
 use rollfuse_core::protocol::{DeviceConfig, PixelFormat};
-use static_cell::StaticCell;
+use static_cell::ConstStaticCell;
 use {defmt_rtt as _, panic_probe as _};
 
 bind_interrupts!(struct Irqs {
@@ -36,10 +37,6 @@ bind_interrupts!(struct Irqs {
     DMA1_STREAM1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
     DMA1_STREAM2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
 });
-
-/// Completed tiles waiting for the USB link. The pipeline drops a tile (and counts it)
-/// when this is full rather than stall the camera.
-pub static TILES: Channel<CriticalSectionRawMutex, link::Outgoing, 4> = Channel::new();
 
 /// Orders for the pipeline.
 pub enum StreamOrder {
@@ -56,11 +53,18 @@ pub enum StreamOrder {
 /// The pipeline's orders.
 pub static STREAM: Channel<CriticalSectionRawMutex, StreamOrder, 4> = Channel::new();
 
-/// The camera's frame buffer (AXI SRAM: DMA-reachable).
-static FRAME: StaticCell<[u32; camera::FRAME_WORDS]> = StaticCell::new();
+/// The camera's frame buffer (AXI SRAM: DMA-reachable). Const-initialized, so taking it
+/// builds nothing on the stack.
+static FRAME: ConstStaticCell<[u32; camera::FRAME_WORDS]> =
+    ConstStaticCell::new([0; camera::FRAME_WORDS]);
 
 /// The pipeline's buffers.
-static PIPELINE: StaticCell<pipeline::Buffers> = StaticCell::new();
+static PIPELINE: ConstStaticCell<pipeline::Buffers> =
+    ConstStaticCell::new(pipeline::Buffers::new());
+
+/// The link's encoding buffer.
+static TX: ConstStaticCell<[u8; rollfuse_core::protocol::MAX_MESSAGE]> =
+    ConstStaticCell::new([0; rollfuse_core::protocol::MAX_MESSAGE]);
 
 /// Accepted commands' effects, for the tasks that carry them out.
 pub static EFFECTS: Channel<CriticalSectionRawMutex, Effect, 8> = Channel::new();
@@ -170,9 +174,11 @@ async fn main(_spawner: Spawner) {
     drop(function);
     let mut device = builder.build();
 
+    outbox::init();
+    let tx = TX.take();
     let serve = async {
         loop {
-            link::serve(&mut read_ep, &mut write_ep, &mut controller).await;
+            link::serve(&mut read_ep, &mut write_ep, &mut controller, tx).await;
         }
     };
 
@@ -221,12 +227,7 @@ async fn main(_spawner: Spawner) {
         p.PA6,
         dcmi::Config::default(),
     );
-    let frames = pipeline::run(
-        dcmi,
-        FRAME.init([0; camera::FRAME_WORDS]),
-        PIPELINE.init(pipeline::Buffers::new()),
-        initial,
-    );
+    let frames = pipeline::run(dcmi, FRAME.take(), PIPELINE.take(), initial);
 
     // The stepper driver: DIR fixed forward, STEP pulses and ENABLE from the motion task.
     let _dir = Output::new(p.PF12, Level::Low, Speed::Low);

@@ -5,11 +5,13 @@
 //! Pins: STEP PF13, DIR PF12 (fixed forward), ENABLE PF14 (low = driver on).
 
 use super::TRIGGERS;
+use core::sync::atomic::{AtomicBool, Ordering};
 use defmt::{info, warn};
 use embassy_futures::select::{Either, select};
 use embassy_stm32::gpio::Output;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
+use embassy_sync::signal::Signal;
 use embassy_time::{Duration, Instant, Timer};
 use rollfuse_core::motion::{MotionConfig, Ramp};
 use rollfuse_core::protocol::RollerCommand;
@@ -37,6 +39,24 @@ pub enum Order {
 /// Orders for the motion task.
 pub static ORDERS: Channel<CriticalSectionRawMutex, Order, 4> = Channel::new();
 
+/// A stop requested and not yet taken up by the step generator. Set from anywhere, never
+/// queued: no full queue can lose it.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+/// Wakes the motion task when it waits for orders while stopped is requested.
+static STOP_SIGNAL: Signal<CriticalSectionRawMutex, ()> = Signal::new();
+
+/// Stops the roller (ramping down): the step generator sees it before its next step.
+pub fn stop() {
+    STOP.store(true, Ordering::Release);
+    STOP_SIGNAL.signal(());
+}
+
+/// Takes a pending stop, if any.
+fn stop_requested() -> bool {
+    STOP.swap(false, Ordering::AcqRel)
+}
+
 /// Runs the roller forever.
 pub async fn run(mut step: Output<'static>, mut enable: Output<'static>, spacing_px: u16) {
     let steps_per_frame = |px: u16| MECHANICS.steps_per_frame(u32::from(px) * UM_PER_PX);
@@ -49,13 +69,19 @@ pub async fn run(mut step: Output<'static>, mut enable: Output<'static>, spacing
         // Stopped: wait for an order.
         if ramp.is_stopped() {
             enable.set_high();
-            let order = ORDERS.receive().await;
-            apply(&mut ramp, order, &steps_per_frame);
+            // A stop while stopped has nothing to do; an order after it starts afresh.
+            let _ = stop_requested();
+            if let Either::First(order) = select(ORDERS.receive(), STOP_SIGNAL.wait()).await {
+                apply(&mut ramp, order, &steps_per_frame);
+            }
             continue;
         }
         enable.set_low();
         let mut deadline = Instant::now();
         while let Some(s) = ramp.next_step() {
+            if stop_requested() {
+                let _ = ramp.set_speed(0);
+            }
             deadline += Duration::from_ticks(u64::from(s.interval));
             // Orders arriving meanwhile are applied; the step already due is still taken.
             while let Either::Second(order) = select(Timer::at(deadline), ORDERS.receive()).await {

@@ -5,8 +5,8 @@
 
 use super::camera::{self, FRAME_WORDS};
 use super::counters::COUNTERS;
-use super::link::{Outgoing, RawOut, TileOut};
-use super::{STREAM, StreamOrder, TILES, TRIGGERS, motion};
+use super::outbox::{self, Kind};
+use super::{STREAM, StreamOrder, TRIGGERS, motion};
 use core::sync::atomic::Ordering::Relaxed;
 use defmt::warn;
 use embassy_futures::select::{Either, select};
@@ -39,26 +39,31 @@ impl Buffers {
     }
 }
 
-/// Queues a tile for the link; a full queue drops it, counted.
+/// Queues a tile for the link, copied into a free slot of the outbox; with no slot free
+/// the tile is dropped and counted (the camera does not wait for the link).
 fn queue(tile: Tile<'_>) {
     COUNTERS.tiles_emitted.fetch_add(1, Relaxed);
-    let Ok(pixels) = heapless::Vec::from_slice(tile.pixels) else {
+    let Some(mut claim) = outbox::try_claim() else {
         COUNTERS.tiles_dropped.fetch_add(1, Relaxed);
         return;
     };
-    let out = TileOut {
+    let m = claim.message();
+    let Some(room) = m.bytes.get_mut(..tile.pixels.len()) else {
+        COUNTERS.tiles_dropped.fetch_add(1, Relaxed);
+        return;
+    };
+    room.copy_from_slice(tile.pixels);
+    m.len = tile.pixels.len();
+    m.kind = Kind::Tile {
         index: tile.index,
         width: tile.width,
         height: tile.height,
         observations: tile.observations,
-        pixels,
     };
-    if TILES.try_send(Outgoing::Tile(out)).is_err() {
-        COUNTERS.tiles_dropped.fetch_add(1, Relaxed);
-    }
+    claim.send();
 }
 
-/// Captures `n` frames now and queues them raw, in chunks; waits for room in the queue
+/// Captures `n` frames now and queues them raw, in chunks; waits for room in the outbox
 /// rather than drop any (a raw capture is an explicit request).
 async fn send_raw(dcmi: &mut Dcmi<'static, DCMI>, frame: &mut [u32; FRAME_WORDS], n: u8) {
     for k in 0..n {
@@ -69,16 +74,16 @@ async fn send_raw(dcmi: &mut Dcmi<'static, DCMI>, frame: &mut [u32; FRAME_WORDS]
         COUNTERS.frames_captured.fetch_add(1, Relaxed);
         let bytes = camera::bytes(frame);
         for (i, piece) in bytes.chunks(MAX_CHUNK).enumerate() {
-            let Ok(data) = heapless::Vec::from_slice(piece) else {
-                continue;
-            };
-            let raw = RawOut {
+            let mut claim = outbox::claim().await;
+            let m = claim.message();
+            m.bytes[..piece.len()].copy_from_slice(piece);
+            m.len = piece.len();
+            m.kind = Kind::Raw {
                 frame: k,
                 offset: (i * MAX_CHUNK) as u32,
                 total: bytes.len() as u32,
-                data,
             };
-            TILES.send(Outgoing::Raw(raw)).await;
+            claim.send();
         }
     }
 }
@@ -126,10 +131,12 @@ pub async fn run(
                 Either::Second(StreamOrder::Stop) => {
                     streaming = false;
                     pipeline.finish(queue);
-                    // The link sends the final status once the flushed tiles are out.
-                    if TILES.try_send(Outgoing::StreamEnded).is_err() {
-                        warn!("stream end not queued");
-                    }
+                    // The link sends the final status once the flushed tiles are out; the
+                    // marker waits for a slot, so it is never lost.
+                    let mut claim = outbox::claim().await;
+                    claim.message().kind = Kind::StreamEnded;
+                    claim.message().len = 0;
+                    claim.send();
                 }
                 Either::Second(StreamOrder::Configure(c)) => break c,
                 Either::Second(StreamOrder::CaptureRaw(n)) => send_raw(&mut dcmi, frame, n).await,
