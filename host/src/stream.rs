@@ -38,6 +38,10 @@ pub const FILL_GAP_TILES: usize = 64;
 /// How long a live device may stay silent before the session gives up on it.
 pub const SILENCE_LIMIT: Duration = Duration::from_secs(5);
 
+/// How often a session asks a live device for its status: the device takes a host that
+/// sends nothing for 3 s as gone, and stops the roller and streaming.
+pub const HEARTBEAT: Duration = Duration::from_secs(1);
+
 /// What the session should do.
 #[derive(Debug, Clone)]
 pub struct Options {
@@ -331,7 +335,13 @@ pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> 
     let mut last_message = Instant::now();
     let mut stop_sent = false;
     let mut stop = StopReason::LinkClosed;
+    let mut last_heartbeat = Instant::now();
     loop {
+        // Only until stop is sent: the final status must not be mistaken for a reply.
+        if live && !stop_sent && last_heartbeat.elapsed() >= HEARTBEAT {
+            send(link, &mut cmd_seq, &Command::Status)?;
+            last_heartbeat = Instant::now();
+        }
         // Ask the device to stop once a limit is reached; its flush and status follow.
         if live && !stop_sent {
             let limit = if opts.max_tiles.is_some_and(|n| manifest.tiles_received >= n) {

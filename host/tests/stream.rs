@@ -155,7 +155,7 @@ proptest! {
                 }
                 Some(Fault::Drop) => lost += 1,
                 Some(Fault::WrongVersion) => {
-                    sent.push(with_version(msg, 2));
+                    sent.push(with_version(msg, protocol::PROTOCOL_VERSION + 1));
                     lost += 1;
                     versions += 1;
                 }
@@ -353,4 +353,57 @@ fn a_far_jump_of_the_index_starts_a_segment_and_late_tiles_are_counted() {
         rows,
         [10, 10, 10, 10, 11, 11, 11, 11, 0, 0, 0, 0, 12, 12, 12, 12]
     );
+}
+
+/// A live device that says nothing for a while, then reports it stopped; records the
+/// commands it is sent.
+struct Quiet {
+    until: std::time::Instant,
+    sent: std::sync::Arc<std::sync::Mutex<Vec<rollfuse_core::protocol::Command>>>,
+    done: bool,
+}
+
+impl Transport for Quiet {
+    fn send(&mut self, message: &[u8]) -> anyhow::Result<()> {
+        let (_, c) = protocol::decode::<rollfuse_core::protocol::Command>(message).unwrap();
+        self.sent.lock().unwrap().push(c);
+        Ok(())
+    }
+    fn receive(&mut self, buf: &mut [u8], timeout: Duration) -> anyhow::Result<Received> {
+        if std::time::Instant::now() < self.until {
+            std::thread::sleep(timeout.min(Duration::from_millis(50)));
+            return Ok(Received::Timeout);
+        }
+        if self.done {
+            return Ok(Received::Closed);
+        }
+        self.done = true;
+        let status = DeviceMessage::Status(rollfuse_core::protocol::StatusCounters::default());
+        Ok(Received::Message(
+            protocol::encode(1, &status, buf).unwrap(),
+        ))
+    }
+    fn is_live(&self) -> bool {
+        true
+    }
+}
+
+#[test]
+fn a_live_session_asks_for_status_every_second_so_the_device_knows_it_is_there() {
+    use rollfuse_core::protocol::Command;
+    let sent = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    let mut link = Quiet {
+        until: std::time::Instant::now() + stream::HEARTBEAT * 2 + Duration::from_millis(300),
+        sent: sent.clone(),
+        done: false,
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    stream::run(&mut link, &options(tmp.path(), None)).unwrap();
+    let sent = sent.lock().unwrap();
+    assert!(
+        matches!(sent[..2], [Command::Hello, Command::StreamStart]),
+        "{sent:?}"
+    );
+    let heartbeats = sent.iter().filter(|c| matches!(c, Command::Status)).count();
+    assert!(heartbeats >= 2, "{sent:?}");
 }

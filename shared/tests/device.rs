@@ -372,3 +372,39 @@ fn every_command_is_validated_with_a_reason() {
         other => panic!("{other:?}"),
     }
 }
+
+#[test]
+fn without_room_for_its_effect_a_command_is_refused_and_changes_nothing() {
+    let mut ctl = Controller::new(QVGA, [1, 2, 3], DeviceConfig::default()).unwrap();
+    let (reply, effect) = ctl.handle_when(&command(7, &Command::StreamStart), false);
+    assert_eq!(
+        reply,
+        DeviceMessage::Nak {
+            command_seq: 7,
+            reason: NakReason::Busy
+        }
+    );
+    assert_eq!(effect, Effect::None);
+    assert!(
+        !ctl.counters().streaming,
+        "a refused start leaves streaming off"
+    );
+    // Stopping the roller and asking for status need no room.
+    let stop = Command::Roller(rollfuse_core::protocol::RollerCommand::Stop);
+    let (reply, effect) = ctl.handle_when(&command(8, &stop), false);
+    assert_eq!(reply, DeviceMessage::Ack { command_seq: 8 });
+    assert_eq!(
+        effect,
+        Effect::Roller(rollfuse_core::protocol::RollerCommand::Stop)
+    );
+    assert!(matches!(
+        ctl.handle_when(&command(9, &Command::Status), false).0,
+        DeviceMessage::Status(_)
+    ));
+    // With room, the same start is acknowledged and takes effect.
+    let (reply, effect) = ctl.handle_when(&command(10, &Command::StreamStart), true);
+    assert_eq!(reply, DeviceMessage::Ack { command_seq: 10 });
+    assert_eq!(effect, Effect::StreamStart);
+    assert!(ctl.host_lost(), "streaming was on");
+    assert!(!ctl.counters().streaming && !ctl.host_lost());
+}

@@ -9,9 +9,11 @@ The stack's worst case is taken as:
   thread mode: the deepest path from `main` (the executor's loop) plus the deepest path
                from any task's poll function (`TaskStorage<F>::poll`: the executor calls
                them through a pointer, which no direct call shows);
-  interrupts:  the deepest interrupt handler (distinct vector-table symbols; embassy gives
-               them one priority, so they do not nest) plus the 104-byte exception frame
-               with floating-point state.
+  interrupts:  the deepest interrupt handler (distinct vector-table symbols) plus, since an
+               interrupt-priority executor polls its tasks from its handler through the same
+               pointers, the deepest task poll again, plus the 104-byte exception frame with
+               floating-point state. Handlers of one priority do not nest; the firmware has
+               one executor above thread mode.
 Indirect calls (`blx rN`) other than the executor's are not followed; their sites are
 counted and printed. Recursion is reported and its cycle counted once.
 
@@ -152,7 +154,7 @@ def main():
             d = deepest(h, frames, calls, memo, set(), cycles)
             if d[0] > isr_best[0]:
                 isr_best = d
-    worst = thread + task_best[0] + isr_best[0] + EXCEPTION_FRAME
+    worst = thread + task_best[0] + isr_best[0] + task_best[0] + EXCEPTION_FRAME
     largest = sorted(frames.items(), key=lambda kv: -kv[1])[:5]
     print("largest frames:")
     for name, size in largest:
@@ -162,8 +164,8 @@ def main():
     for name in task_best[1][:12]:
         print(f"  {frames[name]:>7} B  {short(name)}")
     print(f"interrupts: deepest handler {isr_best[0]} B "
-          f"({short(isr_best[1][0]) if isr_best[1] else 'none'}) + {EXCEPTION_FRAME} B "
-          "exception frame")
+          f"({short(isr_best[1][0]) if isr_best[1] else 'none'}) + a task poll "
+          f"{task_best[0]} B + {EXCEPTION_FRAME} B exception frame")
     sites = sum(indirect.values())
     print(f"not followed: {sites} indirect call sites in {len(indirect)} functions; "
           f"{len(dynamic)} functions with a variable-size frame; {len(cycles)} recursive")

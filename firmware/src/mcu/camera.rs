@@ -9,7 +9,7 @@ use embassy_stm32::dcmi::Dcmi;
 use embassy_stm32::i2c::{I2c, Master};
 use embassy_stm32::mode::Async;
 use embassy_stm32::peripherals::DCMI;
-use embassy_time::Timer;
+use embassy_time::{Duration, Timer, with_timeout};
 
 /// SCCB address of the sensor (7-bit).
 const ADDRESS: u8 = 0x21;
@@ -66,9 +66,57 @@ pub async fn setup(i2c: &mut I2c<'static, Async, Master>) -> Result<(), CameraEr
     Ok(())
 }
 
-/// Captures one frame into `frame`; `false` on a DMA or synchronization error (an overrun).
-pub async fn capture(dcmi: &mut Dcmi<'static, DCMI>, frame: &mut [u32; FRAME_WORDS]) -> bool {
-    dcmi.capture(frame.as_mut_slice()).await.is_ok()
+/// The longest a snapshot may take: waiting for the next frame start, then one frame
+/// (33 ms at 30 frames/s), with room for a slower sensor clock.
+pub const CAPTURE_TIMEOUT: Duration = Duration::from_millis(150);
+
+/// How a snapshot went.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Capture {
+    /// The frame is in the buffer.
+    Done,
+    /// DMA or synchronization error (an overrun).
+    Failed,
+    /// Nothing within [`CAPTURE_TIMEOUT`] (no pixel clock, a short frame, a sensor that
+    /// never started); the interface was reset.
+    TimedOut,
+}
+
+/// Captures one frame into `frame`, giving up after [`CAPTURE_TIMEOUT`].
+pub async fn capture(dcmi: &mut Dcmi<'static, DCMI>, frame: &mut [u32; FRAME_WORDS]) -> Capture {
+    match with_timeout(CAPTURE_TIMEOUT, dcmi.capture(frame.as_mut_slice())).await {
+        Ok(Ok(())) => Capture::Done,
+        Ok(Err(_)) => Capture::Failed,
+        Err(_) => {
+            // Dropping the capture stopped its DMA transfer; the interface is still
+            // waiting for a frame: disable it, so the next capture starts clean.
+            embassy_stm32::pac::DCMI.cr().modify(|r| {
+                r.set_capture(false);
+                r.set_enable(false);
+            });
+            Capture::TimedOut
+        }
+    }
+}
+
+/// Counts a capture that did not deliver a frame; `true` if it did.
+pub fn counted(outcome: Capture) -> bool {
+    use super::counters::COUNTERS;
+    use core::sync::atomic::Ordering::Relaxed;
+    match outcome {
+        Capture::Done => {
+            COUNTERS.frames_captured.fetch_add(1, Relaxed);
+            true
+        }
+        Capture::Failed => {
+            COUNTERS.camera_overruns.fetch_add(1, Relaxed);
+            false
+        }
+        Capture::TimedOut => {
+            COUNTERS.camera_timeouts.fetch_add(1, Relaxed);
+            false
+        }
+    }
 }
 
 /// The frame's bytes (YUYV), as the pipeline reads them: the DMA wrote them in memory

@@ -1,12 +1,14 @@
 //! What the tasks count, for the status the controller reports.
 
-use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering::Relaxed};
 use rollfuse_core::protocol::StatusCounters;
 
 /// Counters shared by the camera, pipeline and link.
 pub struct Counters {
     pub frames_captured: AtomicU32,
     pub camera_overruns: AtomicU32,
+    pub camera_timeouts: AtomicU32,
+    pub camera_ready: AtomicBool,
     pub frames_fused: AtomicU32,
     pub frames_rejected: AtomicU32,
     pub tiles_emitted: AtomicU32,
@@ -17,6 +19,8 @@ pub struct Counters {
 pub static COUNTERS: Counters = Counters {
     frames_captured: AtomicU32::new(0),
     camera_overruns: AtomicU32::new(0),
+    camera_timeouts: AtomicU32::new(0),
+    camera_ready: AtomicBool::new(false),
     frames_fused: AtomicU32::new(0),
     frames_rejected: AtomicU32::new(0),
     tiles_emitted: AtomicU32::new(0),
@@ -29,6 +33,8 @@ impl Counters {
     pub fn merge_into(&self, status: &mut StatusCounters) {
         status.frames_captured = self.frames_captured.load(Relaxed);
         status.camera_overruns = self.camera_overruns.load(Relaxed);
+        status.camera_timeouts = self.camera_timeouts.load(Relaxed);
+        status.camera_ready = self.camera_ready.load(Relaxed);
         status.frames_fused = self.frames_fused.load(Relaxed);
         status.frames_rejected = self.frames_rejected.load(Relaxed);
         status.tiles_emitted = self.tiles_emitted.load(Relaxed);

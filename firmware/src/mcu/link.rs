@@ -8,9 +8,10 @@
 
 use super::counters::COUNTERS;
 use super::outbox::{self, Kind};
-use super::{EFFECTS, motion};
+use super::{EFFECTS, STOP_STREAM, liveness, motion};
 use defmt::{info, warn};
-use embassy_futures::select::{Either, select};
+use embassy_futures::select::{Either3, select3};
+use embassy_time::{Duration, Instant, Timer};
 use embassy_usb::driver::{EndpointError, EndpointIn, EndpointOut};
 use rollfuse_core::device::{Controller, Effect};
 use rollfuse_core::protocol::{DeviceMessage, MAX_MESSAGE, RawChunk, RollerCommand, Tile};
@@ -21,6 +22,19 @@ pub const PACKET: usize = 64;
 /// The largest command accepted; longer transfers are dropped whole and answered with a
 /// bad-message refusal.
 const MAX_COMMAND: usize = 256;
+
+/// A host that sends no command for this long is taken as gone: the roller stops and
+/// streaming ends. The host sends a status request every second while a session runs.
+pub const HEARTBEAT: Duration = Duration::from_secs(3);
+
+/// Stops the roller and streaming, and clears the controller's flags, once.
+fn host_gone(controller: &mut Controller) {
+    motion::stop();
+    STOP_STREAM.signal(());
+    if controller.host_lost() {
+        warn!("host gone: roller and streaming stopped");
+    }
+}
 
 /// Sends one message as one transfer.
 async fn send(ep: &mut impl EndpointIn, message: &[u8]) -> Result<(), EndpointError> {
@@ -44,13 +58,33 @@ pub async fn serve(
 ) {
     read.wait_enabled().await;
     info!("USB host connected");
+    // A new host must not get the last one's tiles.
+    outbox::discard_ready();
+    let mut last_command = Instant::now();
+    let mut silent = false;
     let mut command = heapless::Vec::<u8, MAX_COMMAND>::new();
     let mut oversized = false;
     loop {
         let mut packet = [0u8; PACKET];
-        let event = select(read.read(&mut packet), outbox::next_ready()).await;
+        liveness::beat(liveness::Task::Link);
+        let wake = (last_command + HEARTBEAT).min(Instant::now() + liveness::BEAT);
+        let event = select3(
+            read.read(&mut packet),
+            outbox::next_ready(),
+            Timer::at(wake),
+        )
+        .await;
         let result = match event {
-            Either::First(Ok(n)) => {
+            Either3::Third(()) => {
+                if !silent && Instant::now() >= last_command + HEARTBEAT {
+                    silent = true;
+                    host_gone(controller);
+                }
+                continue;
+            }
+            Either3::First(Ok(n)) => {
+                last_command = Instant::now();
+                silent = false;
                 if command.extend_from_slice(&packet[..n]).is_err() {
                     oversized = true;
                 }
@@ -59,7 +93,9 @@ pub async fn serve(
                 }
                 let bytes: &[u8] = if oversized { &[] } else { &command };
                 COUNTERS.merge_into(controller.counters_mut());
-                let (answer, effect) = controller.handle(bytes);
+                // An Ack means the effect is on its way: with the effect queue full, a
+                // command that needs it is refused as busy instead.
+                let (answer, effect) = controller.handle_when(bytes, !EFFECTS.is_full());
                 command.clear();
                 oversized = false;
                 match effect {
@@ -68,17 +104,17 @@ pub async fn serve(
                     Effect::Roller(RollerCommand::Stop) => motion::stop(),
                     Effect::None => {}
                     other => {
-                        // A full queue means the tasks are behind; the command was still
-                        // accepted, and the next one of its kind will get through.
+                        // Room was checked before the command was accepted, and only this
+                        // task sends effects.
                         if EFFECTS.try_send(other).is_err() {
-                            warn!("effect queue full");
+                            warn!("effect queue full after all");
                         }
                     }
                 }
                 encode_and_send(write, controller, &answer, tx).await
             }
-            Either::First(Err(e)) => Err(e),
-            Either::Second(sending) => {
+            Either3::First(Err(e)) => Err(e),
+            Either3::Second(sending) => {
                 let m = sending.message();
                 let msg = match m.kind {
                     Kind::Tile {
@@ -115,8 +151,8 @@ pub async fn serve(
         };
         if result.is_err() {
             info!("USB host gone");
-            // Losing the host stops the roller.
-            motion::stop();
+            // Losing the host stops the roller and streaming.
+            host_gone(controller);
             return;
         }
     }

@@ -4,21 +4,24 @@ mod camera;
 mod counters;
 mod leds;
 mod link;
+mod liveness;
 mod motion;
 mod outbox;
 mod pipeline;
 mod selftest;
 
-use defmt::{error, info};
-use embassy_executor::Spawner;
-use embassy_futures::join::{join, join5};
+use defmt::{error, info, warn};
+use embassy_executor::{InterruptExecutor, Spawner};
+use embassy_futures::join::join5;
+use embassy_futures::select::{Either, select};
 use embassy_stm32::gpio::{Level, Output, OutputType, Speed};
 use embassy_stm32::i2c::I2c;
+use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::rcc::{Mco, Mco1Source, McoConfig, McoPrescaler};
 use embassy_stm32::time::khz;
 use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
 use embassy_stm32::wdg::IndependentWatchdog;
-use embassy_stm32::{Config, bind_interrupts, dcmi, dma, i2c, peripherals, usb};
+use embassy_stm32::{Config, bind_interrupts, dcmi, dma, i2c, interrupt, peripherals, usb};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
@@ -52,6 +55,38 @@ pub enum StreamOrder {
 
 /// The pipeline's orders.
 pub static STREAM: Channel<CriticalSectionRawMutex, StreamOrder, 4> = Channel::new();
+
+/// The host is gone: streaming ends. A signal, not a queued order, so nothing can drop it.
+pub static STOP_STREAM: Signal<CriticalSectionRawMutex, ()> = Signal::new();
+
+/// The executor of the roller's step generator, at interrupt priority: fusion in thread
+/// mode never delays a step. Its interrupt is one no peripheral here uses.
+static EXECUTOR_HIGH: InterruptExecutor = InterruptExecutor::new();
+
+#[interrupt]
+unsafe fn UART4() {
+    // SAFETY: the executor is started on this interrupt in `main`, before it is enabled.
+    unsafe { EXECUTOR_HIGH.on_interrupt() }
+}
+
+/// Bus events: a suspended or unconfigured bus means the host is gone.
+struct BusEvents;
+
+impl embassy_usb::Handler for BusEvents {
+    fn suspended(&mut self, suspended: bool) {
+        if suspended {
+            motion::stop();
+            STOP_STREAM.signal(());
+        }
+    }
+
+    fn configured(&mut self, configured: bool) {
+        if !configured {
+            motion::stop();
+            STOP_STREAM.signal(());
+        }
+    }
+}
 
 /// The camera's frame buffer (AXI SRAM: DMA-reachable). Const-initialized, so taking it
 /// builds nothing on the stack.
@@ -117,6 +152,12 @@ fn clocks() -> Config {
 async fn main(_spawner: Spawner) {
     let p = embassy_stm32::init(clocks());
     info!("rollfuse-fw {}", env!("CARGO_PKG_VERSION"));
+    // Instructions from flash through the I-cache. The D-cache stays off: the DCMI's DMA
+    // writes frames to AXI SRAM that the CPU then reads, and without cache maintenance a
+    // cached CPU would see stale lines.
+    if let Some(mut core) = cortex_m::Peripherals::take() {
+        core.SCB.enable_icache();
+    }
     let t0 = Instant::now();
     match selftest::run() {
         Ok(step) => info!(
@@ -139,8 +180,9 @@ async fn main(_spawner: Spawner) {
     // USB: vendor interface, bulk OUT then bulk IN (addresses 0x01 and 0x81).
     let mut ep_out_buffer = [0u8; 256];
     let mut usb_config = usb::Config::default();
-    // Bus-powered board: no VBUS sensing needed.
-    usb_config.vbus_detection = false;
+    // VBUS on PA9 (the NUCLEO's USB connector wires it there): pulling the cable is seen
+    // at once, not only as a suspended bus.
+    usb_config.vbus_detection = true;
     let driver = usb::Driver::new_fs(
         p.USB_OTG_FS,
         Irqs,
@@ -155,6 +197,7 @@ async fn main(_spawner: Spawner) {
     config.serial_number = Some("0001");
     config.max_power = 100;
     config.max_packet_size_0 = 64;
+    let mut bus_events = BusEvents;
     let mut config_descriptor = [0; 256];
     let mut bos_descriptor = [0; 256];
     let mut control_buf = [0; 64];
@@ -166,6 +209,7 @@ async fn main(_spawner: Spawner) {
         &mut [],
         &mut control_buf,
     );
+    builder.handler(&mut bus_events);
     let mut function = builder.function(0xFF, 0, 0);
     let mut interface = function.interface();
     let mut alt = interface.alt_setting(0xFF, 0, 0, None);
@@ -207,8 +251,15 @@ async fn main(_spawner: Spawner) {
         Irqs,
         Default::default(),
     );
-    if let Err(e) = camera::setup(&mut sccb).await {
-        error!("camera: {}", e);
+    // The sensor needs its clock running before it answers on SCCB.
+    Timer::after_millis(10).await;
+    // Refused at start-up, the camera is reported in every status (`camera_ready`); its
+    // captures then time out and are counted.
+    match camera::setup(&mut sccb).await {
+        Ok(()) => counters::COUNTERS
+            .camera_ready
+            .store(true, core::sync::atomic::Ordering::Relaxed),
+        Err(e) => error!("camera: {}", e),
     }
     let dcmi = dcmi::Dcmi::new_8bit(
         p.DCMI,
@@ -217,12 +268,14 @@ async fn main(_spawner: Spawner) {
         p.PC6,
         p.PC7,
         p.PE0,
-        p.PE1,
+        // D3 on PC9 and VSYNC on PG9: PE1 and PB7 drive user LEDs on the NUCLEO-H743ZI
+        // boards (firmware/README.md, pin map).
+        p.PC9,
         p.PE4,
         p.PD3,
         p.PE5,
         p.PE6,
-        p.PB7,
+        p.PG9,
         p.PA4,
         p.PA6,
         dcmi::Config::default(),
@@ -233,12 +286,22 @@ async fn main(_spawner: Spawner) {
     let _dir = Output::new(p.PF12, Level::Low, Speed::Low);
     let step = Output::new(p.PF13, Level::Low, Speed::High);
     let enable = Output::new(p.PF14, Level::High, Speed::Low);
-    let roller = motion::run(step, enable, DeviceConfig::default().frame_spacing_px);
+    interrupt::UART4.set_priority(Priority::P6);
+    let high = EXECUTOR_HIGH.start(interrupt::UART4);
+    match motion::run(step, enable, DeviceConfig::default().frame_spacing_px) {
+        Ok(task) => high.spawn(task),
+        Err(_) => error!("the roller's task could not start"),
+    }
 
     // Accepted commands reach the hardware here.
     let effects = async {
         loop {
-            match EFFECTS.receive().await {
+            liveness::beat(liveness::Task::Effects);
+            let next = select(EFFECTS.receive(), Timer::after(liveness::BEAT)).await;
+            let Either::First(effect) = next else {
+                continue;
+            };
+            match effect {
                 Effect::Leds(duty) => leds.set(duty),
                 Effect::Roller(cmd) => motion::ORDERS.send(motion::Order::Roller(cmd)).await,
                 Effect::Configure(cfg) => {
@@ -254,16 +317,22 @@ async fn main(_spawner: Spawner) {
         }
     };
 
-    // The watchdog restarts a hung firmware after 1 s; the board LED shows it is alive.
+    // The watchdog restarts the firmware 1 s after a task stopped coming round its loop
+    // (liveness.rs); the board LED blinks while every task does.
     let mut watchdog = IndependentWatchdog::new(p.IWDG1, 1_000_000);
     watchdog.unleash();
     let mut led = Output::new(p.PB0, Level::High, Speed::Low);
     let alive = async {
+        let mut seen = [0; 4];
         loop {
-            watchdog.pet();
-            led.toggle();
-            Timer::after_millis(250).await;
+            Timer::after_millis(400).await;
+            if liveness::all_alive(&mut seen) {
+                watchdog.pet();
+                led.toggle();
+            } else {
+                warn!("a task is late: the watchdog is not fed");
+            }
         }
     };
-    join(join5(device.run(), serve, effects, roller, alive), frames).await;
+    join5(device.run(), serve, effects, alive, frames).await;
 }

@@ -5,9 +5,11 @@
 //! Pins: STEP PF13, DIR PF12 (fixed forward), ENABLE PF14 (low = driver on).
 
 use super::TRIGGERS;
+use super::counters::COUNTERS;
+use super::liveness;
 use core::sync::atomic::{AtomicBool, Ordering};
 use defmt::{info, warn};
-use embassy_futures::select::{Either, select};
+use embassy_futures::select::{Either, Either3, select, select3};
 use embassy_stm32::gpio::Output;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
@@ -52,12 +54,22 @@ pub fn stop() {
     STOP_SIGNAL.signal(());
 }
 
+/// Whether a trigger was signalled and the camera has not taken it yet.
+static TRIGGER_PENDING: AtomicBool = AtomicBool::new(false);
+
+/// The camera took the last trigger.
+pub fn trigger_taken() {
+    TRIGGER_PENDING.store(false, Ordering::Release);
+}
+
 /// Takes a pending stop, if any.
 fn stop_requested() -> bool {
     STOP.swap(false, Ordering::AcqRel)
 }
 
-/// Runs the roller forever.
+/// Runs the roller forever. Spawned on the interrupt-priority executor, so the pipeline's
+/// fusion (thread mode, milliseconds a frame) never delays a step.
+#[embassy_executor::task]
 pub async fn run(mut step: Output<'static>, mut enable: Output<'static>, spacing_px: u16) {
     let steps_per_frame = |px: u16| MECHANICS.steps_per_frame(u32::from(px) * UM_PER_PX);
     let Ok(mut ramp) = Ramp::new(MECHANICS, steps_per_frame(spacing_px)) else {
@@ -71,7 +83,13 @@ pub async fn run(mut step: Output<'static>, mut enable: Output<'static>, spacing
             enable.set_high();
             // A stop while stopped has nothing to do; an order after it starts afresh.
             let _ = stop_requested();
-            if let Either::First(order) = select(ORDERS.receive(), STOP_SIGNAL.wait()).await {
+            liveness::beat(liveness::Task::Motion);
+            let wake = select3(
+                ORDERS.receive(),
+                STOP_SIGNAL.wait(),
+                Timer::after(liveness::BEAT),
+            );
+            if let Either3::First(order) = wake.await {
                 apply(&mut ramp, order, &steps_per_frame);
             }
             continue;
@@ -82,6 +100,7 @@ pub async fn run(mut step: Output<'static>, mut enable: Output<'static>, spacing
             if stop_requested() {
                 let _ = ramp.set_speed(0);
             }
+            liveness::beat(liveness::Task::Motion);
             deadline += Duration::from_ticks(u64::from(s.interval));
             // Orders arriving meanwhile are applied; the step already due is still taken.
             while let Either::Second(order) = select(Timer::at(deadline), ORDERS.receive()).await {
@@ -92,6 +111,10 @@ pub async fn run(mut step: Output<'static>, mut enable: Output<'static>, spacing
             Timer::after_micros(2).await;
             step.set_low();
             if s.trigger {
+                // A trigger the camera has not taken yet is overwritten: a lost frame.
+                if TRIGGER_PENDING.swap(true, Ordering::AcqRel) {
+                    COUNTERS.camera_overruns.fetch_add(1, Ordering::Relaxed);
+                }
                 TRIGGERS.signal(ramp.steps());
             }
         }

@@ -124,6 +124,13 @@ pub async fn claim() -> Claim {
     }
 }
 
+/// Frees every filled slot not sent yet (a new host must not get the last one's tiles).
+pub fn discard_ready() {
+    while let Ok(index) = READY.try_receive() {
+        let _ = FREE.try_send(index);
+    }
+}
+
 /// The next filled slot, for the link; [`Sending::release`] returns it to the free list.
 pub async fn next_ready() -> Sending {
     loop {

@@ -6,12 +6,13 @@
 use super::camera::{self, FRAME_WORDS};
 use super::counters::COUNTERS;
 use super::outbox::{self, Kind};
-use super::{STREAM, StreamOrder, TRIGGERS, motion};
+use super::{STOP_STREAM, STREAM, StreamOrder, TRIGGERS, liveness, motion};
 use core::sync::atomic::Ordering::Relaxed;
 use defmt::warn;
-use embassy_futures::select::{Either, select};
+use embassy_futures::select::{Either4, select4};
 use embassy_stm32::dcmi::Dcmi;
 use embassy_stm32::peripherals::DCMI;
+use embassy_time::{Duration, Instant, Timer, with_timeout};
 use rollfuse_core::device::{MCU_CAPACITY, Memory, Pipeline, PipelineBuffers, PipelineConfig};
 use rollfuse_core::protocol::{MAX_CHUNK, Tile};
 
@@ -67,14 +68,15 @@ fn queue(tile: Tile<'_>) {
 /// rather than drop any (a raw capture is an explicit request).
 async fn send_raw(dcmi: &mut Dcmi<'static, DCMI>, frame: &mut [u32; FRAME_WORDS], n: u8) {
     for k in 0..n {
-        if !camera::capture(dcmi, frame).await {
-            COUNTERS.camera_overruns.fetch_add(1, Relaxed);
+        if !camera::counted(camera::capture(dcmi, frame).await) {
             continue;
         }
-        COUNTERS.frames_captured.fetch_add(1, Relaxed);
         let bytes = camera::bytes(frame);
         for (i, piece) in bytes.chunks(MAX_CHUNK).enumerate() {
-            let mut claim = outbox::claim().await;
+            let Some(mut claim) = slot_within(SLOT_WAIT).await else {
+                warn!("raw capture abandoned: the link took nothing for a while");
+                return;
+            };
             let m = claim.message();
             m.bytes[..piece.len()].copy_from_slice(piece);
             m.len = piece.len();
@@ -86,6 +88,31 @@ async fn send_raw(dcmi: &mut Dcmi<'static, DCMI>, frame: &mut [u32; FRAME_WORDS]
             claim.send();
         }
     }
+}
+
+/// The longest the pipeline waits for the link to free an outbox slot (it beats
+/// meanwhile, so the watchdog waits too).
+const SLOT_WAIT: Duration = Duration::from_secs(2);
+
+/// A free outbox slot, waiting at most `limit` for the link to free one.
+async fn slot_within(limit: Duration) -> Option<outbox::Claim> {
+    let deadline = Instant::now() + limit;
+    loop {
+        liveness::beat(liveness::Task::Pipeline);
+        match with_timeout(liveness::BEAT, outbox::claim()).await {
+            Ok(claim) => return Some(claim),
+            Err(_) if Instant::now() >= deadline => return None,
+            Err(_) => {}
+        }
+    }
+}
+
+/// What woke the pipeline.
+enum Wake {
+    /// A frame trigger, with the step count.
+    Trigger(u64),
+    /// An order.
+    Order(StreamOrder),
 }
 
 /// Runs the pipeline forever on the camera's frames.
@@ -110,16 +137,29 @@ pub async fn run(
         };
         // Serve this configuration until the host sends another.
         let next = loop {
-            match select(TRIGGERS.wait(), STREAM.receive()).await {
-                Either::First(steps) => {
+            liveness::beat(liveness::Task::Pipeline);
+            let wake = select4(
+                TRIGGERS.wait(),
+                STREAM.receive(),
+                STOP_STREAM.wait(),
+                Timer::after(liveness::BEAT),
+            );
+            let woken = match wake.await {
+                Either4::First(steps) => Wake::Trigger(steps),
+                Either4::Second(order) => Wake::Order(order),
+                // The host is gone: stop as if it had asked.
+                Either4::Third(()) if streaming => Wake::Order(StreamOrder::Stop),
+                Either4::Third(()) | Either4::Fourth(()) => continue,
+            };
+            match woken {
+                Wake::Trigger(steps) => {
+                    motion::trigger_taken();
                     if !streaming {
                         continue;
                     }
-                    if !camera::capture(&mut dcmi, frame).await {
-                        COUNTERS.camera_overruns.fetch_add(1, Relaxed);
+                    if !camera::counted(camera::capture(&mut dcmi, frame).await) {
                         continue;
                     }
-                    COUNTERS.frames_captured.fetch_add(1, Relaxed);
                     let position_px = steps * u64::from(motion::MECHANICS.nm_per_step)
                         / (u64::from(motion::UM_PER_PX) * 1000);
                     match pipeline.push_frame(camera::bytes(frame), position_px, queue) {
@@ -127,19 +167,23 @@ pub async fn run(
                         Err(_) => COUNTERS.frames_rejected.fetch_add(1, Relaxed),
                     };
                 }
-                Either::Second(StreamOrder::Start) => streaming = true,
-                Either::Second(StreamOrder::Stop) => {
+                Wake::Order(StreamOrder::Start) => streaming = true,
+                Wake::Order(StreamOrder::Stop) => {
                     streaming = false;
                     pipeline.finish(queue);
                     // The link sends the final status once the flushed tiles are out; the
-                    // marker waits for a slot, so it is never lost.
-                    let mut claim = outbox::claim().await;
-                    claim.message().kind = Kind::StreamEnded;
-                    claim.message().len = 0;
-                    claim.send();
+                    // marker waits for the link to free a slot rather than be dropped.
+                    match slot_within(SLOT_WAIT).await {
+                        Some(mut claim) => {
+                            claim.message().kind = Kind::StreamEnded;
+                            claim.message().len = 0;
+                            claim.send();
+                        }
+                        None => warn!("no link to send the final status to"),
+                    }
                 }
-                Either::Second(StreamOrder::Configure(c)) => break c,
-                Either::Second(StreamOrder::CaptureRaw(n)) => send_raw(&mut dcmi, frame, n).await,
+                Wake::Order(StreamOrder::Configure(c)) => break c,
+                Wake::Order(StreamOrder::CaptureRaw(n)) => send_raw(&mut dcmi, frame, n).await,
             }
         };
         bufs = pipeline.into_buffers();

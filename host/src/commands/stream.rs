@@ -156,14 +156,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(c) = &m.device_counters {
         println!(
-            "device: {} frames captured, {} fused, {} rejected, {} camera overruns; {} tiles emitted, {} dropped",
+            "device: {} frames captured, {} fused, {} rejected, {} camera overruns, {} capture timeouts; {} tiles emitted, {} dropped",
             c.frames_captured,
             c.frames_fused,
             c.frames_rejected,
             c.camera_overruns,
+            c.camera_timeouts,
             c.tiles_emitted,
             c.tiles_dropped
         );
+        if !c.camera_ready {
+            println!("device: the camera did not answer or refused its set-up at start-up");
+        }
     }
     if !m.gaps.is_empty() {
         println!("missing tiles: {:?}", m.gaps);

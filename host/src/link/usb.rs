@@ -78,6 +78,98 @@ pub fn list() -> anyhow::Result<(Vec<Found>, usize)> {
 /// An opened device.
 pub struct Usb {
     handle: rusb::DeviceHandle<rusb::Context>,
+    reassembly: Reassembly,
+}
+
+/// How one bulk IN transfer ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Transfer {
+    /// A short packet (or a zero-length one) ended it after this many bytes: a message.
+    Done(usize),
+    /// The timeout came first; this many bytes of a message had arrived.
+    TimedOut(usize),
+    /// The device sent more than the buffer holds.
+    Overflow,
+    /// The device is gone.
+    Gone,
+    /// Anything else libusb reported.
+    Failed(String),
+}
+
+/// Bulk IN transfers that keep the bytes a timeout interrupts (rusb's `read_bulk` drops
+/// them, tearing a message in flight).
+pub trait BulkIn {
+    /// One transfer into `buf`, ended by a short packet or `timeout`.
+    fn transfer(&mut self, buf: &mut [u8], timeout: Duration) -> Transfer;
+}
+
+impl BulkIn for rusb::DeviceHandle<rusb::Context> {
+    fn transfer(&mut self, buf: &mut [u8], timeout: Duration) -> Transfer {
+        use rusb::constants::{
+            LIBUSB_ERROR_NO_DEVICE, LIBUSB_ERROR_OVERFLOW, LIBUSB_ERROR_TIMEOUT, LIBUSB_SUCCESS,
+        };
+        let mut n: std::os::raw::c_int = 0;
+        // libusb reads a timeout of 0 as "wait forever".
+        let ms = timeout.as_millis().clamp(1, u128::from(u32::MAX)) as u32;
+        let len = buf.len().min(i32::MAX as usize) as i32;
+        // SAFETY: the handle is open for the call; `buf` holds `len` writable bytes and
+        // `n` outlives the synchronous transfer.
+        let rc = unsafe {
+            rusb::ffi::libusb_bulk_transfer(self.as_raw(), EP_IN, buf.as_mut_ptr(), len, &mut n, ms)
+        };
+        let n = usize::try_from(n).unwrap_or(0).min(buf.len());
+        match rc {
+            LIBUSB_SUCCESS => Transfer::Done(n),
+            LIBUSB_ERROR_TIMEOUT => Transfer::TimedOut(n),
+            LIBUSB_ERROR_OVERFLOW => Transfer::Overflow,
+            LIBUSB_ERROR_NO_DEVICE => Transfer::Gone,
+            other => Transfer::Failed(format!("libusb error {other}")),
+        }
+    }
+}
+
+/// A message whose transfer a timeout interrupted, completed by the next transfers.
+#[derive(Debug, Default)]
+pub struct Reassembly {
+    partial: Vec<u8>,
+}
+
+impl Reassembly {
+    /// Receives into `buf`: the bytes of an interrupted message first, then the next
+    /// transfer's; a message is whole when a transfer ends with a short packet.
+    pub fn receive(
+        &mut self,
+        io: &mut impl BulkIn,
+        buf: &mut [u8],
+        timeout: Duration,
+    ) -> anyhow::Result<Received> {
+        let have = self.partial.len();
+        if have >= buf.len() {
+            // Longer than any message: handed on whole to be refused as too long.
+            buf.copy_from_slice(&self.partial[..buf.len()]);
+            self.partial.clear();
+            return Ok(Received::Message(buf.len()));
+        }
+        buf[..have].copy_from_slice(&self.partial);
+        match io.transfer(&mut buf[have..], timeout) {
+            Transfer::Done(n) => {
+                self.partial.clear();
+                Ok(Received::Message(have + n))
+            }
+            Transfer::TimedOut(n) => {
+                self.partial.extend_from_slice(&buf[have..have + n]);
+                Ok(Received::Timeout)
+            }
+            // More than the buffer holds: a full buffer is handed on, and refused by the
+            // decoder as too long (and counted), like any other bad message.
+            Transfer::Overflow => {
+                self.partial.clear();
+                Ok(Received::Message(buf.len()))
+            }
+            Transfer::Gone => Ok(Received::Closed),
+            Transfer::Failed(e) => bail!("USB receive failed: {e}"),
+        }
+    }
 }
 
 impl Usb {
@@ -98,7 +190,10 @@ impl Usb {
         handle
             .claim_interface(INTERFACE)
             .map_err(|e| anyhow::anyhow!("cannot claim the device's interface: {e}"))?;
-        Ok(Self { handle })
+        Ok(Self {
+            handle,
+            reassembly: Reassembly::default(),
+        })
     }
 }
 
@@ -115,14 +210,69 @@ impl Transport for Usb {
     }
 
     fn receive(&mut self, buf: &mut [u8], timeout: Duration) -> anyhow::Result<Received> {
-        match self.handle.read_bulk(EP_IN, buf, timeout) {
-            Ok(n) => Ok(Received::Message(n)),
-            Err(rusb::Error::Timeout) => Ok(Received::Timeout),
-            Err(rusb::Error::NoDevice) => Ok(Received::Closed),
-            // More than the buffer holds: a full buffer is handed on, and refused by the
-            // decoder as too long (and counted), like any other bad message.
-            Err(rusb::Error::Overflow) => Ok(Received::Message(buf.len())),
-            Err(e) => bail!("USB receive failed: {e}"),
+        self.reassembly.receive(&mut self.handle, buf, timeout)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Hands out scripted transfers, each as many bytes of `data` as it says.
+    struct Script {
+        data: Vec<u8>,
+        steps: std::vec::IntoIter<Transfer>,
+    }
+
+    impl BulkIn for Script {
+        fn transfer(&mut self, buf: &mut [u8], _: Duration) -> Transfer {
+            let step = self.steps.next().unwrap_or(Transfer::Gone);
+            let n = match step {
+                Transfer::Done(n) | Transfer::TimedOut(n) => n,
+                _ => 0,
+            };
+            buf[..n].copy_from_slice(&self.data[..n]);
+            self.data.drain(..n);
+            step
         }
+    }
+
+    #[test]
+    fn a_message_cut_by_timeouts_arrives_whole() {
+        let message: Vec<u8> = (0..200u8).collect();
+        let mut io = Script {
+            data: message.clone(),
+            steps: vec![
+                Transfer::TimedOut(64),
+                Transfer::TimedOut(0),
+                Transfer::TimedOut(64),
+                Transfer::Done(72),
+            ]
+            .into_iter(),
+        };
+        let mut r = Reassembly::default();
+        let mut buf = vec![0u8; 512];
+        let t = Duration::from_millis(10);
+        for _ in 0..3 {
+            assert!(matches!(
+                r.receive(&mut io, &mut buf, t).unwrap(),
+                Received::Timeout
+            ));
+        }
+        match r.receive(&mut io, &mut buf, t).unwrap() {
+            Received::Message(n) => assert_eq!(&buf[..n], &message[..]),
+            other => panic!("{other:?}"),
+        }
+        // The next message starts afresh.
+        io.data = vec![9; 10];
+        io.steps = vec![Transfer::Done(10)].into_iter();
+        assert!(matches!(
+            r.receive(&mut io, &mut buf, t).unwrap(),
+            Received::Message(10)
+        ));
+        assert!(matches!(
+            r.receive(&mut io, &mut buf, t).unwrap(),
+            Received::Closed
+        ));
     }
 }

@@ -86,6 +86,14 @@ impl Controller {
 
     /// Handles one received command message: returns the reply and what to do.
     pub fn handle(&mut self, bytes: &[u8]) -> (DeviceMessage<'static>, Effect) {
+        self.handle_when(bytes, true)
+    }
+
+    /// [`Self::handle`] for a device that can carry out an effect only when `room` (its
+    /// effect queue has a free slot): a command that needs one is refused as
+    /// [`NakReason::Busy`] and changes nothing, so an `Ack` always means the effect is on
+    /// its way. Stopping the roller needs no room: it has a path of its own.
+    pub fn handle_when(&mut self, bytes: &[u8], room: bool) -> (DeviceMessage<'static>, Effect) {
         let (seq, command) = match protocol::decode::<Command>(bytes) {
             Ok((h, c)) => (h.seq, c),
             Err(e) => {
@@ -95,6 +103,9 @@ impl Controller {
                 return (self.nak(u32::MAX, NakReason::BadMessage), Effect::None);
             }
         };
+        if !room && needs_room(&command) {
+            return (self.nak(seq, NakReason::Busy), Effect::None);
+        }
         match self.apply(command) {
             Ok((reply, effect)) => (
                 reply.unwrap_or(DeviceMessage::Ack { command_seq: seq }),
@@ -102,6 +113,15 @@ impl Controller {
             ),
             Err(reason) => (self.nak(seq, reason), Effect::None),
         }
+    }
+
+    /// Marks streaming and the roller stopped (the host is gone and the device stopped
+    /// both on its own); returns whether either was running.
+    pub fn host_lost(&mut self) -> bool {
+        let running = self.counters.streaming || self.counters.roller_running;
+        self.counters.streaming = false;
+        self.counters.roller_running = false;
+        running
     }
 
     fn nak(&self, command_seq: u32, reason: NakReason) -> DeviceMessage<'static> {
@@ -191,4 +211,12 @@ impl Controller {
         self.counters.messages_sent = self.counters.messages_sent.wrapping_add(1);
         Ok(n)
     }
+}
+
+/// Whether `command` is carried out through the device's effect queue.
+fn needs_room(command: &Command) -> bool {
+    !matches!(
+        command,
+        Command::Hello | Command::Status | Command::Roller(RollerCommand::Stop)
+    )
 }

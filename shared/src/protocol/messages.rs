@@ -208,6 +208,11 @@ pub struct StatusCounters {
     pub frames_captured: u32,
     /// Frames the camera lost (DMA overrun, missed trigger).
     pub camera_overruns: u32,
+    /// Captures that did not complete within a few frame periods (no pixel clock, a short
+    /// frame, a camera that did not start); the camera interface is reset after each.
+    pub camera_timeouts: u32,
+    /// Whether the camera answered and took its configuration at start-up.
+    pub camera_ready: bool,
     /// Frames the pipeline fused.
     pub frames_fused: u32,
     /// Frames the pipeline refused (belt moved backwards, wrong size).

@@ -28,7 +28,7 @@ pub use seq::{SeqEvent, SeqTracker};
 use serde::{Deserialize, Serialize};
 
 /// The protocol version this build speaks. A message with another version is refused.
-pub const PROTOCOL_VERSION: u8 = 1;
+pub const PROTOCOL_VERSION: u8 = 2;
 
 /// The largest tile payload, in bytes (e.g. 640 columns × 25 rows).
 pub const MAX_TILE_BYTES: usize = 16_000;

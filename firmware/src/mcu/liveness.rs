@@ -1,0 +1,43 @@
+//! The watchdog is fed only while every task comes round: each task's loop beats at least
+//! every [`BEAT`] (waits are bounded by it), and the feeder pets the watchdog only when
+//! every task has beaten since its last look. A task stuck anywhere — a capture that never
+//! ends, a queue that never drains — starves the watchdog and the board restarts.
+
+use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
+use embassy_time::Duration;
+
+/// The longest a task's loop may take between beats.
+pub const BEAT: Duration = Duration::from_millis(200);
+
+/// The tasks watched.
+#[derive(Debug, Clone, Copy)]
+pub enum Task {
+    /// The USB link.
+    Link,
+    /// Capture and fusion.
+    Pipeline,
+    /// The roller's step generator.
+    Motion,
+    /// Commands' effects (LEDs, configuration, stream orders).
+    Effects,
+}
+
+const TASKS: usize = 4;
+
+static BEATS: [AtomicU32; TASKS] = [const { AtomicU32::new(0) }; TASKS];
+
+/// Records that `task` came round its loop.
+pub fn beat(task: Task) {
+    BEATS[task as usize].fetch_add(1, Relaxed);
+}
+
+/// Whether every task has beaten since `seen` (which it updates).
+pub fn all_alive(seen: &mut [u32; TASKS]) -> bool {
+    let mut alive = true;
+    for (last, beats) in seen.iter_mut().zip(&BEATS) {
+        let now = beats.load(Relaxed);
+        alive &= now != *last;
+        *last = now;
+    }
+    alive
+}
