@@ -18,9 +18,12 @@ pub const SLOTS: usize = 4;
 // A raw chunk fits a slot.
 const _: () = assert!(rollfuse_core::protocol::MAX_CHUNK <= MAX_TILE_BYTES);
 
-/// What a slot holds.
+/// What a slot holds. The variant without data comes first, so an empty pool is all
+/// zeros and lives in `.bss`, not as a 64 KB image in flash.
 #[derive(Clone, Copy)]
 pub enum Kind {
+    /// Streaming stopped and every tile before it is queued: send the final status.
+    StreamEnded,
     /// A fused tile.
     Tile {
         /// Belt index.
@@ -41,8 +44,6 @@ pub enum Kind {
         /// The frame's size in bytes.
         total: u32,
     },
-    /// Streaming stopped and every tile before it is queued: send the final status.
-    StreamEnded,
 }
 
 /// One message's contents.
