@@ -1,6 +1,6 @@
 //! The camera: an OV7725-class sensor configured over SCCB (I2C1) for QVGA YUYV, its pixel
 //! clock from MCO1, frames captured by DCMI + DMA as single snapshots into a buffer in
-//! AXI SRAM (38 400 words, under the DMA's 65 535-word limit).
+//! AXI SRAM (38 400 words, under the DMA's 65 535-word limit), with a timeout.
 //!
 //! The register values are the OV7725 datasheet's QVGA settings; they are not yet tried on
 //! hardware (firmware/README.md).
@@ -9,7 +9,8 @@ use embassy_stm32::dcmi::Dcmi;
 use embassy_stm32::i2c::{I2c, Master};
 use embassy_stm32::mode::Async;
 use embassy_stm32::peripherals::DCMI;
-use embassy_time::{Duration, Timer, with_timeout};
+use embassy_time::Timer;
+use rollfuse_fw::pipeline::{Camera, FRAME_WORDS};
 
 /// SCCB address of the sensor (7-bit).
 const ADDRESS: u8 = 0x21;
@@ -28,9 +29,6 @@ const SETUP: &[(u8, u8)] = &[
     (0x2C, 0x78), // VOutSize: 240 / 2
     (0x2A, 0x00), // EXHCH
 ];
-
-/// Words of one QVGA YUYV frame.
-pub const FRAME_WORDS: usize = 320 * 240 * 2 / 4;
 
 /// Why the camera could not be used.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
@@ -66,61 +64,20 @@ pub async fn setup(i2c: &mut I2c<'static, Async, Master>) -> Result<(), CameraEr
     Ok(())
 }
 
-/// The longest a snapshot may take: waiting for the next frame start, then one frame
-/// (33 ms at 30 frames/s), with room for a slower sensor clock.
-pub const CAPTURE_TIMEOUT: Duration = Duration::from_millis(150);
+/// The DCMI with its DMA stream, as the pipeline's camera.
+pub struct DcmiCamera(pub Dcmi<'static, DCMI>);
 
-/// How a snapshot went.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Capture {
-    /// The frame is in the buffer.
-    Done,
-    /// DMA or synchronization error (an overrun).
-    Failed,
-    /// Nothing within [`CAPTURE_TIMEOUT`] (no pixel clock, a short frame, a sensor that
-    /// never started); the interface was reset.
-    TimedOut,
-}
-
-/// Captures one frame into `frame`, giving up after [`CAPTURE_TIMEOUT`].
-pub async fn capture(dcmi: &mut Dcmi<'static, DCMI>, frame: &mut [u32; FRAME_WORDS]) -> Capture {
-    match with_timeout(CAPTURE_TIMEOUT, dcmi.capture(frame.as_mut_slice())).await {
-        Ok(Ok(())) => Capture::Done,
-        Ok(Err(_)) => Capture::Failed,
-        Err(_) => {
-            // Dropping the capture stopped its DMA transfer; the interface is still
-            // waiting for a frame: disable it, so the next capture starts clean.
-            embassy_stm32::pac::DCMI.cr().modify(|r| {
-                r.set_capture(false);
-                r.set_enable(false);
-            });
-            Capture::TimedOut
-        }
+impl Camera for DcmiCamera {
+    async fn capture(&mut self, frame: &mut [u32; FRAME_WORDS]) -> bool {
+        self.0.capture(frame.as_mut_slice()).await.is_ok()
     }
-}
 
-/// Counts a capture that did not deliver a frame; `true` if it did.
-pub fn counted(outcome: Capture) -> bool {
-    use super::counters::COUNTERS;
-    use core::sync::atomic::Ordering::Relaxed;
-    match outcome {
-        Capture::Done => {
-            COUNTERS.frames_captured.fetch_add(1, Relaxed);
-            true
-        }
-        Capture::Failed => {
-            COUNTERS.camera_overruns.fetch_add(1, Relaxed);
-            false
-        }
-        Capture::TimedOut => {
-            COUNTERS.camera_timeouts.fetch_add(1, Relaxed);
-            false
-        }
+    fn reset(&mut self) {
+        // Dropping the capture stopped its DMA transfer; the interface is still waiting
+        // for a frame: disable it, so the next capture starts clean.
+        embassy_stm32::pac::DCMI.cr().modify(|r| {
+            r.set_capture(false);
+            r.set_enable(false);
+        });
     }
-}
-
-/// The frame's bytes (YUYV), as the pipeline reads them: the DMA wrote them in memory
-/// order, and the little-endian words hold them as they came.
-pub fn bytes(frame: &[u32; FRAME_WORDS]) -> &[u8] {
-    bytemuck::cast_slice(frame.as_slice())
 }

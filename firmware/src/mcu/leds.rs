@@ -18,12 +18,13 @@ impl Leds {
         pwm.ch2().enable();
         pwm.ch3().enable();
         let mut leds = Self { pwm };
-        leds.set(LedDuty::default());
+        rollfuse_fw::effects::Leds::set(&mut leds, LedDuty::default());
         leds
     }
+}
 
-    /// Sets the three duties (per mille).
-    pub fn set(&mut self, duty: LedDuty) {
+impl rollfuse_fw::effects::Leds for Leds {
+    fn set(&mut self, duty: LedDuty) {
         // The timer's full duty fits 16 bits at the 20 kHz the LEDs run at.
         let max = self.pwm.ch1().max_duty_cycle().min(u32::from(u16::MAX)) as u16;
         let [r, g, b] = compare_values(duty, max);

@@ -1,19 +1,12 @@
 //! The firmware proper (only built for the MCU).
 
 mod camera;
-mod counters;
 mod leds;
-mod link;
-mod liveness;
-mod motion;
-mod outbox;
-mod pipeline;
 mod selftest;
 
 use defmt::{error, info, warn};
 use embassy_executor::{InterruptExecutor, Spawner};
 use embassy_futures::join::join5;
-use embassy_futures::select::{Either, select};
 use embassy_stm32::gpio::{Level, Output, OutputType, Speed};
 use embassy_stm32::i2c::I2c;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
@@ -22,12 +15,13 @@ use embassy_stm32::time::khz;
 use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
 use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{Config, bind_interrupts, dcmi, dma, i2c, interrupt, peripherals, usb};
-use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
-use embassy_sync::channel::Channel;
-use embassy_sync::signal::Signal;
 use embassy_time::{Instant, Timer};
-use rollfuse_core::device::{Controller, Effect, Sensor};
+use rollfuse_core::device::{Controller, Sensor};
 use rollfuse_core::protocol::{DeviceConfig, PixelFormat};
+use rollfuse_fw::pipeline::{self, FRAME_WORDS};
+use rollfuse_fw::roller::{self, StepPins};
+use rollfuse_fw::signals::STOP_STREAM;
+use rollfuse_fw::{counters, effects, link, liveness, outbox};
 use static_cell::ConstStaticCell;
 use {defmt_rtt as _, panic_probe as _};
 
@@ -40,24 +34,6 @@ bind_interrupts!(struct Irqs {
     DMA1_STREAM1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
     DMA1_STREAM2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
 });
-
-/// Orders for the pipeline.
-pub enum StreamOrder {
-    /// Fuse and queue tiles on every frame trigger.
-    Start,
-    /// Flush the tiles in fusion, then stop.
-    Stop,
-    /// Rebuild the pipeline for this configuration.
-    Configure(rollfuse_core::device::PipelineConfig),
-    /// Send this many raw frames, captured now.
-    CaptureRaw(u8),
-}
-
-/// The pipeline's orders.
-pub static STREAM: Channel<CriticalSectionRawMutex, StreamOrder, 4> = Channel::new();
-
-/// The host is gone: streaming ends. A signal, not a queued order, so nothing can drop it.
-pub static STOP_STREAM: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 
 /// The executor of the roller's step generator, at interrupt priority: fusion in thread
 /// mode never delays a step. Its interrupt is one no peripheral here uses.
@@ -75,14 +51,14 @@ struct BusEvents;
 impl embassy_usb::Handler for BusEvents {
     fn suspended(&mut self, suspended: bool) {
         if suspended {
-            motion::stop();
+            roller::stop();
             STOP_STREAM.signal(());
         }
     }
 
     fn configured(&mut self, configured: bool) {
         if !configured {
-            motion::stop();
+            roller::stop();
             STOP_STREAM.signal(());
         }
     }
@@ -90,8 +66,7 @@ impl embassy_usb::Handler for BusEvents {
 
 /// The camera's frame buffer (AXI SRAM: DMA-reachable). Const-initialized, so taking it
 /// builds nothing on the stack.
-static FRAME: ConstStaticCell<[u32; camera::FRAME_WORDS]> =
-    ConstStaticCell::new([0; camera::FRAME_WORDS]);
+static FRAME: ConstStaticCell<[u32; FRAME_WORDS]> = ConstStaticCell::new([0; FRAME_WORDS]);
 
 /// The pipeline's buffers.
 static PIPELINE: ConstStaticCell<pipeline::Buffers> =
@@ -101,12 +76,28 @@ static PIPELINE: ConstStaticCell<pipeline::Buffers> =
 static TX: ConstStaticCell<[u8; rollfuse_core::protocol::MAX_MESSAGE]> =
     ConstStaticCell::new([0; rollfuse_core::protocol::MAX_MESSAGE]);
 
-/// Accepted commands' effects, for the tasks that carry them out.
-pub static EFFECTS: Channel<CriticalSectionRawMutex, Effect, 8> = Channel::new();
+/// The stepper driver on its pins: STEP PF13, ENABLE PF14 (low = on).
+struct Stepper {
+    step: Output<'static>,
+    enable: Output<'static>,
+}
 
-/// Frame triggers from the motion task: the step count at each. A trigger the camera has
-/// not taken when the next arrives is overwritten (the camera counts it as an overrun).
-pub static TRIGGERS: Signal<CriticalSectionRawMutex, u64> = Signal::new();
+impl StepPins for Stepper {
+    fn step(&mut self, high: bool) {
+        self.step.set_level(Level::from(high));
+    }
+
+    fn enable(&mut self, on: bool) {
+        // The driver's ENABLE input is active low.
+        self.enable.set_level(Level::from(!on));
+    }
+}
+
+/// The roller's task, on the interrupt-priority executor.
+#[embassy_executor::task]
+async fn roller_task(mut pins: Stepper, spacing_px: u16) {
+    roller::run(&mut pins, spacing_px).await
+}
 
 /// The camera the firmware is built for: an OV7725-class sensor at QVGA, YUYV.
 const SENSOR: Sensor = Sensor {
@@ -280,7 +271,8 @@ async fn main(_spawner: Spawner) {
         p.PA6,
         dcmi::Config::default(),
     );
-    let frames = pipeline::run(dcmi, FRAME.take(), PIPELINE.take(), initial);
+    let mut camera = camera::DcmiCamera(dcmi);
+    let frames = pipeline::run(&mut camera, FRAME.take(), PIPELINE.take(), initial);
 
     // The stepper driver: DIR fixed forward, STEP pulses and ENABLE from the motion task.
     let _dir = Output::new(p.PF12, Level::Low, Speed::Low);
@@ -288,34 +280,14 @@ async fn main(_spawner: Spawner) {
     let enable = Output::new(p.PF14, Level::High, Speed::Low);
     interrupt::UART4.set_priority(Priority::P6);
     let high = EXECUTOR_HIGH.start(interrupt::UART4);
-    match motion::run(step, enable, DeviceConfig::default().frame_spacing_px) {
+    let stepper = Stepper { step, enable };
+    match roller_task(stepper, DeviceConfig::default().frame_spacing_px) {
         Ok(task) => high.spawn(task),
         Err(_) => error!("the roller's task could not start"),
     }
 
     // Accepted commands reach the hardware here.
-    let effects = async {
-        loop {
-            liveness::beat(liveness::Task::Effects);
-            let next = select(EFFECTS.receive(), Timer::after(liveness::BEAT)).await;
-            let Either::First(effect) = next else {
-                continue;
-            };
-            match effect {
-                Effect::Leds(duty) => leds.set(duty),
-                Effect::Roller(cmd) => motion::ORDERS.send(motion::Order::Roller(cmd)).await,
-                Effect::Configure(cfg) => {
-                    let px = u16::try_from(cfg.spacing_px).unwrap_or(u16::MAX);
-                    motion::ORDERS.send(motion::Order::FrameSpacing(px)).await;
-                    STREAM.send(StreamOrder::Configure(cfg)).await;
-                }
-                Effect::StreamStart => STREAM.send(StreamOrder::Start).await,
-                Effect::StreamStop => STREAM.send(StreamOrder::Stop).await,
-                Effect::CaptureRaw(n) => STREAM.send(StreamOrder::CaptureRaw(n)).await,
-                Effect::None => {}
-            }
-        }
-    };
+    let effects = effects::run(&mut leds);
 
     // The watchdog restarts the firmware 1 s after a task stopped coming round its loop
     // (liveness.rs); the board LED blinks while every task does.

@@ -2,15 +2,15 @@
 //! timed against absolute deadlines of the 1 MHz time driver (TIM2), so intervals never
 //! accumulate error; a frame trigger every `steps_per_frame` steps.
 //!
-//! Pins: STEP PF13, DIR PF12 (fixed forward), ENABLE PF14 (low = driver on).
+//! The pins are the board's ([`StepPins`]; on the NUCLEO: STEP PF13, DIR PF12 fixed
+//! forward, ENABLE PF14 low = driver on).
 
-use super::TRIGGERS;
-use super::counters::COUNTERS;
-use super::liveness;
+use crate::counters::COUNTERS;
+use crate::liveness;
+use crate::signals::TRIGGERS;
+use crate::{fw_info, fw_warn};
 use core::sync::atomic::{AtomicBool, Ordering};
-use defmt::{info, warn};
 use embassy_futures::select::{Either, Either3, select, select3};
-use embassy_stm32::gpio::Output;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
@@ -67,20 +67,27 @@ fn stop_requested() -> bool {
     STOP.swap(false, Ordering::AcqRel)
 }
 
-/// Runs the roller forever. Spawned on the interrupt-priority executor, so the pipeline's
-/// fusion (thread mode, milliseconds a frame) never delays a step.
-#[embassy_executor::task]
-pub async fn run(mut step: Output<'static>, mut enable: Output<'static>, spacing_px: u16) {
+/// The stepper driver's pins.
+pub trait StepPins {
+    /// Raises (`true`) or lowers the STEP line.
+    fn step(&mut self, high: bool);
+    /// Turns the driver on (`true`: ENABLE low) or off.
+    fn enable(&mut self, on: bool);
+}
+
+/// Runs the roller forever. On the board it runs on the interrupt-priority executor, so
+/// the pipeline's fusion (thread mode, milliseconds a frame) never delays a step.
+pub async fn run(pins: &mut impl StepPins, spacing_px: u16) {
     let steps_per_frame = |px: u16| MECHANICS.steps_per_frame(u32::from(px) * UM_PER_PX);
     let Ok(mut ramp) = Ramp::new(MECHANICS, steps_per_frame(spacing_px)) else {
-        warn!("motion configuration refused; the roller stays off");
+        fw_warn!("motion configuration refused; the roller stays off");
         return;
     };
-    enable.set_high();
+    pins.enable(false);
     loop {
         // Stopped: wait for an order.
         if ramp.is_stopped() {
-            enable.set_high();
+            pins.enable(false);
             // A stop while stopped has nothing to do; an order after it starts afresh.
             let _ = stop_requested();
             liveness::beat(liveness::Task::Motion);
@@ -94,7 +101,7 @@ pub async fn run(mut step: Output<'static>, mut enable: Output<'static>, spacing
             }
             continue;
         }
-        enable.set_low();
+        pins.enable(true);
         let mut deadline = Instant::now();
         while let Some(s) = ramp.next_step() {
             if stop_requested() {
@@ -106,10 +113,10 @@ pub async fn run(mut step: Output<'static>, mut enable: Output<'static>, spacing
             while let Either::Second(order) = select(Timer::at(deadline), ORDERS.receive()).await {
                 apply(&mut ramp, order, &steps_per_frame);
             }
-            step.set_high();
+            pins.step(true);
             // The driver needs a pulse of at least a microsecond or two.
             Timer::after_micros(2).await;
-            step.set_low();
+            pins.step(false);
             if s.trigger {
                 // A trigger the camera has not taken yet is overwritten: a lost frame.
                 if TRIGGER_PENDING.swap(true, Ordering::AcqRel) {
@@ -127,7 +134,7 @@ fn apply(ramp: &mut Ramp, order: Order, steps_per_frame: &impl Fn(u16) -> u32) {
             RollerCommand::Start { speed_um_s } | RollerCommand::Speed { speed_um_s },
         ) => {
             if ramp.set_speed(speed_um_s).is_err() {
-                warn!("roller speed {} um/s refused", speed_um_s);
+                fw_warn!("roller speed {} um/s refused", speed_um_s);
             }
         }
         Order::Roller(RollerCommand::Stop) => {
@@ -135,7 +142,7 @@ fn apply(ramp: &mut Ramp, order: Order, steps_per_frame: &impl Fn(u16) -> u32) {
         }
         Order::FrameSpacing(px) => {
             ramp.set_steps_per_frame(steps_per_frame(px));
-            info!("frames every {} steps", steps_per_frame(px));
+            fw_info!("frames every {} steps", steps_per_frame(px));
         }
     }
 }

@@ -5,13 +5,21 @@ use rollfuse_core::protocol::StatusCounters;
 
 /// Counters shared by the camera, pipeline and link.
 pub struct Counters {
+    /// Frames the camera delivered.
     pub frames_captured: AtomicU32,
+    /// Captures that failed, and triggers overwritten before the camera took them.
     pub camera_overruns: AtomicU32,
+    /// Captures that never completed.
     pub camera_timeouts: AtomicU32,
+    /// Whether the camera took its set-up at start-up.
     pub camera_ready: AtomicBool,
+    /// Frames the pipeline fused.
     pub frames_fused: AtomicU32,
+    /// Frames the pipeline refused.
     pub frames_rejected: AtomicU32,
+    /// Tiles completed.
     pub tiles_emitted: AtomicU32,
+    /// Tiles completed but dropped: no outbox slot free.
     pub tiles_dropped: AtomicU32,
 }
 

@@ -3,18 +3,78 @@
 //! runs — and each completed tile queued for the USB link, or dropped and counted when the
 //! queue is full.
 
-use super::camera::{self, FRAME_WORDS};
-use super::counters::COUNTERS;
-use super::outbox::{self, Kind};
-use super::{STOP_STREAM, STREAM, StreamOrder, TRIGGERS, liveness, motion};
+use crate::counters::COUNTERS;
+use crate::outbox::{self, Kind};
+use crate::signals::{STOP_STREAM, STREAM, StreamOrder, TRIGGERS};
+use crate::{fw_warn, liveness, roller};
 use core::sync::atomic::Ordering::Relaxed;
-use defmt::warn;
 use embassy_futures::select::{Either4, select4};
-use embassy_stm32::dcmi::Dcmi;
-use embassy_stm32::peripherals::DCMI;
 use embassy_time::{Duration, Instant, Timer, with_timeout};
 use rollfuse_core::device::{MCU_CAPACITY, Memory, Pipeline, PipelineBuffers, PipelineConfig};
 use rollfuse_core::protocol::{MAX_CHUNK, Tile};
+
+/// Words of one QVGA YUYV frame (under the DMA's 65 535-word limit).
+pub const FRAME_WORDS: usize = 320 * 240 * 2 / 4;
+
+/// The longest a snapshot may take: waiting for the next frame start, then one frame
+/// (33 ms at 30 frames/s), with room for a slower sensor clock.
+pub const CAPTURE_TIMEOUT: Duration = Duration::from_millis(150);
+
+/// How a snapshot went.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Capture {
+    /// The frame is in the buffer.
+    Done,
+    /// DMA or synchronization error (an overrun).
+    Failed,
+    /// Nothing within [`CAPTURE_TIMEOUT`] (no pixel clock, a short frame, a sensor that
+    /// never started); the interface was reset.
+    TimedOut,
+}
+
+/// The camera, as the pipeline uses it.
+pub trait Camera {
+    /// Captures one frame into `frame`; `false` on a DMA or synchronization error.
+    fn capture(&mut self, frame: &mut [u32; FRAME_WORDS]) -> impl Future<Output = bool>;
+    /// Makes the interface ready for the next capture after one was abandoned.
+    fn reset(&mut self);
+}
+
+/// One snapshot, abandoned (and the interface reset) after [`CAPTURE_TIMEOUT`].
+async fn snapshot(camera: &mut impl Camera, frame: &mut [u32; FRAME_WORDS]) -> Capture {
+    match with_timeout(CAPTURE_TIMEOUT, camera.capture(frame)).await {
+        Ok(true) => Capture::Done,
+        Ok(false) => Capture::Failed,
+        Err(_) => {
+            camera.reset();
+            Capture::TimedOut
+        }
+    }
+}
+
+/// Counts a capture that did not deliver a frame; `true` if it did.
+fn counted(outcome: Capture) -> bool {
+    match outcome {
+        Capture::Done => {
+            COUNTERS.frames_captured.fetch_add(1, Relaxed);
+            true
+        }
+        Capture::Failed => {
+            COUNTERS.camera_overruns.fetch_add(1, Relaxed);
+            false
+        }
+        Capture::TimedOut => {
+            COUNTERS.camera_timeouts.fetch_add(1, Relaxed);
+            false
+        }
+    }
+}
+
+/// The frame's bytes (YUYV) as the pipeline reads them: the DMA wrote them in memory
+/// order, and the little-endian words hold them as they came.
+fn frame_bytes(frame: &[u32; FRAME_WORDS]) -> &[u8] {
+    bytemuck::cast_slice(frame.as_slice())
+}
 
 /// The pipeline memory the firmware has (see `MCU_CAPACITY`: the controller refuses
 /// configurations that need more).
@@ -22,10 +82,20 @@ pub const CAPACITY: Memory = MCU_CAPACITY;
 
 /// The pipeline's static buffers.
 pub struct Buffers {
+    /// The downsampled frame.
     pub frame: [u8; CAPACITY.frame_bytes],
+    /// Tiles in fusion.
     pub tiles: [u8; CAPACITY.tile_bytes],
+    /// The fuse step's work space.
     pub work: [i32; CAPACITY.work_words],
+    /// Row profiles for the offset refinement.
     pub profiles: [i32; CAPACITY.profile_words],
+}
+
+impl Default for Buffers {
+    fn default() -> Self {
+        Self::new()
+    }
 }
 
 impl Buffers {
@@ -66,15 +136,15 @@ fn queue(tile: Tile<'_>) {
 
 /// Captures `n` frames now and queues them raw, in chunks; waits for room in the outbox
 /// rather than drop any (a raw capture is an explicit request).
-async fn send_raw(dcmi: &mut Dcmi<'static, DCMI>, frame: &mut [u32; FRAME_WORDS], n: u8) {
+async fn send_raw(camera: &mut impl Camera, frame: &mut [u32; FRAME_WORDS], n: u8) {
     for k in 0..n {
-        if !camera::counted(camera::capture(dcmi, frame).await) {
+        if !counted(snapshot(camera, frame).await) {
             continue;
         }
-        let bytes = camera::bytes(frame);
+        let bytes = frame_bytes(frame);
         for (i, piece) in bytes.chunks(MAX_CHUNK).enumerate() {
             let Some(mut claim) = slot_within(SLOT_WAIT).await else {
-                warn!("raw capture abandoned: the link took nothing for a while");
+                fw_warn!("raw capture abandoned: the link took nothing for a while");
                 return;
             };
             let m = claim.message();
@@ -117,7 +187,7 @@ enum Wake {
 
 /// Runs the pipeline forever on the camera's frames.
 pub async fn run(
-    mut dcmi: Dcmi<'static, DCMI>,
+    camera: &mut impl Camera,
     frame: &'static mut [u32; FRAME_WORDS],
     buffers: &'static mut Buffers,
     initial: PipelineConfig,
@@ -132,37 +202,40 @@ pub async fn run(
     let mut streaming = false;
     loop {
         let Ok(mut pipeline) = Pipeline::new(config, bufs) else {
-            warn!("pipeline buffers too small for the configuration");
+            fw_warn!("pipeline buffers too small for the configuration");
             return;
         };
         // Serve this configuration until the host sends another.
         let next = loop {
             liveness::beat(liveness::Task::Pipeline);
+            // Orders first: with captures of up to 150 ms and triggers every few tens of
+            // ms, a trigger is nearly always pending, and orders behind it would starve
+            // (and the effects task with them, waiting to queue one).
             let wake = select4(
-                TRIGGERS.wait(),
                 STREAM.receive(),
                 STOP_STREAM.wait(),
+                TRIGGERS.wait(),
                 Timer::after(liveness::BEAT),
             );
             let woken = match wake.await {
-                Either4::First(steps) => Wake::Trigger(steps),
-                Either4::Second(order) => Wake::Order(order),
+                Either4::First(order) => Wake::Order(order),
                 // The host is gone: stop as if it had asked.
-                Either4::Third(()) if streaming => Wake::Order(StreamOrder::Stop),
-                Either4::Third(()) | Either4::Fourth(()) => continue,
+                Either4::Second(()) if streaming => Wake::Order(StreamOrder::Stop),
+                Either4::Third(steps) => Wake::Trigger(steps),
+                Either4::Second(()) | Either4::Fourth(()) => continue,
             };
             match woken {
                 Wake::Trigger(steps) => {
-                    motion::trigger_taken();
+                    roller::trigger_taken();
                     if !streaming {
                         continue;
                     }
-                    if !camera::counted(camera::capture(&mut dcmi, frame).await) {
+                    if !counted(snapshot(camera, frame).await) {
                         continue;
                     }
-                    let position_px = steps * u64::from(motion::MECHANICS.nm_per_step)
-                        / (u64::from(motion::UM_PER_PX) * 1000);
-                    match pipeline.push_frame(camera::bytes(frame), position_px, queue) {
+                    let position_px = steps * u64::from(roller::MECHANICS.nm_per_step)
+                        / (u64::from(roller::UM_PER_PX) * 1000);
+                    match pipeline.push_frame(frame_bytes(frame), position_px, queue) {
                         Ok(_) => COUNTERS.frames_fused.fetch_add(1, Relaxed),
                         Err(_) => COUNTERS.frames_rejected.fetch_add(1, Relaxed),
                     };
@@ -173,17 +246,16 @@ pub async fn run(
                     pipeline.finish(queue);
                     // The link sends the final status once the flushed tiles are out; the
                     // marker waits for the link to free a slot rather than be dropped.
-                    match slot_within(SLOT_WAIT).await {
-                        Some(mut claim) => {
-                            claim.message().kind = Kind::StreamEnded;
-                            claim.message().len = 0;
-                            claim.send();
-                        }
-                        None => warn!("no link to send the final status to"),
+                    if let Some(mut claim) = slot_within(SLOT_WAIT).await {
+                        claim.message().kind = Kind::StreamEnded;
+                        claim.message().len = 0;
+                        claim.send();
+                    } else {
+                        fw_warn!("no link to send the final status to");
                     }
                 }
                 Wake::Order(StreamOrder::Configure(c)) => break c,
-                Wake::Order(StreamOrder::CaptureRaw(n)) => send_raw(&mut dcmi, frame, n).await,
+                Wake::Order(StreamOrder::CaptureRaw(n)) => send_raw(camera, frame, n).await,
             }
         };
         bufs = pipeline.into_buffers();

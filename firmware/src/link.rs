@@ -6,13 +6,13 @@
 //! followed by a zero-length packet when its length is a multiple of 64. Commands go to the
 //! core's [`Controller`]; its replies go back first, then queued tiles.
 
-use super::counters::COUNTERS;
-use super::outbox::{self, Kind};
-use super::{EFFECTS, STOP_STREAM, liveness, motion};
-use defmt::{info, warn};
+use crate::counters::COUNTERS;
+use crate::outbox::{self, Kind};
+use crate::signals::{EFFECTS, STOP_STREAM};
+use crate::{fw_info, fw_warn, liveness, roller};
 use embassy_futures::select::{Either3, select3};
-use embassy_time::{Duration, Instant, Timer};
-use embassy_usb::driver::{EndpointError, EndpointIn, EndpointOut};
+use embassy_time::{Duration, Instant, Timer, with_timeout};
+use embassy_usb_driver::{EndpointError, EndpointIn, EndpointOut};
 use rollfuse_core::device::{Controller, Effect};
 use rollfuse_core::protocol::{DeviceMessage, MAX_MESSAGE, RawChunk, RollerCommand, Tile};
 
@@ -29,10 +29,10 @@ pub const HEARTBEAT: Duration = Duration::from_secs(3);
 
 /// Stops the roller and streaming, and clears the controller's flags, once.
 fn host_gone(controller: &mut Controller) {
-    motion::stop();
+    roller::stop();
     STOP_STREAM.signal(());
     if controller.host_lost() {
-        warn!("host gone: roller and streaming stopped");
+        fw_warn!("host gone: roller and streaming stopped");
     }
 }
 
@@ -57,7 +57,7 @@ pub async fn serve(
     tx: &mut [u8; MAX_MESSAGE],
 ) {
     read.wait_enabled().await;
-    info!("USB host connected");
+    fw_info!("USB host connected");
     // A new host must not get the last one's tiles.
     outbox::discard_ready();
     let mut last_command = Instant::now();
@@ -101,13 +101,13 @@ pub async fn serve(
                 match effect {
                     // Stop never waits in a queue: the step generator sees it on its next
                     // step.
-                    Effect::Roller(RollerCommand::Stop) => motion::stop(),
+                    Effect::Roller(RollerCommand::Stop) => roller::stop(),
                     Effect::None => {}
                     other => {
                         // Room was checked before the command was accepted, and only this
                         // task sends effects.
                         if EFFECTS.try_send(other).is_err() {
-                            warn!("effect queue full after all");
+                            fw_warn!("effect queue full after all");
                         }
                     }
                 }
@@ -150,7 +150,7 @@ pub async fn serve(
             }
         };
         if result.is_err() {
-            info!("USB host gone");
+            fw_info!("USB host gone");
             // Losing the host stops the roller and streaming.
             host_gone(controller);
             return;
@@ -166,9 +166,14 @@ async fn encode_and_send(
     buf: &mut [u8; MAX_MESSAGE],
 ) -> Result<(), EndpointError> {
     match controller.encode(msg, buf) {
-        Ok(n) => send(ep, &buf[..n]).await,
+        // A host that does not take a message within the heartbeat is gone (it stopped
+        // reading): the same as a bus error.
+        Ok(n) => match with_timeout(HEARTBEAT, send(ep, &buf[..n])).await {
+            Ok(sent) => sent,
+            Err(_) => Err(EndpointError::Disabled),
+        },
         Err(_) => {
-            warn!("message did not encode");
+            fw_warn!("message did not encode");
             Ok(())
         }
     }

@@ -1,0 +1,33 @@
+//! How the tasks reach each other: queues for orders that may wait, signals for what must
+//! never be lost or delayed behind them.
+
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::channel::Channel;
+use embassy_sync::signal::Signal;
+use rollfuse_core::device::{Effect, PipelineConfig};
+
+/// Orders for the pipeline.
+pub enum StreamOrder {
+    /// Fuse and queue tiles on every frame trigger.
+    Start,
+    /// Flush the tiles in fusion, then stop.
+    Stop,
+    /// Rebuild the pipeline for this configuration.
+    Configure(PipelineConfig),
+    /// Send this many raw frames, captured now.
+    CaptureRaw(u8),
+}
+
+/// The pipeline's orders.
+pub static STREAM: Channel<CriticalSectionRawMutex, StreamOrder, 4> = Channel::new();
+
+/// The host is gone: streaming ends. A signal, not a queued order, so nothing can drop it.
+pub static STOP_STREAM: Signal<CriticalSectionRawMutex, ()> = Signal::new();
+
+/// Accepted commands' effects, for the task that carries them out ([`crate::effects`]).
+/// The link checks for room before accepting a command that needs it.
+pub static EFFECTS: Channel<CriticalSectionRawMutex, Effect, 8> = Channel::new();
+
+/// Frame triggers from the roller: the step count at each. A trigger the camera has not
+/// taken when the next arrives is overwritten, and counted as an overrun.
+pub static TRIGGERS: Signal<CriticalSectionRawMutex, u64> = Signal::new();

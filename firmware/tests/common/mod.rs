@@ -1,0 +1,161 @@
+//! Mock peripherals and virtual time for the firmware's tasks on the host.
+#![allow(dead_code)]
+
+use embassy_futures::yield_now;
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::channel::Channel;
+use embassy_time::{Duration, Instant, MockDriver};
+use embassy_usb_driver::{
+    Direction, Endpoint, EndpointAddress, EndpointError, EndpointIn, EndpointInfo, EndpointOut,
+    EndpointType,
+};
+use rollfuse_core::protocol::{self, Command, DeviceMessage};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering::Relaxed};
+
+/// Virtual time: advances 50 µs per turn of the test's loop, forever. Joined with a
+/// test's body, it makes every timer of the tasks fire in order, with no wall clock.
+pub async fn clock() {
+    loop {
+        MockDriver::get().advance(Duration::from_micros(50));
+        yield_now().await;
+    }
+}
+
+/// Waits `d` of virtual time.
+pub async fn wait(d: Duration) {
+    embassy_time::Timer::after(d).await
+}
+
+/// Waits until `cond` holds, for at most `limit` of virtual time; whether it held.
+pub async fn until(limit: Duration, cond: impl Fn() -> bool) -> bool {
+    let end = Instant::now() + limit;
+    while Instant::now() < end {
+        if cond() {
+            return true;
+        }
+        yield_now().await;
+    }
+    cond()
+}
+
+/// The stepper's pins: counts steps, keeps the driver's state.
+pub struct Pins;
+
+pub static STEPS: AtomicU32 = AtomicU32::new(0);
+pub static DRIVER_ON: AtomicBool = AtomicBool::new(false);
+
+impl rollfuse_fw::roller::StepPins for Pins {
+    fn step(&mut self, high: bool) {
+        if high {
+            STEPS.fetch_add(1, Relaxed);
+        }
+    }
+    fn enable(&mut self, on: bool) {
+        DRIVER_ON.store(on, Relaxed);
+    }
+}
+
+fn info(dir: Direction) -> EndpointInfo {
+    EndpointInfo {
+        addr: EndpointAddress::from_parts(1, dir),
+        ep_type: EndpointType::Bulk,
+        max_packet_size: 64,
+        interval_ms: 0,
+    }
+}
+
+/// Packets the host sends.
+pub static HOST_OUT: Channel<CriticalSectionRawMutex, Vec<u8>, 64> = Channel::new();
+
+/// The bulk OUT endpoint: packets from [`HOST_OUT`]; waits forever when there are none.
+pub struct Out(EndpointInfo);
+
+impl Out {
+    pub fn new() -> Self {
+        Self(info(Direction::Out))
+    }
+}
+
+impl Endpoint for Out {
+    fn info(&self) -> &EndpointInfo {
+        &self.0
+    }
+    async fn wait_enabled(&mut self) {}
+}
+
+impl EndpointOut for Out {
+    async fn read(&mut self, buf: &mut [u8]) -> Result<usize, EndpointError> {
+        let p = HOST_OUT.receive().await;
+        buf[..p.len()].copy_from_slice(&p);
+        Ok(p.len())
+    }
+}
+
+/// Whether the host reads what the device writes.
+pub static HOST_READS: AtomicBool = AtomicBool::new(true);
+/// What the device wrote, packet by packet.
+pub static WRITTEN: Mutex<Vec<Vec<u8>>> = Mutex::new(Vec::new());
+
+/// The bulk IN endpoint: records packets while [`HOST_READS`]; otherwise a write never
+/// completes, as when the host stopped reading.
+pub struct In(EndpointInfo);
+
+impl In {
+    pub fn new() -> Self {
+        Self(info(Direction::In))
+    }
+}
+
+impl Endpoint for In {
+    fn info(&self) -> &EndpointInfo {
+        &self.0
+    }
+    async fn wait_enabled(&mut self) {}
+}
+
+impl EndpointIn for In {
+    async fn write(&mut self, buf: &[u8]) -> Result<(), EndpointError> {
+        while !HOST_READS.load(Relaxed) {
+            yield_now().await;
+        }
+        WRITTEN.lock().unwrap().push(buf.to_vec());
+        Ok(())
+    }
+}
+
+/// Sends `command` as the host would: one transfer of 64-byte packets ending short.
+pub fn host_sends(seq: u32, command: &Command) {
+    let mut buf = [0u8; 256];
+    let n = protocol::encode(seq, command, &mut buf).unwrap();
+    let mut packets: Vec<Vec<u8>> = buf[..n].chunks(64).map(<[u8]>::to_vec).collect();
+    if n % 64 == 0 {
+        packets.push(Vec::new());
+    }
+    for p in packets {
+        HOST_OUT.try_send(p).unwrap();
+    }
+}
+
+/// The messages the device wrote, reassembled from packets (a short packet ends one).
+pub fn device_messages() -> Vec<Vec<u8>> {
+    let mut out = Vec::new();
+    let mut cur = Vec::new();
+    for p in WRITTEN.lock().unwrap().iter() {
+        cur.extend_from_slice(p);
+        if p.len() < 64 {
+            out.push(std::mem::take(&mut cur));
+        }
+    }
+    out
+}
+
+/// Whether the device acknowledged command `seq`.
+pub fn acked(seq: u32) -> bool {
+    device_messages().iter().any(|m| {
+        matches!(
+            protocol::decode::<DeviceMessage>(m),
+            Ok((_, DeviceMessage::Ack { command_seq })) if command_seq == seq
+        )
+    })
+}

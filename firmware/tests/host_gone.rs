@@ -1,0 +1,75 @@
+//! A host that stops reading (or stops talking) stops the roller and streaming within the
+//! heartbeat timeout, even with the link stuck writing to it.
+
+mod common;
+
+use common::*;
+use embassy_futures::select::{select, select3};
+use embassy_time::{Duration, Instant};
+use rollfuse_core::device::{Controller, MCU_CAPACITY, Sensor};
+use rollfuse_core::protocol::{Command, DeviceConfig, MAX_MESSAGE, PixelFormat, RollerCommand};
+use rollfuse_fw::link;
+use rollfuse_fw::outbox::{self, Kind};
+use rollfuse_fw::roller::{self, ORDERS, Order};
+use rollfuse_fw::signals::STOP_STREAM;
+use std::sync::atomic::Ordering::Relaxed;
+
+#[test]
+fn a_host_that_stops_reading_stops_the_roller_within_the_heartbeat() {
+    outbox::init();
+    let sensor = Sensor {
+        width: 320,
+        height: 240,
+        format: PixelFormat::Yuyv,
+    };
+    let mut controller = Controller::new(sensor, [0, 1, 0], DeviceConfig::default())
+        .and_then(|c| c.with_capacity(MCU_CAPACITY))
+        .unwrap();
+    let (mut read, mut write) = (Out::new(), In::new());
+    let mut tx = Box::new([0u8; MAX_MESSAGE]);
+    let mut pins = Pins;
+    let test = async {
+        host_sends(1, &Command::StreamStart);
+        host_sends(
+            2,
+            &Command::Roller(RollerCommand::Start { speed_um_s: 20_000 }),
+        );
+        assert!(until(Duration::from_millis(100), || acked(1) && acked(2)).await);
+        // The effects task is not running here: the roller gets its order directly.
+        ORDERS
+            .send(Order::Roller(RollerCommand::Start { speed_um_s: 20_000 }))
+            .await;
+        assert!(until(Duration::from_secs(1), || STEPS.load(Relaxed) > 100).await);
+        // The host stops reading and says nothing more; a tile is waiting to go.
+        HOST_READS.store(false, Relaxed);
+        let mut claim = outbox::try_claim().unwrap();
+        claim.message().kind = Kind::Tile {
+            index: 0,
+            width: 8,
+            height: 8,
+            observations: 1,
+        };
+        claim.message().len = 64;
+        claim.send();
+        let gone_at = Instant::now();
+        let stopped = until(link::HEARTBEAT + Duration::from_secs(1), || {
+            !DRIVER_ON.load(Relaxed)
+        })
+        .await;
+        assert!(stopped, "the roller still turns with the host gone");
+        assert!(
+            Instant::now() - gone_at <= link::HEARTBEAT + Duration::from_millis(500),
+            "stopped only after {:?}",
+            Instant::now() - gone_at
+        );
+        assert!(STOP_STREAM.signaled(), "streaming was not told to stop");
+    };
+    embassy_futures::block_on(select3(
+        test,
+        clock(),
+        select(
+            roller::run(&mut pins, 16),
+            link::serve(&mut read, &mut write, &mut controller, &mut tx),
+        ),
+    ));
+}
