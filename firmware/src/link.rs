@@ -67,7 +67,14 @@ pub async fn serve(
     loop {
         let mut packet = [0u8; PACKET];
         liveness::beat(liveness::Task::Link);
-        let wake = (last_command + HEARTBEAT).min(Instant::now() + liveness::BEAT);
+        // Wake for the next beat, or for the heartbeat's deadline if it comes first and
+        // has not passed yet (a passed one would wake at once, again and again).
+        let beat = Instant::now() + liveness::BEAT;
+        let wake = if silent {
+            beat
+        } else {
+            (last_command + HEARTBEAT).min(beat)
+        };
         let event = select3(
             read.read(&mut packet),
             outbox::next_ready(),

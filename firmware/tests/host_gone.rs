@@ -4,7 +4,7 @@
 mod common;
 
 use common::*;
-use embassy_futures::select::{select, select3};
+use embassy_futures::select::{Either3, select, select3};
 use embassy_time::{Duration, Instant};
 use rollfuse_core::device::{Controller, MCU_CAPACITY, Sensor};
 use rollfuse_core::protocol::{Command, DeviceConfig, MAX_MESSAGE, PixelFormat, RollerCommand};
@@ -63,13 +63,23 @@ fn a_host_that_stops_reading_stops_the_roller_within_the_heartbeat() {
             Instant::now() - gone_at
         );
         assert!(STOP_STREAM.signaled(), "streaming was not told to stop");
+        // With the host silent, the link goes on waiting (and beating) without spinning:
+        // a spinning task would never let this wait end.
+        wait(link::HEARTBEAT * 2).await;
     };
-    embassy_futures::block_on(select3(
+    let outcome = embassy_futures::block_on(select3(
         test,
         clock(),
-        select(
-            roller::run(&mut pins, 16),
-            link::serve(&mut read, &mut write, &mut controller, &mut tx),
-        ),
+        select(roller::run(&mut pins, 16), async {
+            // As on the board: the link is served again when a host comes back.
+            loop {
+                link::serve(&mut read, &mut write, &mut controller, &mut tx).await;
+            }
+        }),
     ));
+    // The test's body ran to its end: no task ended first.
+    assert!(
+        matches!(outcome, Either3::First(_)),
+        "a task ended before the test did"
+    );
 }

@@ -6,7 +6,7 @@ mod common;
 
 use common::*;
 use embassy_futures::join::join;
-use embassy_futures::select::{select, select4};
+use embassy_futures::select::{Either4, select, select4};
 use embassy_time::Duration;
 use rollfuse_core::device::{Effect, MCU_CAPACITY, PipelineConfig, Sensor};
 use rollfuse_core::protocol::{DeviceConfig, LedDuty, PixelFormat, RollerCommand};
@@ -104,7 +104,7 @@ fn a_silent_camera_blocks_no_order_and_is_reported() {
             wait(liveness::BEAT).await;
         }
     };
-    embassy_futures::block_on(select4(
+    let outcome = embassy_futures::block_on(select4(
         join(test, async {}),
         clock(),
         select(
@@ -113,4 +113,9 @@ fn a_silent_camera_blocks_no_order_and_is_reported() {
         ),
         select(effects::run(&mut leds), link_beats),
     ));
+    // The test's body ran to its end: no task ended first.
+    assert!(
+        matches!(outcome, Either4::First(_)),
+        "a task ended before the test did"
+    );
 }

@@ -4,7 +4,7 @@ mod common;
 
 use common::*;
 use embassy_futures::join::join;
-use embassy_futures::select::{select, select3};
+use embassy_futures::select::{Either3, select, select3};
 use embassy_time::Duration;
 use rollfuse_core::device::{Controller, Effect, MCU_CAPACITY, Sensor};
 use rollfuse_core::protocol::{Command, DeviceConfig, MAX_MESSAGE, PixelFormat, RollerCommand};
@@ -58,12 +58,19 @@ fn stop_reaches_the_step_generator_with_every_queue_full() {
         wait(Duration::from_millis(200)).await;
         assert_eq!(STEPS.load(Relaxed), after, "steps after the stop");
     };
-    embassy_futures::block_on(select3(
+    let outcome = embassy_futures::block_on(select3(
         join(test, async {}),
         clock(),
-        select(
-            roller::run(&mut pins, 16),
-            link::serve(&mut read, &mut write, &mut controller, &mut tx),
-        ),
+        select(roller::run(&mut pins, 16), async {
+            // As on the board: the link is served again when a host comes back.
+            loop {
+                link::serve(&mut read, &mut write, &mut controller, &mut tx).await;
+            }
+        }),
     ));
+    // The test's body ran to its end: no task ended first.
+    assert!(
+        matches!(outcome, Either3::First(_)),
+        "a task ended before the test did"
+    );
 }
