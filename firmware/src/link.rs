@@ -11,7 +11,7 @@ use crate::outbox::{self, Kind};
 use crate::signals::{EFFECTS, STOP_STREAM};
 use crate::{fw_info, fw_warn, liveness, roller};
 use embassy_futures::select::{Either3, select3};
-use embassy_time::{Duration, Instant, Timer, with_timeout};
+use embassy_time::{Duration, Instant, Timer};
 use embassy_usb_driver::{EndpointError, EndpointIn, EndpointOut};
 use rollfuse_core::device::{Controller, Effect};
 use rollfuse_core::protocol::{DeviceMessage, MAX_MESSAGE, RawChunk, RollerCommand, Tile};
@@ -118,7 +118,7 @@ pub async fn serve(
                         }
                     }
                 }
-                encode_and_send(write, controller, &answer, tx).await
+                encode_and_send(write, controller, &answer, tx, last_command).await
             }
             Either3::First(Err(e)) => Err(e),
             Either3::Second(sending) => {
@@ -151,7 +151,7 @@ pub async fn serve(
                         DeviceMessage::Status(controller.counters())
                     }
                 };
-                let sent = encode_and_send(write, controller, &msg, tx).await;
+                let sent = encode_and_send(write, controller, &msg, tx, last_command).await;
                 sending.release();
                 sent
             }
@@ -165,23 +165,24 @@ pub async fn serve(
     }
 }
 
-/// Encodes a message with the controller's next sequence number and sends it.
+/// Encodes a message with the controller's next sequence number and sends it, giving up
+/// when the host's heartbeat runs out (`last_command` + [`HEARTBEAT`]): a host that stopped
+/// reading is gone by the same rule as one that stopped talking, the same bus error.
 async fn encode_and_send(
     ep: &mut impl EndpointIn,
     controller: &mut Controller,
     msg: &DeviceMessage<'_>,
     buf: &mut [u8; MAX_MESSAGE],
+    last_command: Instant,
 ) -> Result<(), EndpointError> {
-    match controller.encode(msg, buf) {
-        // A host that does not take a message within the heartbeat is gone (it stopped
-        // reading): the same as a bus error.
-        Ok(n) => match with_timeout(HEARTBEAT, send(ep, &buf[..n])).await {
-            Ok(sent) => sent,
-            Err(_) => Err(EndpointError::Disabled),
-        },
-        Err(_) => {
-            fw_warn!("message did not encode");
-            Ok(())
-        }
+    let Ok(n) = controller.encode(msg, buf) else {
+        fw_warn!("message did not encode");
+        return Ok(());
+    };
+    let left = (last_command + HEARTBEAT).saturating_duration_since(Instant::now());
+    // The link beats while it waits.
+    match liveness::within(liveness::Task::Link, left, send(ep, &buf[..n])).await {
+        Ok(sent) => sent,
+        Err(_) => Err(EndpointError::Disabled),
     }
 }

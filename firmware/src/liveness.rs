@@ -3,8 +3,10 @@
 //! every task has beaten since its last look. A task stuck anywhere — a capture that never
 //! ends, a queue that never drains — starves the watchdog and the board restarts.
 
+use core::pin::pin;
 use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
-use embassy_time::Duration;
+use embassy_futures::select::{Either, select};
+use embassy_time::{Duration, Instant, TimeoutError, Timer};
 
 /// The longest a task's loop may take between beats.
 pub const BEAT: Duration = Duration::from_millis(200);
@@ -29,6 +31,32 @@ static BEATS: [AtomicU32; TASKS] = [const { AtomicU32::new(0) }; TASKS];
 /// Records that `task` came round its loop.
 pub fn beat(task: Task) {
     BEATS[task as usize].fetch_add(1, Relaxed);
+}
+
+/// How often `task` has come round (for tests and diagnostics).
+pub fn beats(task: Task) -> u32 {
+    BEATS[task as usize].load(Relaxed)
+}
+
+/// Waits for `fut` at most `limit`, beating for `task` meanwhile: a bounded wait longer
+/// than [`BEAT`] is progress, not a stuck task. `fut` is polled to its end or dropped once
+/// (never restarted), so a USB write in flight is not cut and sent again.
+pub async fn within<F: Future>(
+    task: Task,
+    limit: Duration,
+    fut: F,
+) -> Result<F::Output, TimeoutError> {
+    let deadline = Instant::now() + limit;
+    let mut fut = pin!(fut);
+    loop {
+        beat(task);
+        let next = deadline.min(Instant::now() + BEAT);
+        match select(fut.as_mut(), Timer::at(next)).await {
+            Either::First(out) => return Ok(out),
+            Either::Second(()) if Instant::now() >= deadline => return Err(TimeoutError),
+            Either::Second(()) => {}
+        }
+    }
 }
 
 /// Whether every task has beaten since `seen` (which it updates).

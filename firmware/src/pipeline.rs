@@ -6,10 +6,10 @@
 use crate::counters::COUNTERS;
 use crate::outbox::{self, Kind};
 use crate::signals::{STOP_STREAM, STREAM, StreamOrder, TRIGGERS};
-use crate::{fw_warn, liveness, roller};
+use crate::{frame_clock, fw_warn, liveness, roller};
 use core::sync::atomic::Ordering::Relaxed;
 use embassy_futures::select::{Either4, select4};
-use embassy_time::{Duration, Instant, Timer, with_timeout};
+use embassy_time::{Duration, Timer, with_timeout};
 use rollfuse_core::device::{MCU_CAPACITY, Memory, Pipeline, PipelineBuffers, PipelineConfig};
 use rollfuse_core::protocol::{MAX_CHUNK, Tile};
 
@@ -166,21 +166,15 @@ const SLOT_WAIT: Duration = Duration::from_secs(2);
 
 /// A free outbox slot, waiting at most `limit` for the link to free one.
 async fn slot_within(limit: Duration) -> Option<outbox::Claim> {
-    let deadline = Instant::now() + limit;
-    loop {
-        liveness::beat(liveness::Task::Pipeline);
-        match with_timeout(liveness::BEAT, outbox::claim()).await {
-            Ok(claim) => return Some(claim),
-            Err(_) if Instant::now() >= deadline => return None,
-            Err(_) => {}
-        }
-    }
+    liveness::within(liveness::Task::Pipeline, limit, outbox::claim())
+        .await
+        .ok()
 }
 
 /// What woke the pipeline.
 enum Wake {
-    /// A frame trigger, with the step count.
-    Trigger(u64),
+    /// A frame trigger.
+    Trigger,
     /// An order.
     Order(StreamOrder),
 }
@@ -221,20 +215,20 @@ pub async fn run(
                 Either4::First(order) => Wake::Order(order),
                 // The host is gone: stop as if it had asked.
                 Either4::Second(()) if streaming => Wake::Order(StreamOrder::Stop),
-                Either4::Third(steps) => Wake::Trigger(steps),
+                Either4::Third(()) => Wake::Trigger,
                 Either4::Second(()) | Either4::Fourth(()) => continue,
             };
             match woken {
-                Wake::Trigger(steps) => {
+                Wake::Trigger => {
                     roller::trigger_taken();
                     if !streaming {
                         continue;
                     }
+                    let armed = frame_clock::arm();
                     if !counted(snapshot(camera, frame).await) {
                         continue;
                     }
-                    let position_px = steps * u64::from(roller::MECHANICS.nm_per_step)
-                        / (u64::from(roller::UM_PER_PX) * 1000);
+                    let position_px = roller::belt_px(armed.frame_start());
                     match pipeline.push_frame(frame_bytes(frame), position_px, queue) {
                         Ok(_) => COUNTERS.frames_fused.fetch_add(1, Relaxed),
                         Err(_) => COUNTERS.frames_rejected.fetch_add(1, Relaxed),

@@ -9,8 +9,10 @@ use crate::counters::COUNTERS;
 use crate::liveness;
 use crate::signals::TRIGGERS;
 use crate::{fw_info, fw_warn};
-use core::sync::atomic::{AtomicBool, Ordering};
+use core::cell::Cell;
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use embassy_futures::select::{Either, Either3, select, select3};
+use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
@@ -28,6 +30,11 @@ pub const MECHANICS: MotionConfig = MotionConfig {
 
 /// The optics: belt micrometres per camera pixel.
 pub const UM_PER_PX: u32 = 50;
+
+/// The belt's travel after `steps` steps, camera pixels (rounded down).
+pub fn belt_px(steps: u64) -> u64 {
+    steps * u64::from(MECHANICS.nm_per_step) / (u64::from(UM_PER_PX) * 1000)
+}
 
 /// What the motion task is told.
 #[derive(Debug, Clone, Copy)]
@@ -52,6 +59,24 @@ static STOP_SIGNAL: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 pub fn stop() {
     STOP.store(true, Ordering::Release);
     STOP_SIGNAL.signal(());
+}
+
+/// Steps taken since start-up (a 64-bit count: no atomic of that width on the M7).
+static STEPS: Mutex<CriticalSectionRawMutex, Cell<u64>> = Mutex::new(Cell::new(0));
+
+/// Steps taken since start-up.
+pub fn steps() -> u64 {
+    STEPS.lock(Cell::get)
+}
+
+/// The latest any step came after its deadline since [`take_worst_lateness`] last looked,
+/// microseconds.
+static WORST_LATENESS_US: AtomicU32 = AtomicU32::new(0);
+
+/// How late the latest step came since the last call (then starts afresh): the
+/// step generator's jitter, for bring-up and the QEMU run.
+pub fn take_worst_lateness() -> Duration {
+    Duration::from_micros(u64::from(WORST_LATENESS_US.swap(0, Ordering::Relaxed)))
 }
 
 /// Whether a trigger was signalled and the camera has not taken it yet.
@@ -113,7 +138,11 @@ pub async fn run(pins: &mut impl StepPins, spacing_px: u16) {
             while let Either::Second(order) = select(Timer::at(deadline), ORDERS.receive()).await {
                 apply(&mut ramp, order, &steps_per_frame);
             }
+            let late = Instant::now().saturating_duration_since(deadline);
+            let late_us = u32::try_from(late.as_micros()).unwrap_or(u32::MAX);
+            WORST_LATENESS_US.fetch_max(late_us, Ordering::Relaxed);
             pins.step(true);
+            STEPS.lock(|n| n.set(n.get() + 1));
             // The driver needs a pulse of at least a microsecond or two.
             Timer::after_micros(2).await;
             pins.step(false);
@@ -122,7 +151,7 @@ pub async fn run(pins: &mut impl StepPins, spacing_px: u16) {
                 if TRIGGER_PENDING.swap(true, Ordering::AcqRel) {
                     COUNTERS.camera_overruns.fetch_add(1, Ordering::Relaxed);
                 }
-                TRIGGERS.signal(ramp.steps());
+                TRIGGERS.signal(());
             }
         }
     }

@@ -28,6 +28,7 @@ pub static STOP_STREAM: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 /// The link checks for room before accepting a command that needs it.
 pub static EFFECTS: Channel<CriticalSectionRawMutex, Effect, 8> = Channel::new();
 
-/// Frame triggers from the roller: the step count at each. A trigger the camera has not
-/// taken when the next arrives is overwritten, and counted as an overrun.
-pub static TRIGGERS: Signal<CriticalSectionRawMutex, u64> = Signal::new();
+/// Frame triggers from the roller. A trigger the camera has not taken when the next
+/// arrives is overwritten, and counted as an overrun. The frame's position is not the
+/// trigger's but its start's ([`crate::frame_clock`]).
+pub static TRIGGERS: Signal<CriticalSectionRawMutex, ()> = Signal::new();

@@ -1,5 +1,6 @@
 //! A host that stops reading (or stops talking) stops the roller and streaming within the
-//! heartbeat timeout, even with the link stuck writing to it.
+//! heartbeat timeout, even with the link stuck writing to it — and the link keeps beating
+//! meanwhile, so the watchdog does not restart the board first.
 
 mod common;
 
@@ -9,6 +10,7 @@ use embassy_time::{Duration, Instant};
 use rollfuse_core::device::{Controller, MCU_CAPACITY, Sensor};
 use rollfuse_core::protocol::{Command, DeviceConfig, MAX_MESSAGE, PixelFormat, RollerCommand};
 use rollfuse_fw::link;
+use rollfuse_fw::liveness::{self, Task};
 use rollfuse_fw::outbox::{self, Kind};
 use rollfuse_fw::roller::{self, ORDERS, Order};
 use rollfuse_fw::signals::STOP_STREAM;
@@ -52,6 +54,16 @@ fn a_host_that_stops_reading_stops_the_roller_within_the_heartbeat() {
         claim.message().len = 64;
         claim.send();
         let gone_at = Instant::now();
+        // While its write waits on the silent host, the link keeps beating: the watchdog
+        // (1 s) must not restart the board before the heartbeat (3 s) has acted.
+        for _ in 0..5 {
+            let before = liveness::beats(Task::Link);
+            wait(Duration::from_millis(400)).await;
+            assert!(
+                liveness::beats(Task::Link) > before,
+                "the link stopped beating while its write waited"
+            );
+        }
         let stopped = until(link::HEARTBEAT + Duration::from_secs(1), || {
             !DRIVER_ON.load(Relaxed)
         })

@@ -7,9 +7,11 @@
 
 use embassy_stm32::dcmi::Dcmi;
 use embassy_stm32::i2c::{I2c, Master};
+use embassy_stm32::interrupt::typelevel::{self, Handler};
 use embassy_stm32::mode::Async;
 use embassy_stm32::peripherals::DCMI;
 use embassy_time::Timer;
+use rollfuse_fw::frame_clock;
 use rollfuse_fw::pipeline::{Camera, FRAME_WORDS};
 
 /// SCCB address of the sensor (7-bit).
@@ -20,6 +22,8 @@ const SETUP: &[(u8, u8)] = &[
     (0x12, 0x40), // COM7: QVGA, YUV
     (0x11, 0x01), // CLKRC: internal clock = input / 2
     (0x67, 0x00), // DSP_Ctrl4: YUV output from the DSP
+    (0x0C, 0x18), // COM3: bytes Y U Y V (bit 3; clear, the reset state, gives U Y V Y);
+    //               bit 4 as at reset
     (0x17, 0x3F), // HSTART
     (0x18, 0x50), // HSIZE: 320 / 4
     (0x19, 0x03), // VSTART
@@ -69,6 +73,11 @@ pub struct DcmiCamera(pub Dcmi<'static, DCMI>);
 
 impl Camera for DcmiCamera {
     async fn capture(&mut self, frame: &mut [u32; FRAME_WORDS]) -> bool {
+        // Frame-sync edges while the capture is armed give the frame's start
+        // (`FrameSync`); the HAL leaves this enable alone.
+        embassy_stm32::pac::DCMI
+            .ier()
+            .modify(|r| r.set_vsync_ie(true));
         self.0.capture(frame.as_mut_slice()).await.is_ok()
     }
 
@@ -79,5 +88,20 @@ impl Camera for DcmiCamera {
             r.set_capture(false);
             r.set_enable(false);
         });
+    }
+}
+
+/// The DCMI's frame-sync interrupt, bound before the HAL's handler: at each VSYNC edge
+/// into blanking (a frame's end) the roller's step count is latched for
+/// `frame_clock`, before the HAL wakes the capture that the same edge completes.
+pub struct FrameSync;
+
+impl Handler<typelevel::DCMI> for FrameSync {
+    unsafe fn on_interrupt() {
+        let dcmi = embassy_stm32::pac::DCMI;
+        if dcmi.ris().read().vsync_ris() {
+            dcmi.icr().write(|r| r.set_vsync_isc(true));
+            frame_clock::frame_edge();
+        }
     }
 }

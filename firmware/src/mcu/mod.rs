@@ -18,18 +18,18 @@ use embassy_stm32::{Config, bind_interrupts, dcmi, dma, i2c, interrupt, peripher
 use embassy_time::{Instant, Timer};
 use rollfuse_core::device::{Controller, Sensor};
 use rollfuse_core::protocol::{DeviceConfig, PixelFormat};
-use rollfuse_fw::pipeline::{self, FRAME_WORDS};
+use rollfuse_fw::buffers::{FRAME, PIPELINE, TX};
+use rollfuse_fw::pipeline;
 use rollfuse_fw::roller::{self, StepPins};
 use rollfuse_fw::signals::STOP_STREAM;
-use rollfuse_fw::{counters, effects, link, liveness, outbox};
-use static_cell::ConstStaticCell;
+use rollfuse_fw::{counters, effects, link, liveness, outbox, stack_guard};
 use {defmt_rtt as _, panic_probe as _};
 
 bind_interrupts!(struct Irqs {
     OTG_FS => usb::InterruptHandler<peripherals::USB_OTG_FS>;
     I2C1_EV => i2c::EventInterruptHandler<peripherals::I2C1>;
     I2C1_ER => i2c::ErrorInterruptHandler<peripherals::I2C1>;
-    DCMI => dcmi::InterruptHandler<peripherals::DCMI>;
+    DCMI => camera::FrameSync, dcmi::InterruptHandler<peripherals::DCMI>;
     DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
     DMA1_STREAM1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
     DMA1_STREAM2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
@@ -63,18 +63,6 @@ impl embassy_usb::Handler for BusEvents {
         }
     }
 }
-
-/// The camera's frame buffer (AXI SRAM: DMA-reachable). Const-initialized, so taking it
-/// builds nothing on the stack.
-static FRAME: ConstStaticCell<[u32; FRAME_WORDS]> = ConstStaticCell::new([0; FRAME_WORDS]);
-
-/// The pipeline's buffers.
-static PIPELINE: ConstStaticCell<pipeline::Buffers> =
-    ConstStaticCell::new(pipeline::Buffers::new());
-
-/// The link's encoding buffer.
-static TX: ConstStaticCell<[u8; rollfuse_core::protocol::MAX_MESSAGE]> =
-    ConstStaticCell::new([0; rollfuse_core::protocol::MAX_MESSAGE]);
 
 /// The stepper driver on its pins: STEP PF13, ENABLE PF14 (low = on).
 struct Stepper {
@@ -143,10 +131,11 @@ fn clocks() -> Config {
 async fn main(_spawner: Spawner) {
     let p = embassy_stm32::init(clocks());
     info!("rollfuse-fw {}", env!("CARGO_PKG_VERSION"));
-    // Instructions from flash through the I-cache. The D-cache stays off: the DCMI's DMA
-    // writes frames to AXI SRAM that the CPU then reads, and without cache maintenance a
-    // cached CPU would see stale lines.
+    // The stack guard before anything deep runs. Instructions from flash through the
+    // I-cache; the D-cache stays off: the DCMI's DMA writes frames to AXI SRAM that the
+    // CPU then reads, and without cache maintenance a cached CPU would see stale lines.
     if let Some(mut core) = cortex_m::Peripherals::take() {
+        stack_guard::install(&mut core.MPU);
         core.SCB.enable_icache();
     }
     let t0 = Instant::now();

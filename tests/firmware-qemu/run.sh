@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# The firmware's tasks (link, pipeline, roller, effects) on QEMU's Cortex-M7 board
+# (mps2-an500, -icount shift=0) with the firmware's statics, stack size and stack guard,
+# against mock peripherals (src/mcu/). Prints and writes target/firmware-qemu/report.txt,
+# and fails unless:
+#   - the stack's high-water mark leaves at least 25 % of the stack;
+#   - no step came more than 50 µs late while frames were fused (the roller at interrupt
+#     priority), and the same run with the roller in thread mode, as the firmware once
+#     ran it, is later than that (so the measurement can tell);
+#   - a host that stops reading stops the roller within the heartbeat and 0.5 s;
+#   - the final status of the session arrived and every task kept beating;
+#   - reading the stack guard faults (a run built with --features touch-guard).
+#
+#   bash tests/firmware-qemu/run.sh
+#
+# Needs the thumbv7em-none-eabihf target and qemu-system-arm (Debian: qemu-system-arm).
+set -euo pipefail
+cd "$(dirname "$0")"
+root="$(cd ../.. && pwd)"
+target=thumbv7em-none-eabihf
+out="$root/target/firmware-qemu"
+mkdir -p "$out"
+elf="$root/target/$target/release/rollfuse-firmware-qemu"
+
+cargo build -q --release --target "$target" --target-dir "$root/target"
+cp "$elf" "$out/interrupt.elf"
+cargo build -q --release --features roller-in-thread --target "$target" --target-dir "$root/target"
+cp "$elf" "$out/thread.elf"
+cargo build -q --release --features touch-guard --target "$target" --target-dir "$root/target"
+cp "$elf" "$out/touch-guard.elf"
+
+run() {
+    timeout 600 qemu-system-arm -machine mps2-an500 -cpu cortex-m7 -icount shift=0 \
+        -nographic -monitor none -serial none \
+        -semihosting-config enable=on,target=native -kernel "$1"
+}
+
+session=$(run "$out/interrupt.elf") || {
+    printf '%s\n' "$session"
+    echo "firmware-qemu: FAIL: the run ended in a fault or a failed check" >&2
+    exit 1
+}
+thread=$(run "$out/thread.elf" | grep '^step lateness' || true)
+guard=$(run "$out/touch-guard.elf" | head -1 || true)
+{
+    echo "# the firmware's tasks on QEMU mps2-an500 (Cortex-M7, -icount shift=0, 400 instructions a board microsecond)"
+    printf '%s\n' "$session"
+    echo "as the firmware once ran it, $thread"
+    echo "stack guard: $guard"
+} > "$out/report.part"
+mv "$out/report.part" "$out/report.txt"
+cat "$out/report.txt"
+
+awk '
+    /^stack high-water:/ { used = $3; size = $6 }
+    /^step lateness:/ { late = $4 }
+    /^as the firmware once ran it, step lateness:/ { thread_late = $9 }
+    /^host gone: roller stopped/ { stopped_ms = $5; heartbeat_ms = $12 + 0 }
+    /final status received/ { ended = 1 }
+    /^watchdog:/ { missed = $2 }
+    /^stack guard: hard fault/ { guarded = 1 }
+    END {
+        bad = ""
+        if (size == "" || used > 0.75 * size) bad = bad "\n  stack: " used " of " size " leaves under 25 %"
+        if (late == "" || late > 50) bad = bad "\n  a step came " late " us late (bound 50 us)"
+        if (thread_late == "" || thread_late <= 50) bad = bad "\n  thread mode was not later than the bound: the lateness measurement cannot tell"
+        if (stopped_ms == "" || stopped_ms > heartbeat_ms + 500) bad = bad "\n  the roller did not stop within the heartbeat and 0.5 s"
+        if (!ended) bad = bad "\n  the final status did not arrive"
+        if (!guarded) bad = bad "\n  reading the stack guard did not fault"
+        if (missed != "0") bad = bad "\n  a task stopped beating (the watchdog would restart the board)"
+        if (bad != "") { print "firmware-qemu: FAIL" bad; exit 1 }
+        print "firmware-qemu: ok"
+    }' "$out/report.txt" >&2

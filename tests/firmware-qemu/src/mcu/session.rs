@@ -1,0 +1,135 @@
+//! What the host does, and what the run measures: a streaming session at 26 mm/s (a
+//! frame trigger about every camera frame), then a host that goes silent.
+
+use super::usb;
+use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
+use cortex_m_semihosting::hprintln;
+use embassy_time::{Duration, Instant, Timer};
+use rollfuse_core::protocol::{Command, LedDuty, RollerCommand};
+use rollfuse_fw::counters::COUNTERS;
+use rollfuse_fw::{link, roller};
+
+/// Looks of the watchdog's feeder at which some task had not come round.
+pub static MISSED_BEATS: AtomicU32 = AtomicU32::new(0);
+
+/// The belt speed: 16-pixel frame spacing at 50 µm a pixel is a trigger every 31 ms.
+const SPEED_UM_S: u32 = 26_000;
+
+/// The host tool's side of the link.
+struct Host {
+    seq: u32,
+}
+
+impl Host {
+    async fn send(&mut self, command: Command) {
+        self.seq += 1;
+        usb::send(self.seq, &command).await;
+    }
+}
+
+/// Runs the session and prints its measurements.
+pub async fn run(steps: &AtomicU32) {
+    let mut host = Host { seq: 0 };
+    host.send(Command::Leds(LedDuty::ALL_ON)).await;
+    host.send(Command::StreamStart).await;
+    host.send(Command::Roller(RollerCommand::Start {
+        speed_um_s: SPEED_UM_S,
+    }))
+    .await;
+    // Past the ramp (0.26 s at 100 mm/s²), then two seconds of steps while frames are
+    // fused, the host asking for the status every second as the tool does.
+    Timer::after_millis(500).await;
+    let _ = roller::take_worst_lateness();
+    let (steps0, fused0) = (steps.load(Relaxed), COUNTERS.frames_fused.load(Relaxed));
+    for _ in 0..2 {
+        Timer::after_secs(1).await;
+        host.send(Command::Status).await;
+    }
+    let late = roller::take_worst_lateness();
+    let mode = if cfg!(feature = "roller-in-thread") {
+        "roller in thread mode"
+    } else {
+        "roller at interrupt priority"
+    };
+    hprintln!(
+        "step lateness: max {} us over {} steps while {} frames were fused ({})",
+        late.as_micros(),
+        steps.load(Relaxed) - steps0,
+        COUNTERS.frames_fused.load(Relaxed) - fused0,
+        mode
+    );
+
+    host.send(Command::Roller(RollerCommand::Stop)).await;
+    host.send(Command::StreamStop).await;
+    let statuses = usb::seen().statuses;
+    let ended = until(Duration::from_secs(2), || usb::seen().statuses > statuses).await;
+    let seen = usb::seen();
+    hprintln!(
+        "session: {} frames captured, {} fused, {} triggers overrun; {} tiles emitted, {} received, {} dropped; {} commands acknowledged, {} refused, {} bad messages; final status {}",
+        COUNTERS.frames_captured.load(Relaxed),
+        COUNTERS.frames_fused.load(Relaxed),
+        COUNTERS.camera_overruns.load(Relaxed),
+        COUNTERS.tiles_emitted.load(Relaxed),
+        seen.tiles,
+        COUNTERS.tiles_dropped.load(Relaxed),
+        seen.acks,
+        seen.naks,
+        seen.bad,
+        if ended { "received" } else { "MISSING" }
+    );
+
+    host_goes_silent(&mut host, steps).await;
+    hprintln!(
+        "watchdog: {} looks found a task late",
+        MISSED_BEATS.load(Relaxed)
+    );
+}
+
+/// The roller turning and tiles streaming, the host stops reading, then says nothing
+/// more: how long after its last command the last step came.
+async fn host_goes_silent(host: &mut Host, steps: &AtomicU32) {
+    host.send(Command::StreamStart).await;
+    host.send(Command::Roller(RollerCommand::Start {
+        speed_um_s: SPEED_UM_S,
+    }))
+    .await;
+    let last_command = Instant::now();
+    Timer::after_millis(500).await;
+    usb::HOST_READS.store(false, Relaxed);
+    let mut last = steps.load(Relaxed);
+    let mut last_step = Instant::now();
+    let still = Duration::from_millis(500);
+    while last_step.duration_since(last_command) < Duration::from_secs(8)
+        && Instant::now().duration_since(last_step) < still
+    {
+        Timer::after_millis(10).await;
+        let now = steps.load(Relaxed);
+        if now != last {
+            last = now;
+            last_step = Instant::now();
+        }
+    }
+    let stopped = Instant::now().duration_since(last_step) >= still;
+    hprintln!(
+        "host gone: {} {} ms after its last command (heartbeat {} ms; it stopped reading after 500 ms)",
+        if stopped {
+            "roller stopped"
+        } else {
+            "roller STILL TURNING"
+        },
+        last_step.duration_since(last_command).as_millis(),
+        link::HEARTBEAT.as_millis()
+    );
+}
+
+/// Waits until `cond` holds, at most `limit`; whether it held.
+async fn until(limit: Duration, cond: impl Fn() -> bool) -> bool {
+    let end = Instant::now() + limit;
+    while Instant::now() < end {
+        if cond() {
+            return true;
+        }
+        Timer::after_millis(5).await;
+    }
+    cond()
+}
