@@ -51,7 +51,9 @@ struct Host {
 }
 
 /// Thread mode only (the link and the session): decoding a tile takes thousands of
-/// instructions, which a critical section would add to the roller's latency.
+/// instructions, which a critical section would add to the roller's latency. Outside the
+/// device's 512 KiB (`memory.x`): the host's memory is not the device's.
+#[unsafe(link_section = ".host")]
 static HOST: Mutex<ThreadModeRawMutex, RefCell<Host>> = Mutex::new(RefCell::new(Host {
     seen: Seen {
         tiles: 0,
