@@ -7,8 +7,7 @@ mod common;
 use common::*;
 use embassy_futures::select::{Either3, select, select3};
 use embassy_time::{Duration, Instant};
-use rollfuse_core::device::{Controller, MCU_CAPACITY, Sensor};
-use rollfuse_core::protocol::{Command, DeviceConfig, MAX_MESSAGE, PixelFormat, RollerCommand};
+use rollfuse_core::protocol::{Command, MAX_MESSAGE, RollerCommand};
 use rollfuse_fw::link;
 use rollfuse_fw::liveness::{self, Task};
 use rollfuse_fw::outbox::{self, Kind};
@@ -19,14 +18,7 @@ use std::sync::atomic::Ordering::Relaxed;
 #[test]
 fn a_host_that_stops_reading_stops_the_roller_within_the_heartbeat() {
     outbox::init();
-    let sensor = Sensor {
-        width: 320,
-        height: 240,
-        format: PixelFormat::Yuyv,
-    };
-    let mut controller = Controller::new(sensor, [0, 1, 0], DeviceConfig::default())
-        .and_then(|c| c.with_capacity(MCU_CAPACITY))
-        .unwrap();
+    let mut controller = rollfuse_fw::controller().expect("the default configuration fits");
     let (mut read, mut write) = (Out::new(), In::new());
     let mut tx = Box::new([0u8; MAX_MESSAGE]);
     let mut pins = Pins;

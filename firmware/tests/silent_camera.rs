@@ -8,8 +8,8 @@ use common::*;
 use embassy_futures::join::join;
 use embassy_futures::select::{Either4, select, select4};
 use embassy_time::Duration;
-use rollfuse_core::device::{Effect, MCU_CAPACITY, PipelineConfig, Sensor};
-use rollfuse_core::protocol::{DeviceConfig, LedDuty, PixelFormat, RollerCommand};
+use rollfuse_core::device::{Effect, MCU_CAPACITY, PipelineConfig};
+use rollfuse_core::protocol::{DeviceConfig, LedDuty, RollerCommand};
 use rollfuse_fw::counters::COUNTERS;
 use rollfuse_fw::effects::{self, Leds};
 use rollfuse_fw::pipeline::{self, Buffers, Camera, FRAME_WORDS};
@@ -45,12 +45,7 @@ impl Leds for MockLeds {
 #[test]
 fn a_silent_camera_blocks_no_order_and_is_reported() {
     outbox::init();
-    let sensor = Sensor {
-        width: 320,
-        height: 240,
-        format: PixelFormat::Yuyv,
-    };
-    let config = PipelineConfig::from_wire(&DeviceConfig::default(), sensor).unwrap();
+    let config = PipelineConfig::from_wire(&DeviceConfig::default(), rollfuse_fw::SENSOR).unwrap();
     assert!(config.memory().fits(&MCU_CAPACITY));
     let frame: &'static mut _ = Box::leak(Box::new([0u32; FRAME_WORDS]));
     let buffers: &'static mut _ = Box::leak(Box::new(Buffers::new()));

@@ -6,8 +6,8 @@ use common::*;
 use embassy_futures::join::join;
 use embassy_futures::select::{Either3, select, select3};
 use embassy_time::Duration;
-use rollfuse_core::device::{Controller, Effect, MCU_CAPACITY, Sensor};
-use rollfuse_core::protocol::{Command, DeviceConfig, MAX_MESSAGE, PixelFormat, RollerCommand};
+use rollfuse_core::device::Effect;
+use rollfuse_core::protocol::{Command, MAX_MESSAGE, RollerCommand};
 use rollfuse_fw::roller::{self, ORDERS, Order};
 use rollfuse_fw::signals::EFFECTS;
 use rollfuse_fw::{link, outbox};
@@ -16,14 +16,7 @@ use std::sync::atomic::Ordering::Relaxed;
 #[test]
 fn stop_reaches_the_step_generator_with_every_queue_full() {
     outbox::init();
-    let sensor = Sensor {
-        width: 320,
-        height: 240,
-        format: PixelFormat::Yuyv,
-    };
-    let mut controller = Controller::new(sensor, [0, 1, 0], DeviceConfig::default())
-        .and_then(|c| c.with_capacity(MCU_CAPACITY))
-        .unwrap();
+    let mut controller = rollfuse_fw::controller().expect("the default configuration fits");
     let (mut read, mut write) = (Out::new(), In::new());
     let mut tx = Box::new([0u8; MAX_MESSAGE]);
     let mut pins = Pins;

@@ -16,8 +16,7 @@ use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
 use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{Config, bind_interrupts, dcmi, dma, i2c, interrupt, peripherals, usb};
 use embassy_time::{Instant, Timer};
-use rollfuse_core::device::{Controller, Sensor};
-use rollfuse_core::protocol::{DeviceConfig, PixelFormat};
+use rollfuse_core::protocol::DeviceConfig;
 use rollfuse_fw::buffers::{FRAME, PIPELINE, TX};
 use rollfuse_fw::pipeline;
 use rollfuse_fw::roller::{self, StepPins};
@@ -87,16 +86,6 @@ async fn roller_task(mut pins: Stepper, spacing_px: u16) {
     roller::run(&mut pins, spacing_px).await
 }
 
-/// The camera the firmware is built for: an OV7725-class sensor at QVGA, YUYV.
-const SENSOR: Sensor = Sensor {
-    width: 320,
-    height: 240,
-    format: PixelFormat::Yuyv,
-};
-
-/// Firmware version, as `Info` reports it.
-const FIRMWARE: [u8; 3] = [0, 1, 0];
-
 /// 400 MHz from the PLL on HSI (480 MHz needs voltage scale 0, which only revision V
 /// silicon has; 400 MHz runs on every H743), HSI48 for USB.
 fn clocks() -> Config {
@@ -147,9 +136,7 @@ async fn main(_spawner: Spawner) {
         ),
         Err(_) => error!("fusion self-test failed"),
     }
-    let controller = Controller::new(SENSOR, FIRMWARE, DeviceConfig::default())
-        .and_then(|c| c.with_capacity(pipeline::CAPACITY));
-    let Ok(mut controller) = controller else {
+    let Some(mut controller) = rollfuse_fw::controller() else {
         // The default configuration fits the sensor (a host test checks it); if not,
         // there is nothing to serve.
         error!("default configuration refused");

@@ -15,8 +15,7 @@ use embassy_executor::{InterruptExecutor, Spawner};
 use embassy_futures::join::join5;
 use embassy_futures::select::select;
 use embassy_time::Timer;
-use rollfuse_core::device::{Controller, Sensor};
-use rollfuse_core::protocol::{DeviceConfig, LedDuty, PixelFormat};
+use rollfuse_core::protocol::{DeviceConfig, LedDuty};
 use rollfuse_fw::buffers::{FRAME, PIPELINE, TX};
 use rollfuse_fw::effects::{self, Leds};
 use rollfuse_fw::roller::{self, StepPins};
@@ -122,13 +121,6 @@ async fn roller_task(mut pins: Pins, spacing_px: u16) {
     roller::run(&mut pins, spacing_px).await
 }
 
-/// The camera the firmware is built for.
-const SENSOR: Sensor = Sensor {
-    width: 320,
-    height: 240,
-    format: PixelFormat::Yuyv,
-};
-
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
     let Some(mut core) = cortex_m::Peripherals::take() else {
@@ -146,9 +138,7 @@ async fn main(spawner: Spawner) {
         core.NVIC.set_priority(Irq(ROLLER_IRQ), 0x60);
         NVIC::unmask(Irq(time::TIMER0_IRQ));
     }
-    let controller = Controller::new(SENSOR, [0, 1, 0], DeviceConfig::default())
-        .and_then(|c| c.with_capacity(pipeline::CAPACITY));
-    let Ok(mut controller) = controller else {
+    let Some(mut controller) = rollfuse_fw::controller() else {
         fail("default configuration refused");
     };
     let initial = controller.pipeline_config();
