@@ -3,12 +3,20 @@
 //! Every output is written beside its target under a hidden temporary name, flushed with
 //! every error checked, synced to disk and renamed into place. A reader never sees half a
 //! file; a failure (full disk, a closed pipe, an encoder error) removes the temporary and
-//! leaves the previous file, if any, as it was.
+//! leaves the previous file, if any, as it was. Outputs of several files are a [`Batch`]:
+//! every file is written and synced before the first is renamed into place, so a failure
+//! leaves the old set whole.
+//!
+//! For tests, `ROLLFUSE_FAIL_WRITES_AFTER=N` makes every output fail after its first `N`
+//! bytes as a full disk would (`ErrorKind::StorageFull`).
 
 use anyhow::{Context, ensure};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+
+/// The environment variable that makes outputs fail after so many bytes (tests).
+pub const FAIL_WRITES_AFTER: &str = "ROLLFUSE_FAIL_WRITES_AFTER";
 
 /// A temporary path beside `target`: same folder (so the rename stays on one file
 /// system), hidden, unique to this process.
@@ -24,40 +32,176 @@ pub fn temporary_beside(target: &Path, tag: &str) -> PathBuf {
     parent.join(format!(".{name}.{tag}-{}", std::process::id()))
 }
 
+/// Where `path` really is: links and `..` resolved, through its folder when the file does
+/// not exist yet.
+pub fn resolved(path: &Path) -> PathBuf {
+    if let Ok(p) = std::fs::canonicalize(path) {
+        return p;
+    }
+    let parent = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    match (std::fs::canonicalize(parent), path.file_name()) {
+        (Ok(dir), Some(name)) => dir.join(name),
+        _ => path.to_path_buf(),
+    }
+}
+
+/// Refuses, before any work, an output that is one of the inputs: `inputs` are each
+/// named by what they are (`"input frame"`, `"background"`, `"recording"`, …).
+pub fn refuse_overwriting(outputs: &[&Path], inputs: &[(&str, &Path)]) -> anyhow::Result<()> {
+    for out in outputs {
+        let target = resolved(out);
+        if let Some((what, input)) = inputs.iter().find(|(_, p)| resolved(p) == target) {
+            anyhow::bail!(
+                "{} is the {what} {}: refusing to overwrite an input",
+                out.display(),
+                input.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// An output file being written: the temporary, and the bytes it may still take when
+/// [`FAIL_WRITES_AFTER`] is set.
+pub struct Output {
+    file: File,
+    room: Option<u64>,
+}
+
+impl Output {
+    fn create(tmp: &Path) -> anyhow::Result<Self> {
+        let file = File::create(tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+        let room = std::env::var(FAIL_WRITES_AFTER)
+            .ok()
+            .and_then(|v| v.parse().ok());
+        Ok(Self { file, room })
+    }
+}
+
+impl Write for Output {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = match self.room {
+            Some(0) if !buf.is_empty() => {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::StorageFull,
+                    "no space left on device",
+                ));
+            }
+            Some(room) => buf.len().min(usize::try_from(room).unwrap_or(usize::MAX)),
+            None => buf.len(),
+        };
+        let n = self.file.write(&buf[..n])?;
+        if let Some(room) = self.room.as_mut() {
+            *room -= n as u64;
+        }
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.file.flush()
+    }
+}
+
+/// Flushes and syncs a finished temporary.
+fn finish(writer: BufWriter<Output>, target: &Path) -> anyhow::Result<()> {
+    let out = writer
+        .into_inner()
+        .map_err(|e| e.into_error())
+        .with_context(|| format!("cannot write {}", target.display()))?;
+    out.file
+        .sync_all()
+        .with_context(|| format!("cannot write {} to disk", target.display()))
+}
+
+/// Files written whole, then moved into place together by [`Batch::commit`]. Dropped
+/// uncommitted (an error on the way), its temporaries are removed and every target is
+/// left as it was.
+#[derive(Default)]
+pub struct Batch {
+    /// (temporary, target), written and synced.
+    ready: Vec<(PathBuf, PathBuf)>,
+}
+
+impl Batch {
+    /// An empty batch.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Writes `target`'s content into a synced temporary beside it; `fill` writes it.
+    pub fn add(
+        &mut self,
+        target: &Path,
+        fill: impl FnOnce(&mut BufWriter<Output>) -> anyhow::Result<()>,
+    ) -> anyhow::Result<()> {
+        let tmp = temporary_beside(target, "part");
+        let result = (|| {
+            let mut writer = BufWriter::with_capacity(1 << 16, Output::create(&tmp)?);
+            fill(&mut writer)?;
+            finish(writer, target)
+        })();
+        match result {
+            Ok(()) => {
+                self.ready.push((tmp, target.to_path_buf()));
+                Ok(())
+            }
+            Err(e) => {
+                let _ = std::fs::remove_file(&tmp);
+                Err(e)
+            }
+        }
+    }
+
+    /// [`Batch::add`] of a byte string.
+    pub fn add_bytes(&mut self, target: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+        self.add(target, |w| {
+            w.write_all(bytes)
+                .with_context(|| format!("cannot write {}", target.display()))
+        })
+    }
+
+    /// Moves every file into place, in the order they were added (so an index added last
+    /// appears last).
+    pub fn commit(mut self) -> anyhow::Result<()> {
+        for (tmp, target) in std::mem::take(&mut self.ready) {
+            if let Err(e) = std::fs::rename(&tmp, &target) {
+                let _ = std::fs::remove_file(&tmp);
+                return Err(e)
+                    .with_context(|| format!("cannot move {} into place", target.display()));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Batch {
+    fn drop(&mut self) {
+        for (tmp, _) in &self.ready {
+            let _ = std::fs::remove_file(tmp);
+        }
+    }
+}
+
 /// Writes `target` whole or not at all: `fill` writes the content into a buffered
 /// temporary beside it, which is flushed, synced and renamed over `target` only if every
 /// step succeeded.
 pub fn write_atomic(
     target: &Path,
-    fill: impl FnOnce(&mut BufWriter<File>) -> anyhow::Result<()>,
+    fill: impl FnOnce(&mut BufWriter<Output>) -> anyhow::Result<()>,
 ) -> anyhow::Result<()> {
-    let tmp = temporary_beside(target, "part");
-    let result = (|| {
-        let file =
-            File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
-        let mut writer = BufWriter::with_capacity(1 << 16, file);
-        fill(&mut writer)?;
-        let file = writer
-            .into_inner()
-            .map_err(|e| e.into_error())
-            .with_context(|| format!("cannot write {}", target.display()))?;
-        file.sync_all()
-            .with_context(|| format!("cannot write {} to disk", target.display()))?;
-        std::fs::rename(&tmp, target)
-            .with_context(|| format!("cannot move {} into place", target.display()))
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    let mut batch = Batch::new();
+    batch.add(target, fill)?;
+    batch.commit()
 }
 
 /// [`write_atomic`] of a byte string.
 pub fn write_bytes_atomic(target: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    write_atomic(target, |w| {
-        w.write_all(bytes)
-            .with_context(|| format!("cannot write {}", target.display()))
-    })
+    let mut batch = Batch::new();
+    batch.add_bytes(target, bytes)?;
+    batch.commit()
 }
 
 /// A file written bit by bit under a temporary name beside its target, moved into place
@@ -66,19 +210,17 @@ pub fn write_bytes_atomic(target: &Path, bytes: &[u8]) -> anyhow::Result<()> {
 pub struct PendingFile {
     target: PathBuf,
     tmp: PathBuf,
-    writer: Option<BufWriter<File>>,
+    writer: Option<BufWriter<Output>>,
 }
 
 impl PendingFile {
     /// Starts writing `target`.
     pub fn create(target: &Path) -> anyhow::Result<Self> {
         let tmp = temporary_beside(target, "part");
-        let file =
-            File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
         Ok(Self {
             target: target.to_path_buf(),
+            writer: Some(BufWriter::with_capacity(1 << 16, Output::create(&tmp)?)),
             tmp,
-            writer: Some(BufWriter::with_capacity(1 << 16, file)),
         })
     }
 
@@ -92,16 +234,10 @@ impl PendingFile {
     /// Flushes, syncs and renames the file into place.
     pub fn commit(mut self) -> anyhow::Result<()> {
         let writer = self.writer.take().context("file already committed")?;
-        let result = (|| {
-            let file = writer
-                .into_inner()
-                .map_err(|e| e.into_error())
-                .with_context(|| format!("cannot write {}", self.target.display()))?;
-            file.sync_all()
-                .with_context(|| format!("cannot write {} to disk", self.target.display()))?;
+        let result = finish(writer, &self.target).and_then(|()| {
             std::fs::rename(&self.tmp, &self.target)
                 .with_context(|| format!("cannot move {} into place", self.target.display()))
-        })();
+        });
         if result.is_err() {
             let _ = std::fs::remove_file(&self.tmp);
         }
@@ -169,6 +305,19 @@ impl PngLayout {
 pub fn write_png(
     target: &Path,
     data: &[u8],
+    size: (usize, usize),
+    layout: PngLayout,
+) -> anyhow::Result<()> {
+    let mut batch = Batch::new();
+    add_png(&mut batch, target, data, size, layout)?;
+    batch.commit()
+}
+
+/// [`write_png`] into a [`Batch`].
+pub fn add_png(
+    batch: &mut Batch,
+    target: &Path,
+    data: &[u8],
     (width, height): (usize, usize),
     layout: PngLayout,
 ) -> anyhow::Result<()> {
@@ -182,7 +331,7 @@ pub fn write_png(
         data.len()
     );
     let (w, h) = (u32::try_from(width)?, u32::try_from(height)?);
-    write_atomic(target, |out| {
+    batch.add(target, |out| {
         image::codecs::png::PngEncoder::new(out)
             .write_image(data, w, h, layout.color())
             .with_context(|| format!("cannot write {}", target.display()))

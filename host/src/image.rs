@@ -152,4 +152,16 @@ impl Planes {
     pub fn save_png(&self, path: &Path) -> anyhow::Result<()> {
         self.save_png_bits(path, 8)
     }
+
+    /// An 8-bit gray or RGB PNG into `batch`, moved into place with the rest of it.
+    pub fn add_png(&self, batch: &mut crate::files::Batch, path: &Path) -> anyhow::Result<()> {
+        let layout = PngLayout::new(self.planes.len(), 8)?;
+        crate::files::add_png(
+            batch,
+            path,
+            &self.to_u8(),
+            (self.width, self.height),
+            layout,
+        )
+    }
 }

@@ -154,7 +154,7 @@ fn bad_input_gets_one_clear_line_and_a_nonzero_exit() {
     // An output that is one of the inputs.
     assert!(
         fails(&args(&frames, &["--out", frames[1].to_str().unwrap()]))
-            .contains("one of the input frames")
+            .contains("is the input frame")
     );
     // Nothing was written by the failed runs.
     assert!(!out.exists());

@@ -5,6 +5,7 @@ use super::check_writable;
 use crate::depth::calibrate::{Circle, calibrate};
 use crate::depth::lights::Lights;
 use crate::depth::{output, reconstruct};
+use crate::files::Batch;
 use crate::image::Planes;
 use anyhow::{Context, bail};
 use std::path::{Path, PathBuf};
@@ -43,13 +44,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .chain(args.ply.then_some(&"ply"))
         .map(|e| with_ext(&args.out, e))
         .collect();
+    let mut inputs = vec![
+        ("input image", args.image.as_path()),
+        ("light file", &args.lights),
+    ];
+    inputs.extend(args.background.as_deref().map(|b| ("background", b)));
+    let targets: Vec<&Path> = outputs.iter().map(PathBuf::as_path).collect();
+    crate::files::refuse_overwriting(&targets, &inputs)?;
     for o in &outputs {
         check_writable(o)?;
-        if let (Ok(a), Ok(b)) = (std::fs::canonicalize(o), std::fs::canonicalize(&args.image))
-            && a == b
-        {
-            bail!("{} would overwrite the input image", o.display());
-        }
     }
     let lights = Lights::load(&args.lights)?;
     let image = Planes::load(&args.image)?;
@@ -58,11 +61,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let depth = reconstruct(&image, background.as_ref(), &lights)
         .with_context(|| format!("depth of {}", args.image.display()))?;
     let took = started.elapsed().as_secs_f64();
-    output::write_npy(&depth, &outputs[0])?;
-    output::write_png(&depth, &outputs[1])?;
+    let mut batch = Batch::new();
+    output::write_npy(&depth, &mut batch, &outputs[0])?;
+    output::write_png(&depth, &mut batch, &outputs[1])?;
     if args.ply {
-        output::write_ply(&depth, &outputs[2])?;
+        output::write_ply(&depth, &mut batch, &outputs[2])?;
     }
+    batch.commit()?;
     let peak = depth.height_mm.iter().copied().fold(0f32, f32::max);
     let contact = depth.contact.iter().filter(|&&c| c).count();
     println!(
@@ -103,6 +108,9 @@ pub struct CalibrateArgs {
 
 /// Runs `rollfuse calibrate`.
 pub fn calibrate_run(args: CalibrateArgs) -> anyhow::Result<()> {
+    let mut inputs = vec![("input image", args.image.as_path())];
+    inputs.extend(args.background.as_deref().map(|b| ("background", b)));
+    crate::files::refuse_overwriting(&[&args.out], &inputs)?;
     check_writable(&args.out)?;
     let circle = match args.circle.as_deref() {
         None => None,

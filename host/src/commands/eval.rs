@@ -3,6 +3,7 @@
 use super::simulate::progress;
 use crate::eval::depth;
 use crate::eval::tables::{csv, evaluate_scene, markdown};
+use crate::files::Batch;
 use crate::sim::Scene;
 use anyhow::Context;
 use rollfuse_core::FuseConfig;
@@ -48,13 +49,15 @@ fn run_depth(args: &Args) -> anyhow::Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     let rows = depth::evaluate_depth(&scene)?;
+    let mut batch = Batch::new();
     for (r, name) in rows.iter().zip(["single", "fused3", "fused2"]) {
-        crate::depth::output::write_png(&r.depth, &args.out.join(format!("depth_{name}.png")))?;
+        let path = args.out.join(format!("depth_{name}.png"));
+        crate::depth::output::write_png(&r.depth, &mut batch, &path)?;
     }
     let md = depth::markdown(&rows);
-    std::fs::write(args.out.join("depth.md"), &md).context("cannot write depth.md")?;
-    std::fs::write(args.out.join("depth.csv"), depth::csv(&rows))
-        .context("cannot write depth.csv")?;
+    batch.add_bytes(&args.out.join("depth.csv"), depth::csv(&rows).as_bytes())?;
+    batch.add_bytes(&args.out.join("depth.md"), md.as_bytes())?;
+    batch.commit()?;
     print!("{md}");
     println!(
         "\nwritten: {}/depth.md, depth.csv, depth_{{single,fused3,fused2}}.png",
@@ -87,8 +90,10 @@ fn run_roll(args: &Args) -> anyhow::Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     let md = crate::eval::roll::markdown(&rows);
-    crate::files::write_bytes_atomic(&args.out.join("roll.csv"), csv(&rows).as_bytes())?;
-    crate::files::write_bytes_atomic(&args.out.join("roll.md"), md.as_bytes())?;
+    let mut batch = Batch::new();
+    batch.add_bytes(&args.out.join("roll.csv"), csv(&rows).as_bytes())?;
+    batch.add_bytes(&args.out.join("roll.md"), md.as_bytes())?;
+    batch.commit()?;
     print!("{md}");
     println!("\nwritten: {}/roll.md, roll.csv", args.out.display());
     Ok(())
@@ -118,8 +123,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     bar.finish_and_clear();
     let md = markdown(&rows);
-    std::fs::write(args.out.join("eval.md"), &md).context("cannot write eval.md")?;
-    std::fs::write(args.out.join("eval.csv"), csv(&rows)).context("cannot write eval.csv")?;
+    let mut batch = Batch::new();
+    batch.add_bytes(&args.out.join("eval.csv"), csv(&rows).as_bytes())?;
+    batch.add_bytes(&args.out.join("eval.md"), md.as_bytes())?;
+    batch.commit()?;
     print!("{md}");
     println!("\nwritten: {}/eval.md, eval.csv", args.out.display());
     Ok(())

@@ -144,18 +144,13 @@ struct Skipped<'a> {
     reason: String,
 }
 
-/// Refuses an output path that is one of the inputs.
+/// Refuses an output path that is one of the input frames.
 pub fn refuse_overwriting_inputs(out: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> {
-    let canon = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
-    let out_c = canon(out);
-    if let Some(same) = inputs.iter().find(|p| canon(p) == out_c) {
-        bail!(
-            "--out {} is one of the input frames ({})",
-            out.display(),
-            same.display()
-        );
-    }
-    Ok(())
+    let frames: Vec<(&str, &Path)> = inputs
+        .iter()
+        .map(|p| ("input frame", p.as_path()))
+        .collect();
+    crate::files::refuse_overwriting(&[out], &frames)
 }
 
 /// Loads every frame, checking they agree in size and colour.

@@ -101,35 +101,49 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.tiles == Some(0) {
         bail!("--tiles must be at least 1");
     }
+    let max_duration = args
+        .seconds
+        .map(Duration::try_from_secs_f64)
+        .transpose()
+        .map_err(|_| anyhow::anyhow!("--seconds is too long: {:?}", args.seconds))?;
+    // Every option checked, and no output an input, before the output folder is made.
+    let replay = match args.device.as_str() {
+        "usb" | "sim" => None,
+        other => match other.strip_prefix("replay:") {
+            Some(file) if !file.is_empty() => Some(std::path::PathBuf::from(file)),
+            _ => bail!("--device must be usb, sim or replay:FILE, got `{other}`"),
+        },
+    };
+    if args.device == "sim" && args.scene.is_none() {
+        bail!("--device sim needs --scene SCENE.toml (e.g. host/scenes/letters.toml)");
+    }
+    if let Some(r) = &args.record {
+        let mut inputs: Vec<(&str, &std::path::Path)> = Vec::new();
+        inputs.extend(replay.as_deref().map(|p| ("recording replayed", p)));
+        inputs.extend(args.scene.as_deref().map(|p| ("scene", p)));
+        crate::files::refuse_overwriting(&[r], &inputs)?;
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create output folder {}", args.out.display()))?;
     super::check_writable(&args.out.join("manifest.json"))?;
     if let Some(r) = &args.record {
         super::check_writable(r)?;
     }
-    let (mut link, config): (Box<dyn Transport>, Option<DeviceConfig>) =
-        match args.device.as_str() {
-            "usb" => (Box::new(Usb::open()?), Some(args.config(16))),
-            "sim" => {
-                let path = args.scene.as_ref().context(
-                    "--device sim needs --scene SCENE.toml (e.g. host/scenes/letters.toml)",
-                )?;
-                let dev = SimDevice::start(&Scene::load(path)?)?;
-                let spacing = dev.default_config().frame_spacing_px;
-                (Box::new(dev), Some(args.config(spacing)))
-            }
-            other => match other.strip_prefix("replay:") {
-                Some(file) if !file.is_empty() => {
-                    (Box::new(Replay::open(std::path::Path::new(file))?), None)
-                }
-                _ => bail!("--device must be usb, sim or replay:FILE, got `{other}`"),
-            },
-        };
+    let (mut link, config): (Box<dyn Transport>, Option<DeviceConfig>) = match &replay {
+        Some(file) => (Box::new(Replay::open(file)?), None),
+        None if args.device == "usb" => (Box::new(Usb::open()?), Some(args.config(16))),
+        None => {
+            let path = args.scene.as_ref().context("--device sim needs --scene")?;
+            let dev = SimDevice::start(&Scene::load(path)?)?;
+            let spacing = dev.default_config().frame_spacing_px;
+            (Box::new(dev), Some(args.config(spacing)))
+        }
+    };
     let opts = Options {
         out: args.out.clone(),
         config,
         max_tiles: args.tiles,
-        max_duration: args.seconds.map(Duration::from_secs_f64),
+        max_duration,
         record: args.record.clone(),
         progress: true,
     };

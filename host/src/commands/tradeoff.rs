@@ -70,13 +70,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     bar.finish_and_clear();
     let names: Vec<String> = acquisitions.iter().map(|a| a.name.clone()).collect();
     let md = report::markdown(&rows, &names, mcu.build.as_deref());
-    let write = |name: &str, text: &str| {
-        let path = args.out.join(name);
-        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))
-    };
-    write("tradeoff.md", &md)?;
-    write("tradeoff.csv", &report::csv(&rows))?;
-    write("pareto.svg", &report::pareto_svg(&rows)?)?;
+    let mut batch = crate::files::Batch::new();
+    batch.add_bytes(
+        &args.out.join("tradeoff.csv"),
+        report::csv(&rows).as_bytes(),
+    )?;
+    batch.add_bytes(
+        &args.out.join("pareto.svg"),
+        report::pareto_svg(&rows)?.as_bytes(),
+    )?;
+    batch.add_bytes(&args.out.join("tradeoff.md"), md.as_bytes())?;
+    batch.commit()?;
     print!("{md}");
     println!(
         "\nwritten: {}/tradeoff.md, tradeoff.csv, pareto.svg",

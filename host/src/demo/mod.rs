@@ -232,9 +232,11 @@ pub fn run(opts: &Options, mut stage: impl FnMut(usize, &str)) -> anyhow::Result
 
     stage(4, STAGES[4]);
     let depth = depth_eval::evaluate_depth(&spheres)?;
+    let mut pictures = crate::files::Batch::new();
     for (r, name) in depth.iter().zip(Files::DEPTH_PNGS) {
-        crate::depth::output::write_png(&r.depth, &out(name))?;
+        crate::depth::output::write_png(&r.depth, &mut pictures, &out(name))?;
     }
+    pictures.commit()?;
     write(&out(Files::DEPTH_MD), &depth_eval::markdown(&depth))?;
     write(&out(Files::DEPTH_CSV), &depth_eval::csv(&depth))?;
     clock.lap(
@@ -329,7 +331,7 @@ impl<'s> Clock<'s> {
 }
 
 fn write(path: &Path, text: &str) -> anyhow::Result<()> {
-    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+    crate::files::write_bytes_atomic(path, text.as_bytes())
 }
 
 /// The roll at full resolution: `frames` aligned by matching (their belt rows by motion,

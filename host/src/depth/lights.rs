@@ -55,10 +55,14 @@ impl Lights {
         Ok(lights)
     }
 
-    /// Writes the file.
+    /// The file's text.
+    pub fn to_toml(&self) -> anyhow::Result<String> {
+        Ok(toml::to_string(self)?)
+    }
+
+    /// Writes the file, whole or not at all.
     pub fn save(&self, path: &Path) -> anyhow::Result<()> {
-        let text = toml::to_string(self)?;
-        std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+        crate::files::write_bytes_atomic(path, self.to_toml()?.as_bytes())
     }
 
     /// The three directions, red, green, blue.

@@ -1,16 +1,20 @@
 //! Writing a height map: `.npy` (float32 mm, for numpy), a colour-mapped PNG with a scale
 //! bar, and a binary PLY point cloud.
 
+//!
+//! Each writer adds its file to a [`Batch`]: the caller commits the files together.
+
 use super::DepthMap;
+use crate::files::{Batch, PngLayout, add_png};
 use crate::sim::font;
 use anyhow::Context;
 use std::io::Write;
 use std::path::Path;
 
 /// Writes `DEPTH.npy`: float32 heights in mm, `height × width`, row-major.
-pub fn write_npy(depth: &DepthMap, path: &Path) -> anyhow::Result<()> {
+pub fn write_npy(depth: &DepthMap, batch: &mut Batch, path: &Path) -> anyhow::Result<()> {
     let bytes = crate::npy::encode_f32(&depth.height_mm, depth.height, depth.width)?;
-    std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))
+    batch.add_bytes(path, &bytes)
 }
 
 /// The colour of a height in `0..=max` (viridis; below 0 is the bottom colour).
@@ -22,7 +26,7 @@ fn colour(v: f32, max: f32) -> [u8; 3] {
 
 /// Writes the picture: heights in viridis from 0 to the largest height, and at the right a
 /// scale bar labelled with both ends in mm.
-pub fn write_png(depth: &DepthMap, path: &Path) -> anyhow::Result<()> {
+pub fn write_png(depth: &DepthMap, batch: &mut Batch, path: &Path) -> anyhow::Result<()> {
     let (w, h) = (depth.width, depth.height);
     let max = depth
         .height_mm
@@ -56,8 +60,7 @@ pub fn write_png(depth: &DepthMap, path: &Path) -> anyhow::Result<()> {
     let label_x = bar_x + bar_w + 6;
     draw_text(&mut img, &top, label_x, 0, zoom);
     draw_text(&mut img, "0 MM", label_x, ch - 7 * zoom, zoom);
-    img.save(path)
-        .with_context(|| format!("cannot write {}", path.display()))
+    add_png(batch, path, img.as_raw(), (cw, ch), PngLayout::Rgb8)
 }
 
 /// Draws `text` in the 5×7 font, black, scaled by `zoom`, with its top-left at `(x, y)`.
@@ -83,10 +86,13 @@ fn draw_text(img: &mut image::RgbImage, text: &str, x: usize, y: usize, zoom: us
 
 /// Writes a binary little-endian PLY with one vertex per pixel: `x` along columns, `y`
 /// along rows, `z` the height, all in mm.
-pub fn write_ply(depth: &DepthMap, path: &Path) -> anyhow::Result<()> {
-    let file =
-        std::fs::File::create(path).with_context(|| format!("cannot write {}", path.display()))?;
-    let mut out = std::io::BufWriter::new(file);
+pub fn write_ply(depth: &DepthMap, batch: &mut Batch, path: &Path) -> anyhow::Result<()> {
+    batch.add(path, |out| {
+        ply(depth, out).with_context(|| format!("cannot write {}", path.display()))
+    })
+}
+
+fn ply(depth: &DepthMap, out: &mut impl Write) -> std::io::Result<()> {
     let n = depth.width * depth.height;
     write!(
         out,
@@ -100,6 +106,5 @@ pub fn write_ply(depth: &DepthMap, path: &Path) -> anyhow::Result<()> {
             out.write_all(&v.to_le_bytes())?;
         }
     }
-    out.flush()
-        .with_context(|| format!("cannot write {}", path.display()))
+    Ok(())
 }

@@ -7,7 +7,7 @@
 use super::{Received, Transport};
 use anyhow::{Context, bail};
 use rollfuse_core::protocol::MAX_MESSAGE;
-use std::io::{BufReader, BufWriter, Read, Write};
+use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -72,32 +72,30 @@ impl Transport for Replay {
     }
 }
 
-/// Writes every received message to a recording.
+/// Writes every received message to a recording, under a temporary name until
+/// [`Recorder::finish`] moves it into place (a failed session leaves the previous
+/// recording as it was).
 pub struct Recorder {
-    writer: BufWriter<std::fs::File>,
+    file: crate::files::PendingFile,
 }
 
 impl Recorder {
-    /// Creates (or replaces) a recording.
+    /// Starts a recording (replacing the file at `path` when finished).
     pub fn create(path: &Path) -> anyhow::Result<Self> {
-        let file = std::fs::File::create(path)
+        let mut file = crate::files::PendingFile::create(path)
             .with_context(|| format!("cannot create recording {}", path.display()))?;
-        let mut writer = BufWriter::new(file);
-        writer.write_all(MAGIC)?;
-        Ok(Self { writer })
+        file.write_all(MAGIC)?;
+        Ok(Self { file })
     }
 
     /// Appends one message.
     pub fn record(&mut self, message: &[u8]) -> anyhow::Result<()> {
-        self.writer
-            .write_all(&(message.len() as u32).to_le_bytes())?;
-        self.writer.write_all(message)?;
-        Ok(())
+        self.file.write_all(&(message.len() as u32).to_le_bytes())?;
+        self.file.write_all(message)
     }
 
-    /// Flushes to disk.
-    pub fn finish(mut self) -> anyhow::Result<()> {
-        self.writer.flush()?;
-        Ok(())
+    /// Flushes, syncs and moves the recording into place.
+    pub fn finish(self) -> anyhow::Result<()> {
+        self.file.commit()
     }
 }

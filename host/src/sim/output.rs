@@ -3,6 +3,7 @@
 //! `manifest.json`.
 
 use super::render::{Planes, Simulator};
+use crate::files::{Batch, PngLayout, add_png};
 use crate::npy;
 use anyhow::Context;
 use serde::Serialize;
@@ -120,6 +121,9 @@ pub fn write(
 ) -> anyhow::Result<Manifest> {
     std::fs::create_dir_all(out.join("truth"))
         .with_context(|| format!("cannot create {}", out.display()))?;
+    // Every file is written before any is moved into place, the manifest last: a failure
+    // leaves the previous run's files as they were, never a mix.
+    let mut batch = Batch::new();
     let scene = sim.scene();
     let mmpp = scene.sensor.mm_per_px;
     let mut frames = Vec::with_capacity(sim.frames());
@@ -131,7 +135,7 @@ pub fn write(
             sheet.push(f.image.clone());
         }
         let file = format!("frame_{k:04}.png");
-        f.image.save_png(&out.join(&file))?;
+        f.image.add_png(&mut batch, &out.join(&file))?;
         frames.push(FrameRecord {
             file,
             offset_mm: f.offset_mm,
@@ -142,36 +146,32 @@ pub fn write(
         });
         progress(k + 1, sim.frames());
     }
-    remove_stale_frames(out, sim.frames())?;
     let strip = sim.strip();
     let truth_dir = out.join("truth");
-    std::fs::write(
-        truth_dir.join("height.npy"),
-        npy::encode_f32(&strip.height_mm, strip.rows, strip.width)?,
-    )
-    .context("cannot write truth/height.npy")?;
-    let microns: Vec<u16> = strip
+    batch.add_bytes(
+        &truth_dir.join("height.npy"),
+        &npy::encode_f32(&strip.height_mm, strip.rows, strip.width)?,
+    )?;
+    let microns: Vec<u8> = strip
         .height_mm
         .iter()
-        .map(|h| (h * 1000.0).round().clamp(0.0, 65535.0) as u16)
+        .flat_map(|h| ((h * 1000.0).round().clamp(0.0, 65535.0) as u16).to_ne_bytes())
         .collect();
-    image::ImageBuffer::<image::Luma<u16>, _>::from_raw(
-        strip.width as u32,
-        strip.rows as u32,
-        microns,
-    )
-    .context("height buffer does not match its size")?
-    .save(truth_dir.join("height.png"))
-    .context("cannot write truth/height.png")?;
-    sim.ideal().save_png(&truth_dir.join("ideal.png"))?;
-    contact_sheet(&sheet).save_png(&out.join("contact_sheet.png"))?;
+    let size = (strip.width, strip.rows);
+    add_png(
+        &mut batch,
+        &truth_dir.join("height.png"),
+        &microns,
+        size,
+        PngLayout::Gray16,
+    )?;
+    sim.ideal()
+        .add_png(&mut batch, &truth_dir.join("ideal.png"))?;
+    contact_sheet(&sheet).add_png(&mut batch, &out.join("contact_sheet.png"))?;
     let mut regions = Vec::new();
     for (name, mask) in &strip.regions {
         let file = format!("truth/region_{name}.png");
-        image::GrayImage::from_raw(strip.width as u32, strip.rows as u32, mask.clone())
-            .context("mask buffer does not match its size")?
-            .save(out.join(&file))
-            .with_context(|| format!("cannot write {file}"))?;
+        add_png(&mut batch, &out.join(&file), mask, size, PngLayout::Gray8)?;
         regions.push((name.clone(), file));
     }
     if scene.has(super::Effect::Rgb) {
@@ -183,7 +183,7 @@ pub fn write(
             blue: scene.lights.blue,
             gains: [1.0; 3],
         };
-        lights.save(&out.join("lights.toml"))?;
+        batch.add_bytes(&out.join("lights.toml"), lights.to_toml()?.as_bytes())?;
     }
     let manifest = Manifest {
         scene: scene.name.clone(),
@@ -209,6 +209,8 @@ pub fn write(
         scene_file: toml::Value::try_from(scene).context("cannot record the scene")?,
     };
     let json = serde_json::to_string_pretty(&manifest)?;
-    std::fs::write(out.join("manifest.json"), json + "\n").context("cannot write manifest.json")?;
+    batch.add_bytes(&out.join("manifest.json"), (json + "\n").as_bytes())?;
+    batch.commit()?;
+    remove_stale_frames(out, sim.frames())?;
     Ok(manifest)
 }
