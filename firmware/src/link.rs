@@ -123,34 +123,7 @@ pub async fn serve(
             Either3::First(Err(e)) => Err(e),
             Either3::Second(sending) => {
                 let m = sending.message();
-                let msg = match m.kind {
-                    Kind::Tile {
-                        index,
-                        width,
-                        height,
-                        observations,
-                    } => DeviceMessage::Tile(Tile {
-                        index,
-                        width,
-                        height,
-                        observations,
-                        pixels: m.payload(),
-                    }),
-                    Kind::Raw {
-                        frame,
-                        offset,
-                        total,
-                    } => DeviceMessage::RawChunk(RawChunk {
-                        frame,
-                        offset,
-                        total,
-                        data: m.payload(),
-                    }),
-                    Kind::StreamEnded => {
-                        COUNTERS.merge_into(controller.counters_mut());
-                        DeviceMessage::Status(controller.counters())
-                    }
-                };
+                let msg = outgoing(m, controller);
                 let sent = encode_and_send(write, controller, &msg, tx, last_command).await;
                 sending.release();
                 sent
@@ -161,6 +134,38 @@ pub async fn serve(
             // Losing the host stops the roller and streaming.
             host_gone(controller);
             return;
+        }
+    }
+}
+
+/// The protocol message for an outbox slot; the final status takes the tasks' counters.
+fn outgoing<'a>(m: &'a outbox::Message, controller: &mut Controller) -> DeviceMessage<'a> {
+    match m.kind {
+        Kind::Tile {
+            index,
+            width,
+            height,
+            observations,
+        } => DeviceMessage::Tile(Tile {
+            index,
+            width,
+            height,
+            observations,
+            pixels: m.payload(),
+        }),
+        Kind::Raw {
+            frame,
+            offset,
+            total,
+        } => DeviceMessage::RawChunk(RawChunk {
+            frame,
+            offset,
+            total,
+            data: m.payload(),
+        }),
+        Kind::StreamEnded => {
+            COUNTERS.merge_into(controller.counters_mut());
+            DeviceMessage::Status(controller.counters())
         }
     }
 }
