@@ -101,11 +101,14 @@ impl embassy_time_driver::Driver for Driver {
         critical_section::with(|_| {
             let mut periods = u64::from(PERIODS.load(Relaxed));
             let mut current = SYST::get_current();
-            // Wrapped but not yet counted (interrupts are masked here): read again, after
-            // the wrap for certain.
+            // The interrupt is pending from the tick that reached 0 (interrupts are masked
+            // here): read again; past 0 the counter has reloaded and the period ended, at
+            // 0 it is the period's last tick.
             if SCB::is_pendst_pending() {
-                periods += 1;
                 current = SYST::get_current();
+                if current != 0 {
+                    periods += 1;
+                }
             }
             let reload = PERIOD_US * TICKS_PER_US - 1;
             periods * PERIOD_US + (reload - u64::from(current)) / TICKS_PER_US
