@@ -5,23 +5,17 @@
 mod common;
 
 use common::*;
-use embassy_futures::select::{Either3, select, select3};
 use embassy_time::{Duration, Instant};
-use rollfuse_core::protocol::{Command, MAX_MESSAGE, RollerCommand};
+use rollfuse_core::protocol::{Command, RollerCommand};
 use rollfuse_fw::link;
 use rollfuse_fw::liveness::{self, Task};
 use rollfuse_fw::outbox::{self, Kind};
-use rollfuse_fw::roller::{self, ORDERS, Order};
+use rollfuse_fw::roller::{ORDERS, Order};
 use rollfuse_fw::signals::STOP_STREAM;
 use std::sync::atomic::Ordering::Relaxed;
 
 #[test]
 fn a_host_that_stops_reading_stops_the_roller_within_the_heartbeat() {
-    outbox::init();
-    let mut controller = rollfuse_fw::controller().expect("the default configuration fits");
-    let (mut read, mut write) = (Out::new(), In::new());
-    let mut tx = Box::new([0u8; MAX_MESSAGE]);
-    let mut pins = Pins;
     let test = async {
         host_sends(1, &Command::StreamStart);
         host_sends(
@@ -71,19 +65,5 @@ fn a_host_that_stops_reading_stops_the_roller_within_the_heartbeat() {
         // a spinning task would never let this wait end.
         wait(link::HEARTBEAT * 2).await;
     };
-    let outcome = embassy_futures::block_on(select3(
-        test,
-        clock(),
-        select(roller::run(&mut pins, 16), async {
-            // As on the board: the link is served again when a host comes back.
-            loop {
-                link::serve(&mut read, &mut write, &mut controller, &mut tx).await;
-            }
-        }),
-    ));
-    // The test's body ran to its end: no task ended first.
-    assert!(
-        matches!(outcome, Either3::First(_)),
-        "a task ended before the test did"
-    );
+    beside_link_and_roller(test);
 }

@@ -3,23 +3,16 @@
 mod common;
 
 use common::*;
-use embassy_futures::join::join;
-use embassy_futures::select::{Either3, select, select3};
+use embassy_futures::select::select;
 use embassy_time::Duration;
 use rollfuse_core::device::Effect;
-use rollfuse_core::protocol::{Command, MAX_MESSAGE, RollerCommand};
-use rollfuse_fw::roller::{self, ORDERS, Order};
+use rollfuse_core::protocol::{Command, RollerCommand};
+use rollfuse_fw::roller::{ORDERS, Order};
 use rollfuse_fw::signals::EFFECTS;
-use rollfuse_fw::{link, outbox};
 use std::sync::atomic::Ordering::Relaxed;
 
 #[test]
 fn stop_reaches_the_step_generator_with_every_queue_full() {
-    outbox::init();
-    let mut controller = rollfuse_fw::controller().expect("the default configuration fits");
-    let (mut read, mut write) = (Out::new(), In::new());
-    let mut tx = Box::new([0u8; MAX_MESSAGE]);
-    let mut pins = Pins;
     let test = async {
         // The roller turns.
         ORDERS
@@ -51,19 +44,5 @@ fn stop_reaches_the_step_generator_with_every_queue_full() {
         wait(Duration::from_millis(200)).await;
         assert_eq!(STEPS.load(Relaxed), after, "steps after the stop");
     };
-    let outcome = embassy_futures::block_on(select3(
-        join(test, async {}),
-        clock(),
-        select(roller::run(&mut pins, 16), async {
-            // As on the board: the link is served again when a host comes back.
-            loop {
-                link::serve(&mut read, &mut write, &mut controller, &mut tx).await;
-            }
-        }),
-    ));
-    // The test's body ran to its end: no task ended first.
-    assert!(
-        matches!(outcome, Either3::First(_)),
-        "a task ended before the test did"
-    );
+    beside_link_and_roller(test);
 }

@@ -13,13 +13,7 @@ use std::hint::black_box;
 
 fn depth(c: &mut Criterion) {
     let (w, h) = (640, 480);
-    let lights = Lights {
-        mm_per_px: 0.025,
-        red: [0.0, 0.819152, 0.573576],
-        green: [-0.709406, -0.409576, 0.573576],
-        blue: [0.709406, -0.409576, 0.573576],
-        gains: [1.0; 3],
-    };
+    let lights = Lights::product(0.025);
     let (_, image) = ball((w, h), (300.0, 250.0), 2.0, 0.8, &lights, 180.0);
     let background = Planes {
         width: w,

@@ -14,13 +14,7 @@ const PRESS: f64 = 0.4; // cap height, mm
 const FLAT: f64 = 180.0; // background level
 
 fn product_lights() -> Lights {
-    Lights {
-        mm_per_px: K,
-        red: [0.0, 0.819152, 0.573576],
-        green: [-0.709406, -0.409576, 0.573576],
-        blue: [0.709406, -0.409576, 0.573576],
-        gains: [1.0; 3],
-    }
+    Lights::product(K)
 }
 
 /// The cap's true height (mm) and an RGB image of it, `w × h`, centred at `(cx, cy)`.

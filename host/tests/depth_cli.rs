@@ -14,13 +14,7 @@ fn rollfuse(args: &[&str]) -> Output {
 }
 
 fn lights() -> Lights {
-    Lights {
-        mm_per_px: 0.02,
-        red: [0.0, 0.819152, 0.573576],
-        green: [-0.709406, -0.409576, 0.573576],
-        blue: [0.709406, -0.409576, 0.573576],
-        gains: [1.0; 3],
-    }
+    Lights::product(0.02)
 }
 
 /// A folder with `lights.toml` and `ball.png`, a 240×200 image of a 2 mm ball pressed

@@ -100,13 +100,7 @@ fn simulate_fuse_and_splice_leave_their_outputs_whole_on_a_full_disk() {
 #[test]
 fn depth_calibrate_and_stream_leave_their_outputs_whole_on_a_full_disk() {
     let tmp = tempfile::tempdir().unwrap();
-    let l = Lights {
-        mm_per_px: 0.02,
-        red: [0.0, 0.819152, 0.573576],
-        green: [-0.709406, -0.409576, 0.573576],
-        blue: [0.709406, -0.409576, 0.573576],
-        gains: [1.0; 3],
-    };
+    let l = Lights::product(0.02);
     let lights = tmp.path().join("lights.toml");
     l.save(&lights).unwrap();
     let (_, img) = ball((120, 100), (60.0, 50.0), 1.0, 0.2, &l, 180.0);

@@ -26,28 +26,13 @@ fn rows(sim: &Simulator, k: usize) -> (f64, f64) {
 }
 
 fn geometry(sim: &Simulator) -> Geometry {
-    let s = &sim.scene().sensor;
-    Geometry {
-        roller_radius_mm: s.roller_radius_mm,
-        press_depth_mm: s.press_depth_mm,
-        mm_per_px: s.mm_per_px,
-        apex_row: s.height_px as f64 / 2.0,
-    }
+    sim.scene().sensor.roller_geometry()
 }
 
 /// The strip of `sim`'s frames, aligned by the tracker with the commanded rows.
 fn strip_of(sim: &Simulator) -> (i64, Planes, StripReport) {
     let commanded: Vec<f64> = (0..sim.frames()).map(|k| rows(sim, k).0).collect();
-    let opts = StripOptions {
-        window: WindowChoice::Geometry(geometry(sim)),
-        bands: Bands::default(),
-        cfg: FuseConfig::default(),
-        precision: Precision::F32,
-        placing: Placing::Track {
-            params: None,
-            commanded: Some(commanded),
-        },
-    };
+    let opts = StripOptions::tracked(geometry(sim), commanded);
     let frames = (0..sim.frames()).map(|k| Ok(sim.frame(k).image));
     let (sink, report) = fuse_strip(
         frames,

@@ -1,6 +1,7 @@
 //! Mock peripherals and virtual time for the firmware's tasks on the host.
 #![allow(dead_code)]
 
+use embassy_futures::select::{Either3, select, select3};
 use embassy_futures::yield_now;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
@@ -9,7 +10,8 @@ use embassy_usb_driver::{
     Direction, Endpoint, EndpointAddress, EndpointError, EndpointIn, EndpointInfo, EndpointOut,
     EndpointType,
 };
-use rollfuse_core::protocol::{self, Command, DeviceMessage};
+use rollfuse_core::protocol::{self, Command, DeviceMessage, MAX_MESSAGE};
+use rollfuse_fw::{link, outbox, roller};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering::Relaxed};
 
@@ -158,4 +160,28 @@ pub fn acked(seq: u32) -> bool {
             Ok((_, DeviceMessage::Ack { command_seq })) if command_seq == seq
         )
     })
+}
+
+/// Runs `test` in virtual time beside the roller and the link (served again whenever it
+/// returns, as on the board, with mock endpoints), and requires the test's body to finish
+/// first: no task may end before it.
+pub fn beside_link_and_roller(test: impl Future<Output = ()>) {
+    outbox::init();
+    let mut controller = rollfuse_fw::controller().expect("the default configuration fits");
+    let (mut read, mut write) = (Out::new(), In::new());
+    let mut tx = Box::new([0u8; MAX_MESSAGE]);
+    let mut pins = Pins;
+    let outcome = embassy_futures::block_on(select3(
+        test,
+        clock(),
+        select(roller::run(&mut pins, 16), async {
+            loop {
+                link::serve(&mut read, &mut write, &mut controller, &mut tx).await;
+            }
+        }),
+    ));
+    assert!(
+        matches!(outcome, Either3::First(())),
+        "a task ended before the test did"
+    );
 }

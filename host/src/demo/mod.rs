@@ -24,9 +24,9 @@ pub mod html;
 use crate::eval::depth::{self as depth_eval, DepthRow};
 use crate::eval::tables::{self, Row, acquire, evaluate_acquired};
 use crate::fullres::align::Offset;
-use crate::fullres::roll::{Bands, StripInMemory};
-use crate::fullres::strip::{Placing, StripOptions, WindowChoice, fuse_strip};
-use crate::fullres::window::{ContactWindow, Geometry};
+use crate::fullres::roll::StripInMemory;
+use crate::fullres::strip::{StripOptions, fuse_strip};
+use crate::fullres::window::ContactWindow;
 use crate::fullres::{Placed, Precision, fuse_mosaic};
 use crate::image::Planes;
 use crate::link::sim::SimDevice;
@@ -344,22 +344,10 @@ fn fuse_full_resolution(
     frames: &[Planes],
     rows: &[i64],
 ) -> anyhow::Result<(Planes, Alignment, Planes)> {
-    let s = &scene.sensor;
-    let opts = StripOptions {
-        window: WindowChoice::Geometry(Geometry {
-            roller_radius_mm: s.roller_radius_mm,
-            press_depth_mm: s.press_depth_mm,
-            mm_per_px: s.mm_per_px,
-            apex_row: s.height_px as f64 / 2.0,
-        }),
-        bands: Bands::default(),
-        cfg: FuseConfig::default(),
-        precision: Precision::F32,
-        placing: Placing::Track {
-            params: None,
-            commanded: Some(rows.iter().map(|&r| r as f64).collect()),
-        },
-    };
+    let opts = StripOptions::tracked(
+        scene.sensor.roller_geometry(),
+        rows.iter().map(|&r| r as f64).collect(),
+    );
     let mut disagreement = 0i64;
     let (sink, report) = fuse_strip(
         frames.iter().cloned().map(Ok),

@@ -43,6 +43,18 @@ fn unit_gains() -> [f64; 3] {
 }
 
 impl Lights {
+    /// The module's three LEDs: 35° above the gel, 120° apart around it (red along +y),
+    /// equal gains, at `mm_per_px`.
+    pub fn product(mm_per_px: f64) -> Self {
+        Self {
+            mm_per_px,
+            red: [0.0, 0.819152, 0.573576],
+            green: [-0.709406, -0.409576, 0.573576],
+            blue: [0.709406, -0.409576, 0.573576],
+            gains: [1.0; 3],
+        }
+    }
+
     /// Reads and checks a light file.
     pub fn load(path: &Path) -> anyhow::Result<Self> {
         let text = std::fs::read_to_string(path)
@@ -125,13 +137,7 @@ mod tests {
     use super::*;
 
     fn product_lights() -> Lights {
-        Lights {
-            mm_per_px: 0.05,
-            red: [0.0, 0.819152, 0.573576],
-            green: [-0.709406, -0.409576, 0.573576],
-            blue: [0.709406, -0.409576, 0.573576],
-            gains: [1.0; 3],
-        }
+        Lights::product(0.05)
     }
 
     #[test]

@@ -16,17 +16,14 @@
 use super::tables::{Row, acquire, crop_rows};
 use crate::commands::metrics::measure;
 use crate::eval::metrics::StripAxis;
-use crate::fullres::Precision;
 use crate::fullres::align::Offset;
-use crate::fullres::roll::{Bands, StripInMemory};
-use crate::fullres::strip::{Placing, StripOptions, WindowChoice, fuse_strip};
-use crate::fullres::window::Geometry;
+use crate::fullres::roll::StripInMemory;
+use crate::fullres::strip::{StripOptions, fuse_strip};
 use crate::fullres::{Placed, splice};
 use crate::image::Planes;
 use crate::link::sim::SimDevice;
 use crate::sim::{Effect, Scene, Simulator};
 use anyhow::{Context, ensure};
-use rollfuse_core::FuseConfig;
 
 /// Frames of a rolled scene.
 pub const ROLL_FRAMES: usize = 120;
@@ -120,22 +117,7 @@ pub fn evaluate_roll(scene: &Scene, strips: usize) -> anyhow::Result<Vec<Row>> {
     let commanded: Vec<f64> = (0..sim.frames())
         .map(|k| sim.strip_row_of_top(sim.frame(k).offset_mm))
         .collect();
-    let s = &scene.sensor;
-    let opts = StripOptions {
-        window: WindowChoice::Geometry(Geometry {
-            roller_radius_mm: s.roller_radius_mm,
-            press_depth_mm: s.press_depth_mm,
-            mm_per_px: s.mm_per_px,
-            apex_row: s.height_px as f64 / 2.0,
-        }),
-        bands: Bands::default(),
-        cfg: FuseConfig::default(),
-        precision: Precision::F32,
-        placing: Placing::Track {
-            params: None,
-            commanded: Some(commanded),
-        },
-    };
+    let opts = StripOptions::tracked(scene.sensor.roller_geometry(), commanded);
     let (sink, _) = fuse_strip(
         acq.frames.iter().cloned().map(Ok),
         &opts,

@@ -55,6 +55,23 @@ pub struct StripOptions {
     pub placing: Placing,
 }
 
+impl StripOptions {
+    /// The window from `geometry`, frames placed by the tracker near the `commanded` rows
+    /// (each frame's top row on the strip), the default bands and fuse step, in f32.
+    pub fn tracked(geometry: Geometry, commanded: Vec<f64>) -> Self {
+        Self {
+            window: WindowChoice::Geometry(geometry),
+            bands: Bands::default(),
+            cfg: FuseConfig::default(),
+            precision: Precision::F32,
+            placing: Placing::Track {
+                params: None,
+                commanded: Some(commanded),
+            },
+        }
+    }
+}
+
 /// What [`fuse_strip`] reports.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct StripReport {

@@ -262,6 +262,18 @@ pub struct Sensor {
     pub focal_row: Option<usize>,
 }
 
+impl Sensor {
+    /// The roller's geometry as full-resolution fusion needs it: the apex is the middle row.
+    pub fn roller_geometry(&self) -> crate::fullres::window::Geometry {
+        crate::fullres::window::Geometry {
+            roller_radius_mm: self.roller_radius_mm,
+            press_depth_mm: self.press_depth_mm,
+            mm_per_px: self.mm_per_px,
+            apex_row: self.height_px as f64 / 2.0,
+        }
+    }
+}
+
 /// Light directions: unit vectors in image coordinates (x along columns to the right, y
 /// along rows downward, z out of the gel toward the camera), from the gel toward the LED.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
