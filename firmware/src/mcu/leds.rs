@@ -1,8 +1,11 @@
 //! The three LEDs: PWM channels 1–3 of TIM4 (PD12 red, PD13 green, PD14 blue), duty from
 //! commands through the core's mapping.
 
-use embassy_stm32::peripherals::TIM4;
-use embassy_stm32::timer::simple_pwm::SimplePwm;
+use embassy_stm32::Peri;
+use embassy_stm32::gpio::OutputType;
+use embassy_stm32::peripherals::{PD12, PD13, PD14, TIM4};
+use embassy_stm32::time::khz;
+use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
 use rollfuse_core::device::leds::compare_values;
 use rollfuse_core::protocol::LedDuty;
 
@@ -12,8 +15,22 @@ pub struct Leds {
 }
 
 impl Leds {
-    /// Takes the timer (already configured with its three pins) and turns the LEDs off.
-    pub fn new(mut pwm: SimplePwm<'static, TIM4>) -> Self {
+    /// The timer's channels 1–3 on their pins at 20 kHz, the LEDs off.
+    pub fn new(
+        tim: Peri<'static, TIM4>,
+        red: Peri<'static, PD12>,
+        green: Peri<'static, PD13>,
+        blue: Peri<'static, PD14>,
+    ) -> Self {
+        let mut pwm = SimplePwm::new(
+            tim,
+            Some(PwmPin::new(red, OutputType::PushPull)),
+            Some(PwmPin::new(green, OutputType::PushPull)),
+            Some(PwmPin::new(blue, OutputType::PushPull)),
+            None,
+            khz(20),
+            Default::default(),
+        );
         pwm.ch1().enable();
         pwm.ch2().enable();
         pwm.ch3().enable();

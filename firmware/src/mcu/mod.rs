@@ -1,5 +1,6 @@
 //! The firmware proper (only built for the MCU).
 
+mod bus;
 mod camera;
 mod leds;
 mod selftest;
@@ -7,20 +8,17 @@ mod selftest;
 use defmt::{error, info, warn};
 use embassy_executor::{InterruptExecutor, Spawner};
 use embassy_futures::join::join5;
-use embassy_stm32::gpio::{Level, Output, OutputType, Speed};
+use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_stm32::i2c::I2c;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::rcc::{Mco, Mco1Source, McoConfig, McoPrescaler};
-use embassy_stm32::time::khz;
-use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
 use embassy_stm32::wdg::IndependentWatchdog;
-use embassy_stm32::{Config, bind_interrupts, dcmi, dma, i2c, interrupt, peripherals, usb};
+use embassy_stm32::{Config, Peri, bind_interrupts, dcmi, dma, i2c, interrupt, peripherals, usb};
 use embassy_time::{Instant, Timer};
 use rollfuse_core::protocol::DeviceConfig;
 use rollfuse_fw::buffers::{FRAME, PIPELINE, TX};
 use rollfuse_fw::pipeline;
 use rollfuse_fw::roller::{self, StepPins};
-use rollfuse_fw::signals::STOP_STREAM;
 use rollfuse_fw::{counters, effects, link, liveness, outbox, stack_guard};
 use {defmt_rtt as _, panic_probe as _};
 
@@ -44,29 +42,26 @@ unsafe fn UART4() {
     unsafe { EXECUTOR_HIGH.on_interrupt() }
 }
 
-/// Bus events: a suspended or unconfigured bus means the host is gone.
-struct BusEvents;
-
-impl embassy_usb::Handler for BusEvents {
-    fn suspended(&mut self, suspended: bool) {
-        if suspended {
-            roller::stop();
-            STOP_STREAM.signal(());
-        }
-    }
-
-    fn configured(&mut self, configured: bool) {
-        if !configured {
-            roller::stop();
-            STOP_STREAM.signal(());
-        }
-    }
-}
-
-/// The stepper driver on its pins: STEP PF13, ENABLE PF14 (low = on).
+/// The stepper driver on its pins: DIR PF12 (fixed forward), STEP PF13, ENABLE PF14
+/// (low = on; the driver starts off).
 struct Stepper {
+    _dir: Output<'static>,
     step: Output<'static>,
     enable: Output<'static>,
+}
+
+impl Stepper {
+    fn new(
+        dir: Peri<'static, peripherals::PF12>,
+        step: Peri<'static, peripherals::PF13>,
+        enable: Peri<'static, peripherals::PF14>,
+    ) -> Self {
+        Self {
+            _dir: Output::new(dir, Level::Low, Speed::Low),
+            step: Output::new(step, Level::Low, Speed::High),
+            enable: Output::new(enable, Level::High, Speed::Low),
+        }
+    }
 }
 
 impl StepPins for Stepper {
@@ -144,46 +139,7 @@ async fn main(_spawner: Spawner) {
     };
     let initial = controller.pipeline_config();
 
-    // USB: vendor interface, bulk OUT then bulk IN (addresses 0x01 and 0x81).
-    let mut ep_out_buffer = [0u8; 256];
-    let mut usb_config = usb::Config::default();
-    // VBUS on PA9 (the NUCLEO's USB connector wires it there): pulling the cable is seen
-    // at once, not only as a suspended bus.
-    usb_config.vbus_detection = true;
-    let driver = usb::Driver::new_fs(
-        p.USB_OTG_FS,
-        Irqs,
-        p.PA12,
-        p.PA11,
-        &mut ep_out_buffer,
-        usb_config,
-    );
-    let mut config = embassy_usb::Config::new(0x1209, 0x0001);
-    config.manufacturer = Some("rollfuse");
-    config.product = Some("rollfuse tactile module");
-    config.serial_number = Some("0001");
-    config.max_power = 100;
-    config.max_packet_size_0 = 64;
-    let mut bus_events = BusEvents;
-    let mut config_descriptor = [0; 256];
-    let mut bos_descriptor = [0; 256];
-    let mut control_buf = [0; 64];
-    let mut builder = embassy_usb::Builder::new(
-        driver,
-        config,
-        &mut config_descriptor,
-        &mut bos_descriptor,
-        &mut [],
-        &mut control_buf,
-    );
-    builder.handler(&mut bus_events);
-    let mut function = builder.function(0xFF, 0, 0);
-    let mut interface = function.interface();
-    let mut alt = interface.alt_setting(0xFF, 0, 0, None);
-    let mut read_ep = alt.endpoint_bulk_out(None, link::PACKET as u16);
-    let mut write_ep = alt.endpoint_bulk_in(None, link::PACKET as u16);
-    drop(function);
-    let mut device = builder.build();
+    let (mut device, mut read_ep, mut write_ep) = bus::start(p.USB_OTG_FS, p.PA12, p.PA11);
 
     outbox::init();
     let tx = TX.take();
@@ -193,17 +149,7 @@ async fn main(_spawner: Spawner) {
         }
     };
 
-    // LEDs on TIM4 channels 1–3, 20 kHz.
-    let pwm = SimplePwm::new(
-        p.TIM4,
-        Some(PwmPin::new(p.PD12, OutputType::PushPull)),
-        Some(PwmPin::new(p.PD13, OutputType::PushPull)),
-        Some(PwmPin::new(p.PD14, OutputType::PushPull)),
-        None,
-        khz(20),
-        Default::default(),
-    );
-    let mut leds = leds::Leds::new(pwm);
+    let mut leds = leds::Leds::new(p.TIM4, p.PD12, p.PD13, p.PD14);
 
     // The camera: XCLK from MCO1 (HSI / 3 ≈ 21 MHz), SCCB on I2C1, DCMI on DMA1 stream 0.
     let mut mco_config = McoConfig::default();
@@ -250,37 +196,43 @@ async fn main(_spawner: Spawner) {
     let mut camera = camera::DcmiCamera(dcmi);
     let frames = pipeline::run(&mut camera, FRAME.take(), PIPELINE.take(), initial);
 
-    // The stepper driver: DIR fixed forward, STEP pulses and ENABLE from the motion task.
-    let _dir = Output::new(p.PF12, Level::Low, Speed::Low);
-    let step = Output::new(p.PF13, Level::Low, Speed::High);
-    let enable = Output::new(p.PF14, Level::High, Speed::Low);
-    interrupt::UART4.set_priority(Priority::P6);
-    let high = EXECUTOR_HIGH.start(interrupt::UART4);
-    let stepper = Stepper { step, enable };
-    match roller_task(stepper, DeviceConfig::default().frame_spacing_px) {
-        Ok(task) => high.spawn(task),
-        Err(_) => error!("the roller's task could not start"),
-    }
+    start_roller(Stepper::new(p.PF12, p.PF13, p.PF14));
 
     // Accepted commands reach the hardware here.
     let effects = effects::run(&mut leds);
 
-    // The watchdog restarts the firmware 1 s after a task stopped coming round its loop
-    // (liveness.rs); the board LED blinks while every task does.
-    let mut watchdog = IndependentWatchdog::new(p.IWDG1, 1_000_000);
-    watchdog.unleash();
-    let mut led = Output::new(p.PB0, Level::High, Speed::Low);
-    let alive = async {
-        let mut seen = [0; 4];
-        loop {
-            Timer::after_millis(400).await;
-            if liveness::all_alive(&mut seen) {
-                watchdog.pet();
-                led.toggle();
-            } else {
-                warn!("a task is late: the watchdog is not fed");
-            }
-        }
-    };
+    let alive = feed_watchdog(p.IWDG1, p.PB0);
     join5(device.run(), serve, effects, alive, frames).await;
+}
+
+/// The watchdog restarts the firmware 1 s after a task stopped coming round its loop
+/// (`liveness`); the board LED (LD1) blinks while every task does.
+async fn feed_watchdog(
+    iwdg: Peri<'static, peripherals::IWDG1>,
+    led: Peri<'static, peripherals::PB0>,
+) {
+    let mut watchdog = IndependentWatchdog::new(iwdg, 1_000_000);
+    watchdog.unleash();
+    let mut led = Output::new(led, Level::High, Speed::Low);
+    let mut seen = [0; 4];
+    loop {
+        Timer::after_millis(400).await;
+        if liveness::all_alive(&mut seen) {
+            watchdog.pet();
+            led.toggle();
+        } else {
+            warn!("a task is late: the watchdog is not fed");
+        }
+    }
+}
+
+/// Starts the roller's task on the interrupt-priority executor (UART4's interrupt, a
+/// priority above thread mode's fusion).
+fn start_roller(stepper: Stepper) {
+    interrupt::UART4.set_priority(Priority::P6);
+    let high = EXECUTOR_HIGH.start(interrupt::UART4);
+    match roller_task(stepper, DeviceConfig::default().frame_spacing_px) {
+        Ok(task) => high.spawn(task),
+        Err(_) => error!("the roller's task could not start"),
+    }
 }

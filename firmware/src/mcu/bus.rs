@@ -1,0 +1,91 @@
+//! The USB device: full speed on the OTG_FS peripheral, VID:PID `1209:0001`, one
+//! vendor-specific interface with a bulk OUT (0x01) and a bulk IN (0x81) endpoint; a
+//! suspended or unconfigured bus stops the roller and streaming.
+
+use super::Irqs;
+use embassy_stm32::peripherals::{PA11, PA12, USB_OTG_FS};
+use embassy_stm32::{Peri, usb};
+use embassy_usb::UsbDevice;
+use rollfuse_fw::roller;
+use rollfuse_fw::signals::STOP_STREAM;
+use static_cell::ConstStaticCell;
+
+/// The USB peripheral's driver.
+pub type Bus = usb::Driver<'static, USB_OTG_FS>;
+/// The bulk OUT endpoint (commands).
+pub type CommandEndpoint = <Bus as embassy_usb::driver::Driver<'static>>::EndpointOut;
+/// The bulk IN endpoint (messages to the host).
+pub type MessageEndpoint = <Bus as embassy_usb::driver::Driver<'static>>::EndpointIn;
+
+/// Bus events: a suspended or unconfigured bus means the host is gone.
+struct BusEvents;
+
+impl embassy_usb::Handler for BusEvents {
+    fn suspended(&mut self, suspended: bool) {
+        if suspended {
+            roller::stop();
+            STOP_STREAM.signal(());
+        }
+    }
+
+    fn configured(&mut self, configured: bool) {
+        if !configured {
+            roller::stop();
+            STOP_STREAM.signal(());
+        }
+    }
+}
+
+/// The stack's buffers: the OUT endpoints' packet memory, the descriptors, control
+/// transfers.
+struct Memory {
+    ep_out: [u8; 256],
+    config_descriptor: [u8; 256],
+    bos_descriptor: [u8; 256],
+    control: [u8; 64],
+    events: BusEvents,
+}
+
+static MEMORY: ConstStaticCell<Memory> = ConstStaticCell::new(Memory {
+    ep_out: [0; 256],
+    config_descriptor: [0; 256],
+    bos_descriptor: [0; 256],
+    control: [0; 64],
+    events: BusEvents,
+});
+
+/// Builds the device and its two endpoints (call once: it takes the buffers).
+pub fn start(
+    otg: Peri<'static, USB_OTG_FS>,
+    dp: Peri<'static, PA12>,
+    dm: Peri<'static, PA11>,
+) -> (UsbDevice<'static, Bus>, CommandEndpoint, MessageEndpoint) {
+    let m = MEMORY.take();
+    let mut usb_config = usb::Config::default();
+    // VBUS on PA9 (the NUCLEO's USB connector wires it there): pulling the cable is seen
+    // at once, not only as a suspended bus.
+    usb_config.vbus_detection = true;
+    let driver = usb::Driver::new_fs(otg, Irqs, dp, dm, &mut m.ep_out, usb_config);
+    let mut config = embassy_usb::Config::new(0x1209, 0x0001);
+    config.manufacturer = Some("rollfuse");
+    config.product = Some("rollfuse tactile module");
+    config.serial_number = Some("0001");
+    config.max_power = 100;
+    config.max_packet_size_0 = 64;
+    let mut builder = embassy_usb::Builder::new(
+        driver,
+        config,
+        &mut m.config_descriptor,
+        &mut m.bos_descriptor,
+        &mut [],
+        &mut m.control,
+    );
+    builder.handler(&mut m.events);
+    let mut function = builder.function(0xFF, 0, 0);
+    let mut interface = function.interface();
+    let mut alt = interface.alt_setting(0xFF, 0, 0, None);
+    let read = alt.endpoint_bulk_out(None, rollfuse_fw::link::PACKET as u16);
+    let write = alt.endpoint_bulk_in(None, rollfuse_fw::link::PACKET as u16);
+    drop(function);
+    (builder.build(), read, write)
+}
