@@ -3,6 +3,47 @@
 use crate::files::{PngLayout, write_png};
 use anyhow::{Context, bail, ensure};
 use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// The largest image read by default, pixels: 32 Mi (e.g. 640 × 52 000 rows), at most
+/// 384 MiB as three planes of `f32`. `rollfuse --max-pixels` sets another.
+pub const DEFAULT_MAX_PIXELS: u64 = 32 << 20;
+
+static MAX_PIXELS: AtomicU64 = AtomicU64::new(DEFAULT_MAX_PIXELS);
+
+/// Sets the largest image read or built (a canvas of frames), pixels, for the whole
+/// process.
+pub fn set_max_pixels(pixels: u64) {
+    MAX_PIXELS.store(pixels, Ordering::Relaxed);
+}
+
+/// The largest image read or built, pixels.
+pub fn max_pixels() -> u64 {
+    MAX_PIXELS.load(Ordering::Relaxed)
+}
+
+/// Reads `path`'s header, refusing an image over the pixel limit before anything is
+/// decoded or allocated.
+fn open_within_limit(path: &Path) -> anyhow::Result<image::DynamicImage> {
+    let reader = image::ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .with_context(|| format!("cannot read image {}", path.display()))?;
+    let (w, h) = reader
+        .into_dimensions()
+        .with_context(|| format!("cannot read image {}", path.display()))?;
+    let pixels = u64::from(w) * u64::from(h);
+    let limit = max_pixels();
+    ensure!(
+        pixels <= limit,
+        "image {} is {w}×{h} = {pixels} pixels, over the limit of {limit} (--max-pixels)",
+        path.display()
+    );
+    image::ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .map_err(image::ImageError::IoError)
+        .and_then(|r| r.decode())
+        .with_context(|| format!("cannot read image {}", path.display()))
+}
 
 /// An image as planes of `f32` values on the 8-bit scale (0..=255; 16-bit files are scaled
 /// by 255/65535): one plane (gray) or three (red, green, blue), each row-major.
@@ -70,10 +111,10 @@ impl Planes {
     }
 
     /// Reads a PNG (or any format the `image` crate was built with): 8- or 16-bit, gray or
-    /// RGB (an alpha channel is dropped; gray+alpha reads as gray).
+    /// RGB (an alpha channel is dropped; gray+alpha reads as gray). An image over the pixel
+    /// limit ([`set_max_pixels`]) is refused from its header, before it is decoded.
     pub fn load(path: &Path) -> anyhow::Result<Self> {
-        let img =
-            image::open(path).with_context(|| format!("cannot read image {}", path.display()))?;
+        let img = open_within_limit(path)?;
         let (w, h) = (img.width() as usize, img.height() as usize);
         let color = img.color();
         let scale16 = 255.0 / 65535.0;

@@ -8,6 +8,10 @@ use std::process::ExitCode;
 #[derive(Parser)]
 #[command(name = "rollfuse", version, about)]
 struct Cli {
+    /// The largest image any command reads, pixels; larger ones are refused from their
+    /// header before anything is decoded.
+    #[arg(long, global = true, default_value_t = rollfuse::image::DEFAULT_MAX_PIXELS)]
+    max_pixels: u64,
     #[command(subcommand)]
     command: Command,
 }
@@ -40,6 +44,7 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    rollfuse::image::set_max_pixels(cli.max_pixels);
     let result = match cli.command {
         Command::Demo(args) => demo::run(args),
         Command::Simulate(args) => simulate::run(args),

@@ -38,11 +38,9 @@ pub struct Placed<'a> {
     pub at: Offset,
 }
 
-/// Largest mosaic, in pixels per channel.
-pub const MAX_MOSAIC_PIXELS: usize = 1 << 28;
-
 /// The canvas covering every frame: its origin (smallest offsets) and size, refused when
-/// larger than [`MAX_MOSAIC_PIXELS`].
+/// larger than the pixel limit ([`crate::image::max_pixels`]): a wrong offset in a
+/// manifest is an error, not gigabytes allocated.
 fn canvas(offsets: &[Offset], w: usize, h: usize) -> anyhow::Result<(i64, i64, usize, usize)> {
     let span = |f: fn(&Offset) -> i64| {
         let (lo, hi) = offsets
@@ -58,9 +56,11 @@ fn canvas(offsets: &[Offset], w: usize, h: usize) -> anyhow::Result<(i64, i64, u
         _ => bail!("frame offsets span more than the canvas can hold"),
     };
     let (cw, ch) = (dx.saturating_add(w), dy.saturating_add(h));
+    let limit = crate::image::max_pixels();
     ensure!(
-        cw.checked_mul(ch).is_some_and(|n| n <= MAX_MOSAIC_PIXELS),
-        "a mosaic of {cw}×{ch} pixels is larger than {MAX_MOSAIC_PIXELS}: are the offsets right?"
+        cw.checked_mul(ch)
+            .is_some_and(|n| u64::try_from(n).is_ok_and(|n| n <= limit)),
+        "a canvas of {cw}×{ch} pixels is larger than the limit of {limit} (--max-pixels): are the offsets right?"
     );
     Ok((min_x, min_y, cw, ch))
 }

@@ -1,0 +1,102 @@
+//! Inputs whose sizes come from outside are checked against the pixel limit before
+//! anything is allocated: an image's header, a manifest's offsets.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn rollfuse(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rollfuse"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// A PNG whose header says `w × h` gray pixels, with an empty compressed stream for its
+/// pixel data.
+fn png_header(path: &Path, w: u32, h: u32) {
+    let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+    let chunk = |kind: &[u8], data: &[u8]| {
+        let mut c = (data.len() as u32).to_be_bytes().to_vec();
+        let body = [kind, data].concat();
+        c.extend_from_slice(&body);
+        c.extend_from_slice(&crc.checksum(&body).to_be_bytes());
+        c
+    };
+    let ihdr = [&w.to_be_bytes()[..], &h.to_be_bytes(), &[8, 0, 0, 0, 0]].concat();
+    let bytes = [
+        &b"\x89PNG\r\n\x1a\n"[..],
+        &chunk(b"IHDR", &ihdr),
+        &chunk(b"IDAT", &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01]),
+        &chunk(b"IEND", &[]),
+    ]
+    .concat();
+    std::fs::write(path, bytes).unwrap();
+}
+
+fn fails_saying(args: &[&str], says: &str) {
+    let run = rollfuse(args);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success(), "{args:?} succeeded");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(err.contains(says), "{args:?}: {err}");
+}
+
+#[test]
+fn an_image_over_the_pixel_limit_is_refused_from_its_header() {
+    let tmp = tempfile::tempdir().unwrap();
+    let big = tmp.path().join("big.png");
+    png_header(&big, 16_000, 16_000);
+    let f = big.to_str().unwrap();
+    fails_saying(
+        &["metrics", f, "--reference", f],
+        "16000×16000 = 256000000 pixels, over the limit of 33554432 (--max-pixels)",
+    );
+    let out = tmp.path().join("o.png");
+    fails_saying(
+        &["fuse", f, f, "--out", out.to_str().unwrap()],
+        "over the limit",
+    );
+    // Under a raised limit the header passes and the missing pixels are the error.
+    fails_saying(
+        &["--max-pixels", "300000000", "metrics", f, "--reference", f],
+        "cannot read image",
+    );
+}
+
+#[test]
+fn a_manifest_offset_far_off_is_refused_before_the_canvas_is_allocated() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sim = tmp.path().join("sim");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/letters.toml");
+    let made = rollfuse(&[
+        "simulate",
+        scene,
+        "--out",
+        sim.to_str().unwrap(),
+        "--frames",
+        "4",
+    ]);
+    assert!(made.status.success());
+    // A typo in one frame's strip row: 300 000 rows instead of 150 (a 96 Mpx canvas).
+    let manifest = sim.join("manifest.json");
+    let mut doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
+    doc["frames"][2]["strip_row"] = serde_json::json!(3e5);
+    std::fs::write(&manifest, doc.to_string()).unwrap();
+    let frames: Vec<String> = (0..4)
+        .map(|k| {
+            sim.join(format!("frame_{k:04}.png"))
+                .to_str()
+                .unwrap()
+                .to_string()
+        })
+        .collect();
+    let out = tmp.path().join("spliced.png");
+    let args: Vec<&str> = ["splice"]
+        .into_iter()
+        .chain(frames.iter().map(String::as_str))
+        .chain(["--out", out.to_str().unwrap()])
+        .collect();
+    fails_saying(&args, "larger than the limit");
+    assert!(!out.exists());
+}
