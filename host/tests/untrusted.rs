@@ -100,3 +100,39 @@ fn a_manifest_offset_far_off_is_refused_before_the_canvas_is_allocated() {
     fails_saying(&args, "larger than the limit");
     assert!(!out.exists());
 }
+
+/// `letters.toml` with `edit` applied, written into `dir`.
+fn letters_with(dir: &Path, edit: impl FnOnce(&mut toml::Table)) -> String {
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/letters.toml"))
+        .unwrap();
+    let mut scene: toml::Table = text.parse().unwrap();
+    edit(&mut scene);
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, toml::to_string(&scene).unwrap()).unwrap();
+    path.to_str().unwrap().to_string()
+}
+
+#[test]
+fn scene_values_that_would_overflow_are_refused_and_a_scene_without_contact_is_said() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("sim");
+    let o = out.to_str().unwrap();
+    let huge = letters_with(tmp.path(), |s| {
+        s["object"]["height_mm"] = toml::Value::Float(1e300);
+    });
+    fails_saying(
+        &["simulate", &huge, "--out", o, "--frames", "2"],
+        "object.height_mm must be a positive number of at most 1e6, got 1e300",
+    );
+    assert!(!out.exists(), "a refused scene made its output folder");
+    let too_deep = letters_with(tmp.path(), |s| {
+        s["sensor"]["press_depth_mm"] = toml::Value::Float(2.0);
+    });
+    let run = rollfuse(&["simulate", &too_deep, "--out", o, "--frames", "2"]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{err}");
+    assert!(
+        err.contains("warning: sensor.press_depth_mm (2) is deeper than the gel"),
+        "{err}"
+    );
+}

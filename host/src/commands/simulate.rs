@@ -56,6 +56,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     scene
         .validate()
         .context("with the command-line overrides")?;
+    for w in scene.warnings() {
+        eprintln!("warning: {w}");
+    }
     let sim = Simulator::new(&scene)?;
     let bar = progress(sim.frames(), "frames", format!("simulating {}", scene.name));
     let manifest = output::write(&sim, &args.out, |done, _| bar.set_position(done as u64))?;

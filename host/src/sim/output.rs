@@ -5,7 +5,7 @@
 use super::render::{Planes, Simulator};
 use crate::files::{Batch, PngLayout, add_png};
 use crate::npy;
-use anyhow::Context;
+use anyhow::{Context, ensure};
 use serde::Serialize;
 use std::path::Path;
 
@@ -147,6 +147,11 @@ pub fn write(
         progress(k + 1, sim.frames());
     }
     let strip = sim.strip();
+    // Validation bounds every scene value; this is the last word on what is written.
+    ensure!(
+        strip.height_mm.iter().all(|h| h.is_finite()),
+        "the scene's height map is not finite everywhere: nothing written"
+    );
     let truth_dir = out.join("truth");
     batch.add_bytes(
         &truth_dir.join("height.npy"),

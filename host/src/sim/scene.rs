@@ -471,6 +471,27 @@ impl Scene {
         self.validate_object()
     }
 
+    /// What a valid scene will not show, said before it is rendered: no object pressed in
+    /// at all, or a press deeper than the gel (contact flattens against the roller and the
+    /// frames lose their features).
+    pub fn warnings(&self) -> Vec<String> {
+        let s = &self.sensor;
+        let mut out = Vec::new();
+        if s.press_depth_mm == 0.0 {
+            out.push(
+                "sensor.press_depth_mm is 0: nothing presses into the gel, every frame is flat"
+                    .into(),
+            );
+        }
+        if s.press_depth_mm > s.gel_thickness_mm {
+            out.push(format!(
+                "sensor.press_depth_mm ({}) is deeper than the gel (sensor.gel_thickness_mm = {}): the frames show no contact detail",
+                s.press_depth_mm, s.gel_thickness_mm
+            ));
+        }
+        out
+    }
+
     fn validate_object(&self) -> anyhow::Result<()> {
         match &self.object {
             Object::Letters { text, height_mm } => {
@@ -590,30 +611,61 @@ impl Scene {
     }
 }
 
+/// The largest magnitude of any number in a scene: far beyond any real roller or belt
+/// (a kilometre in mm), yet small enough that no product the renderer forms (squares,
+/// areas, sums of thousands of terms) can overflow to infinity.
+pub const MAX_SCENE_VALUE: f64 = 1e6;
+
+/// `v` as a message shows it: plain, or in exponent form when too large to read plainly.
+fn shown(v: f64) -> String {
+    if v.abs() < MAX_SCENE_VALUE * 10.0 {
+        v.to_string()
+    } else {
+        format!("{v:e}")
+    }
+}
+
+/// Whether `v` is a number a scene may hold.
+fn in_range(v: f64) -> bool {
+    v.is_finite() && v.abs() <= MAX_SCENE_VALUE
+}
+
 fn finite(field: &str, v: f64) -> anyhow::Result<()> {
-    if !v.is_finite() {
-        bail!("{field} must be a finite number, got {v}");
+    if !in_range(v) {
+        bail!(
+            "{field} must be a finite number of at most {MAX_SCENE_VALUE:e}, got {}",
+            shown(v)
+        );
     }
     Ok(())
 }
 
 fn positive(field: &str, v: f64) -> anyhow::Result<()> {
-    if !(v.is_finite() && v > 0.0) {
-        bail!("{field} must be a positive number, got {v}");
+    if !(in_range(v) && v > 0.0) {
+        bail!(
+            "{field} must be a positive number of at most {MAX_SCENE_VALUE:e}, got {}",
+            shown(v)
+        );
     }
     Ok(())
 }
 
 fn at_least_a_pixel(field: &str, v: f64, mm_per_px: f64) -> anyhow::Result<()> {
-    if !(v.is_finite() && v >= mm_per_px) {
-        bail!("{field} must be at least one pixel ({mm_per_px} mm), got {v}");
+    if !(in_range(v) && v >= mm_per_px) {
+        bail!(
+            "{field} must be at least one pixel ({mm_per_px} mm) and at most {MAX_SCENE_VALUE:e}, got {}",
+            shown(v)
+        );
     }
     Ok(())
 }
 
 fn non_negative(field: &str, v: f64) -> anyhow::Result<()> {
-    if !(v.is_finite() && v >= 0.0) {
-        bail!("{field} must be zero or positive, got {v}");
+    if !(in_range(v) && v >= 0.0) {
+        bail!(
+            "{field} must be zero or positive, at most {MAX_SCENE_VALUE:e}, got {}",
+            shown(v)
+        );
     }
     Ok(())
 }
