@@ -249,13 +249,15 @@ impl StreamedStrip {
         Ok(())
     }
 
-    /// Writes every tile still held and the strip's index.
-    fn finish(mut self, m: &mut Manifest) -> anyhow::Result<()> {
+    /// Writes every tile still held and the strip's index; the strip's files (none
+    /// without a tile).
+    fn finish(mut self, m: &mut Manifest) -> anyhow::Result<Vec<String>> {
         self.drain(m, 0)?;
-        if let Some(writer) = self.writer {
-            writer.finish(serde_json::json!({ "tile_size": m.tile_size }))?;
-        }
-        Ok(())
+        let Some(writer) = self.writer else {
+            return Ok(Vec::new());
+        };
+        let segments = writer.finish(serde_json::json!({ "tile_size": m.tile_size }))?;
+        Ok(segments.into_iter().map(|s| s.file).collect())
     }
 }
 
@@ -278,6 +280,8 @@ pub enum StopReason {
 pub struct Outcome {
     /// What was written to `manifest.json`.
     pub manifest: Manifest,
+    /// The strip's files in the output folder, in belt order (none without a tile).
+    pub strip_files: Vec<String>,
     /// Why it stopped.
     pub stop: StopReason,
     /// Wall time of the session.
@@ -469,10 +473,11 @@ pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> 
         r.finish()?;
     }
     manifest.tile_size = strip.size.map(|(w, t)| [w, t]);
-    strip.finish(&mut manifest)?;
+    let strip_files = strip.finish(&mut manifest)?;
     write_manifest(&manifest_path, &manifest)?;
     Ok(Outcome {
         manifest,
+        strip_files,
         stop,
         elapsed: started.elapsed(),
     })

@@ -150,6 +150,20 @@ fn bad_input_gets_one_clear_line() {
         ],
         "wider than the ball",
     );
+    // A ball far too large for its disc (1e300 once overflowed and blamed a light).
+    fails(
+        &[
+            "calibrate",
+            &p("ball.png"),
+            "--radius-mm",
+            "1e300",
+            "--mm-per-px",
+            "0.02",
+            "--out",
+            &p("x.toml"),
+        ],
+        "is too large for its contact disc",
+    );
     fails(
         &[
             "calibrate",

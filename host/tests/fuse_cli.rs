@@ -437,3 +437,35 @@ fn a_roll_needs_alignment_and_its_options_are_checked() {
         .contains("segments")
     );
 }
+
+#[test]
+fn template_rows_are_given_as_docs_fusion_writes_them() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = simulate(tmp.path(), "letters", 6);
+    let out = tmp.path().join("fused.png");
+    let o = out.to_str().unwrap();
+    let run = fuse(&args(
+        &frames[2..5],
+        &[
+            "--out",
+            o,
+            "--align",
+            "template",
+            "--template-rows",
+            "0.3,0.6",
+        ],
+    ));
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let err = fails(&args(
+        &frames[2..5],
+        &["--out", o, "--template-rows", "0.3"],
+    ));
+    assert!(
+        err.contains("--template-rows must be two fractions"),
+        "{err}"
+    );
+}

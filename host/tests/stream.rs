@@ -407,3 +407,45 @@ fn a_live_session_asks_for_status_every_second_so_the_device_knows_it_is_there()
     let heartbeats = sent.iter().filter(|c| matches!(c, Command::Status)).count();
     assert!(heartbeats >= 2, "{sent:?}");
 }
+
+#[test]
+fn stream_names_the_strip_it_wrote_and_says_when_there_is_none() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/letters.toml");
+    let out = tmp.path().join("live");
+    let run = rollfuse(&[
+        "stream",
+        "--device",
+        "sim",
+        "--scene",
+        scene,
+        "--out",
+        out.to_str().unwrap(),
+        "--tiles",
+        "4",
+    ]);
+    let said = String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success(), "{said}");
+    let named = said
+        .lines()
+        .find_map(|l| l.split(" → ").nth(1))
+        .expect("a line naming the strip");
+    assert!(
+        Path::new(named).is_file(),
+        "{named} was not written: {said}"
+    );
+    // A recording with no message at all: no strip, and it says so.
+    let empty = tmp.path().join("empty.bin");
+    std::fs::write(&empty, b"RFSTRM01").unwrap();
+    let out = tmp.path().join("none");
+    let run = rollfuse(&[
+        "stream",
+        "--device",
+        &format!("replay:{}", empty.display()),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let said = String::from_utf8_lossy(&run.stdout);
+    assert!(said.contains("no strip (no tile was taken)"), "{said}");
+    assert!(!out.join("strip.png").exists());
+}

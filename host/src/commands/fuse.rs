@@ -101,7 +101,7 @@ pub struct Args {
     #[arg(long)]
     pub manifest: Option<PathBuf>,
     /// With --align template: the template band, as fractions of the frame height.
-    #[arg(long, value_delimiter = ',', num_args = 2, default_values_t = [1.0 / 3.0, 2.0 / 3.0])]
+    #[arg(long, value_delimiter = ',', default_values_t = [1.0 / 3.0, 2.0 / 3.0])]
     pub template_rows: Vec<f64>,
     /// With --align template: the largest shift searched along the belt, pixels (a roll:
     /// before the motion is known; default half a frame).
@@ -286,9 +286,12 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if let Some(m) = args.min_score.filter(|m| !(0.0..=1.0).contains(m)) {
         bail!("--min-score must be in 0..=1, got {m}");
     }
-    let (t0, t1) = (args.template_rows[0], args.template_rows[1]);
-    if !(0.0 <= t0 && t0 < t1 && t1 <= 1.0) {
-        bail!("--template-rows must be two fractions 0 ≤ top < bottom ≤ 1, got {t0},{t1}");
+    match args.template_rows[..] {
+        [t0, t1] if 0.0 <= t0 && t0 < t1 && t1 <= 1.0 => {}
+        _ => bail!(
+            "--template-rows must be two fractions 0 ≤ top < bottom ≤ 1, as A,B; got {:?}",
+            args.template_rows
+        ),
     }
     if args.window_rows == Some(0) {
         bail!("--window-rows must be at least 1");

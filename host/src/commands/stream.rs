@@ -32,7 +32,8 @@ pub struct Args {
     /// With --device sim: the scene the virtual device's camera sees.
     #[arg(long)]
     pub scene: Option<PathBuf>,
-    /// Output folder: strip.png and manifest.json.
+    /// Output folder: the strip (strip.png, or segments strip.NNNN.png with strip.json)
+    /// and manifest.json.
     #[arg(long)]
     pub out: PathBuf,
     /// Record every received message to this file (for --device replay:FILE).
@@ -150,13 +151,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let outcome = stream::run(link.as_mut(), &opts)?;
     let m = &outcome.manifest;
     let secs = outcome.elapsed.as_secs_f64().max(1e-9);
+    let written = match outcome.strip_files.as_slice() {
+        [] => "no strip (no tile was taken)".to_string(),
+        [one] => args.out.join(one).display().to_string(),
+        [first, .., last] => format!(
+            "{} … {} ({} segments, index strip.json)",
+            args.out.join(first).display(),
+            last,
+            outcome.strip_files.len()
+        ),
+    };
     println!(
-        "{} tiles in {:.2} s ({:.0} tiles/s, {:.3} MB/s) → {}",
+        "{} tiles in {:.2} s ({:.0} tiles/s, {:.3} MB/s) → {written}",
         m.tiles_received,
         secs,
         m.tiles_received as f64 / secs,
         m.bytes as f64 / secs / 1e6,
-        args.out.join("strip.png").display()
     );
     match outcome.stop {
         StopReason::TileLimit => println!("stopped at --tiles"),

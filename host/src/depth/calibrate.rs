@@ -98,6 +98,10 @@ pub fn find_disc(image: &Planes, background: &Planes) -> anyhow::Result<Circle> 
     Ok(Circle { x: cx, y: cy, r })
 }
 
+/// The least tilt of the ball's surface within the fitted disc, degrees: below it the
+/// light directions cannot be told apart.
+pub const MIN_TILT_DEG: f64 = 5.0;
+
 /// Fits the lights from `image` of a ball of `radius_mm` at `mm_per_px`, with the disc
 /// found automatically unless `circle` is given.
 pub fn calibrate(
@@ -146,6 +150,15 @@ pub fn calibrate(
         disc_mm < radius_mm,
         "the contact disc ({disc_mm:.2} mm in radius) is wider than the ball ({radius_mm} mm): \
          check --radius-mm and --mm-per-px"
+    );
+    // The fit uses the disc's inner 90 %: its normals must tilt enough to tell the LEDs
+    // apart (and a ball far larger than its disc would overflow the cap's squares).
+    let tilt_deg = (0.9 * disc_mm / radius_mm).asin().to_degrees();
+    ensure!(
+        tilt_deg >= MIN_TILT_DEG,
+        "the ball ({radius_mm} mm in radius) is too large for its contact disc ({disc_mm:.2} mm): \
+         its surface tilts {tilt_deg:.2}° at most, under {MIN_TILT_DEG}°; check --radius-mm and \
+         --mm-per-px, or press a smaller ball"
     );
     let (w, h) = (image.width, image.height);
     // Normal equations of t_c = n · m_c, for the three channels at once.
