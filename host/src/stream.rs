@@ -86,6 +86,9 @@ pub struct Faults {
     pub late_tiles: u64,
     /// Tiles of another width or height than the first (not placed).
     pub mismatched_tiles: u64,
+    /// Messages in a recording after the device's final status (a recording out of
+    /// order or spliced; they are read and checked like the others).
+    pub after_final_status: u64,
 }
 
 impl Faults {
@@ -371,13 +374,16 @@ pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> 
                 continue;
             }
             Received::Closed => {
-                if !stop_sent {
+                if !stop_sent && !manifest.device_stopped {
                     stop = StopReason::LinkClosed;
                 }
                 break;
             }
         };
         last_message = Instant::now();
+        if manifest.device_stopped {
+            manifest.faults.after_final_status += 1;
+        }
         let bytes = &buf[..n];
         if let Some(r) = recorder.as_mut() {
             r.record(bytes)?;
@@ -431,7 +437,11 @@ pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> 
                     if !stop_sent {
                         stop = StopReason::DeviceStopped;
                     }
-                    break;
+                    // A live device has said its last; a recording is read to its end,
+                    // so what follows its final status is seen and counted.
+                    if live {
+                        break;
+                    }
                 }
             }
             DeviceMessage::Log(line) => {

@@ -449,3 +449,28 @@ fn stream_names_the_strip_it_wrote_and_says_when_there_is_none() {
     assert!(said.contains("no strip (no tile was taken)"), "{said}");
     assert!(!out.join("strip.png").exists());
 }
+
+#[test]
+fn a_reversed_recording_is_read_to_its_end_and_its_faults_counted() {
+    let mut reversed = clean_stream().clone();
+    reversed.reverse();
+    let n = reversed.len() as u64;
+    let tmp = tempfile::tempdir().unwrap();
+    let mut link = Scripted {
+        messages: reversed.into_iter(),
+    };
+    let out = stream::run(&mut link, &options(tmp.path(), None)).unwrap();
+    let f = &out.manifest.faults;
+    // The final status comes first; everything after it is counted, and each message
+    // goes back in sequence.
+    assert_eq!(f.after_final_status, n - 1, "{f:?}");
+    assert_eq!(f.repeated, n - 1, "{f:?}");
+    assert_eq!(out.manifest.tiles_received, 0);
+    // In order, nothing is counted.
+    let mut link = Scripted {
+        messages: clean_stream().clone().into_iter(),
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let out = stream::run(&mut link, &options(tmp.path(), None)).unwrap();
+    assert_eq!(out.manifest.faults.after_final_status, 0);
+}

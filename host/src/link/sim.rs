@@ -62,13 +62,15 @@ impl SimDevice {
     pub fn start(scene: &Scene) -> anyhow::Result<Self> {
         let sim = Simulator::new(scene)?;
         let (sensor, config) = sensor_for(scene, &sim);
-        let controller = Controller::new(sensor, FIRMWARE, config).map_err(|reason| {
+        let mut controller = Controller::new(sensor, FIRMWARE, config).map_err(|reason| {
             anyhow::anyhow!(
                 "the virtual device's default configuration does not fit a {}×{} camera: {reason:?}",
                 sensor.width,
                 sensor.height
             )
         })?;
+        // The simulated camera is always there.
+        controller.counters_mut().camera_ready = true;
         let (to_device, commands) = mpsc::sync_channel::<Vec<u8>>(QUEUE);
         let (out, from_device) = mpsc::sync_channel::<Vec<u8>>(QUEUE);
         let thread = std::thread::Builder::new()
