@@ -469,3 +469,28 @@ fn template_rows_are_given_as_docs_fusion_writes_them() {
         "{err}"
     );
 }
+
+#[test]
+fn a_match_at_the_edge_of_the_search_is_said() {
+    let tmp = tempfile::tempdir().unwrap();
+    // The letters scene's frames are 20 px apart.
+    let frames = simulate(tmp.path(), "letters", 6);
+    let out = tmp.path().join("fused.png");
+    let o = out.to_str().unwrap();
+    let run = fuse(&args(
+        &frames[2..5],
+        &["--out", o, "--align", "template", "--max-shift", "0"],
+    ));
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        err.contains("the edge of the search (--max-shift 0)"),
+        "{err}"
+    );
+    // Searched far enough, nothing is said.
+    let run = fuse(&args(&frames[2..5], &["--out", o, "--align", "template"]));
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        run.status.success() && !err.contains("edge of the search"),
+        "{err}"
+    );
+}

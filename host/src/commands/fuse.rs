@@ -423,6 +423,14 @@ fn run_mosaic(args: &Args, frames: Vec<Planes>, cfg: &FuseConfig) -> anyhow::Res
                                 m.runner_up
                             );
                         }
+                        if let Some(m) = matched.filter(|m| m.at_search_edge) {
+                            eprintln!(
+                                "warning: {} matched at {} rows, the edge of the search (--max-shift {}): it may have moved farther",
+                                file.display(),
+                                m.shift.dy,
+                                params.max_dy
+                            );
+                        }
                         placed.push((k, at));
                         record.frames.push(FrameOffset { file, at, matched });
                     }

@@ -45,6 +45,10 @@ impl Default for TemplateParams {
     }
 }
 
+/// How close a runner-up's correlation may come to the best one before the match is
+/// called ambiguous.
+pub const AMBIGUITY_MARGIN: f32 = 0.05;
+
 /// The result of matching one frame against the previous one.
 #[derive(Debug, Clone, Copy, serde::Serialize)]
 pub struct Match {
@@ -55,6 +59,9 @@ pub struct Match {
     /// Best score outside a small neighbourhood of the peak: close to `score` means the
     /// match is ambiguous (periodic texture).
     pub runner_up: f32,
+    /// Whether the best shift lies on the edge of the search (`max_dy` along the belt, or
+    /// no search at all with `max_dy` 0): the frames may have moved farther.
+    pub at_search_edge: bool,
 }
 
 /// Gradient magnitude of the gray version of `img`, scaled to 8 bits.
@@ -134,6 +141,7 @@ pub fn match_frames(prev: &Planes, next: &Planes, p: &TemplateParams) -> Option<
         shift,
         score,
         runner_up,
+        at_search_edge: shift.dy.unsigned_abs() >= p.max_dy as u64,
     })
 }
 
@@ -152,10 +160,11 @@ pub enum Aligned {
 }
 
 impl Match {
-    /// Whether another shift, away from the best one, scores almost as well (periodic
-    /// texture): the offset is then a guess among several.
+    /// Whether another shift, away from the best one, scores within
+    /// [`AMBIGUITY_MARGIN`] of it (periodic texture, or little of it): the offset is then
+    /// a guess among several.
     pub fn is_ambiguous(&self) -> bool {
-        self.runner_up > 0.98 * self.score
+        self.score - self.runner_up < AMBIGUITY_MARGIN
     }
 }
 
@@ -199,4 +208,26 @@ pub fn align_chain(
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn matched(score: f32, runner_up: f32) -> Match {
+        Match {
+            shift: Offset { dy: 17, dx: 0 },
+            score,
+            runner_up,
+            at_search_edge: false,
+        }
+    }
+
+    #[test]
+    fn a_runner_up_within_the_margin_makes_a_match_ambiguous() {
+        // Frames 100 rows apart matched at 17 (score 0.70, runner-up 0.66).
+        assert!(matched(0.70, 0.66).is_ambiguous());
+        assert!(matched(0.99, 0.97).is_ambiguous());
+        assert!(!matched(0.90, 0.70).is_ambiguous());
+    }
 }
