@@ -253,6 +253,19 @@ impl Drop for PendingFile {
     }
 }
 
+/// Refuses an image output not named `.png` (images are written as PNG only): call it
+/// before the work, as [`write_png`] does before writing.
+pub fn require_png_name(target: &Path) -> anyhow::Result<()> {
+    ensure!(
+        target
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("png")),
+        "{}: images are written as PNG; name the file .png",
+        target.display()
+    );
+    Ok(())
+}
+
 /// PNG sample layouts written by [`write_png`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PngLayout {
@@ -322,6 +335,7 @@ pub fn add_png(
     layout: PngLayout,
 ) -> anyhow::Result<()> {
     use image::ImageEncoder;
+    require_png_name(target)?;
     ensure!(
         width
             .checked_mul(height)

@@ -136,3 +136,39 @@ fn scene_values_that_would_overflow_are_refused_and_a_scene_without_contact_is_s
         "{err}"
     );
 }
+
+#[test]
+fn an_image_output_not_named_png_is_refused_before_any_work_and_touches_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sim = tmp.path().join("sim");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/letters.toml");
+    let made = rollfuse(&[
+        "simulate",
+        scene,
+        "--out",
+        sim.to_str().unwrap(),
+        "--frames",
+        "3",
+    ]);
+    assert!(made.status.success());
+    let frames: Vec<String> = (0..3)
+        .map(|k| {
+            sim.join(format!("frame_{k:04}.png"))
+                .to_str()
+                .unwrap()
+                .to_string()
+        })
+        .collect();
+    for command in ["fuse", "splice"] {
+        let out = tmp.path().join("precious.tiff");
+        std::fs::write(&out, b"precious").unwrap();
+        let args: Vec<&str> = [command]
+            .into_iter()
+            .chain(frames.iter().map(String::as_str))
+            .chain(["--out", out.to_str().unwrap()])
+            .collect();
+        fails_saying(&args, "images are written as PNG; name the file .png");
+        assert_eq!(std::fs::read(&out).unwrap(), b"precious");
+        assert!(!tmp.path().join("precious.offsets.json").exists());
+    }
+}

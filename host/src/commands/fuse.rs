@@ -286,6 +286,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if let Some(m) = args.min_score.filter(|m| !(0.0..=1.0).contains(m)) {
         bail!("--min-score must be in 0..=1, got {m}");
     }
+    crate::files::require_png_name(&args.out)?;
     match args.template_rows[..] {
         [t0, t1] if 0.0 <= t0 && t0 < t1 && t1 <= 1.0 => {}
         _ => bail!(

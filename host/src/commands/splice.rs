@@ -32,6 +32,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.frames.len()
         );
     }
+    crate::files::require_png_name(&args.out)?;
     check_writable(&args.out)?;
     refuse_overwriting_inputs(&args.out, &args.frames)?;
     let frames = load_frames(&args.frames)?;

@@ -56,8 +56,8 @@ pub struct Match {
     pub shift: Offset,
     /// Best normalized correlation.
     pub score: f32,
-    /// Best score outside a small neighbourhood of the peak: close to `score` means the
-    /// match is ambiguous (periodic texture).
+    /// The best other peak's score (a local maximum 3 px or more from the best): close to
+    /// `score` means the match is ambiguous (periodic texture, or little of it).
     pub runner_up: f32,
     /// Whether the best shift lies on the edge of the search (`max_dy` along the belt, or
     /// no search at all with `max_dy` 0): the frames may have moved farther.
@@ -124,13 +124,7 @@ pub fn match_frames(prev: &Planes, next: &Planes, p: &TemplateParams) -> Option<
     if !score.is_finite() {
         return None;
     }
-    // Runner-up: the best score at least 3 px from the peak.
-    let runner_up = scores
-        .enumerate_pixels()
-        .filter(|(x, y, _)| x.abs_diff(bx) > 3 || y.abs_diff(by) > 3)
-        .map(|(_, _, v)| v[0])
-        .filter(|v| v.is_finite())
-        .fold(0.0f32, f32::max);
+    let runner_up = runner_up(&scores, (bx, by));
     // The template's top-left found at (bx, y0 + by) in `next`, taken from (left, top) in
     // `prev`: a belt point at prev row r is at next row r − (top − (y0 + by)).
     let shift = Offset {
@@ -143,6 +137,27 @@ pub fn match_frames(prev: &Planes, next: &Planes, p: &TemplateParams) -> Option<
         runner_up,
         at_search_edge: shift.dy.unsigned_abs() >= p.max_dy as u64,
     })
+}
+
+/// The best other peak of `scores`: the highest local maximum (no neighbour higher) at
+/// least 3 px from the best one at `peak`. The slopes of the best peak itself are not
+/// peaks, so a broad peak (blurred texture) is not taken for a second one.
+fn runner_up(scores: &image::ImageBuffer<Luma<f32>, Vec<f32>>, peak: (u32, u32)) -> f32 {
+    let (w, h) = scores.dimensions();
+    let at = |x: u32, y: u32| scores.get_pixel(x, y)[0];
+    let is_peak = |x: u32, y: u32| {
+        let v = at(x, y);
+        (y.saturating_sub(1)..(y + 2).min(h))
+            .flat_map(|ny| (x.saturating_sub(1)..(x + 2).min(w)).map(move |nx| (nx, ny)))
+            .all(|(nx, ny)| at(nx, ny) <= v)
+    };
+    scores
+        .enumerate_pixels()
+        .filter(|(x, y, _)| x.abs_diff(peak.0) > 3 || y.abs_diff(peak.1) > 3)
+        .filter(|(_, _, v)| v[0].is_finite())
+        .filter(|(x, y, _)| is_peak(*x, *y))
+        .map(|(_, _, v)| v[0])
+        .fold(0.0f32, f32::max)
 }
 
 /// How one frame of a sequence was aligned by [`align_chain`].
