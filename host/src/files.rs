@@ -7,8 +7,9 @@
 //! every file is written and synced before the first is renamed into place, so a failure
 //! leaves the old set whole.
 //!
-//! For tests, `ROLLFUSE_FAIL_WRITES_AFTER=N` makes every output fail after its first `N`
-//! bytes as a full disk would (`ErrorKind::StorageFull`).
+//! For tests, `ROLLFUSE_FAIL_WRITES_AFTER=N` makes the process's outputs fail once `N`
+//! bytes have been written in all, as a disk that fills up midway would
+//! (`ErrorKind::StorageFull`).
 
 use anyhow::{Context, ensure};
 use std::fs::File;
@@ -64,38 +65,49 @@ pub fn refuse_overwriting(outputs: &[&Path], inputs: &[(&str, &Path)]) -> anyhow
     Ok(())
 }
 
-/// An output file being written: the temporary, and the bytes it may still take when
-/// [`FAIL_WRITES_AFTER`] is set.
+/// The bytes every output of this process may still take, when [`FAIL_WRITES_AFTER`] is
+/// set.
+fn room() -> Option<&'static std::sync::atomic::AtomicU64> {
+    static ROOM: std::sync::OnceLock<Option<std::sync::atomic::AtomicU64>> =
+        std::sync::OnceLock::new();
+    ROOM.get_or_init(|| {
+        std::env::var(FAIL_WRITES_AFTER)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .map(std::sync::atomic::AtomicU64::new)
+    })
+    .as_ref()
+}
+
+/// An output file being written (its temporary).
 pub struct Output {
     file: File,
-    room: Option<u64>,
 }
 
 impl Output {
     fn create(tmp: &Path) -> anyhow::Result<Self> {
         let file = File::create(tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
-        let room = std::env::var(FAIL_WRITES_AFTER)
-            .ok()
-            .and_then(|v| v.parse().ok());
-        Ok(Self { file, room })
+        Ok(Self { file })
     }
 }
 
 impl Write for Output {
     fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        let n = match self.room {
-            Some(0) if !buf.is_empty() => {
+        use std::sync::atomic::Ordering::Relaxed;
+        let mut n = buf.len();
+        if let Some(room) = room() {
+            let left = room.load(Relaxed);
+            if left == 0 && n > 0 {
                 return Err(std::io::Error::new(
                     std::io::ErrorKind::StorageFull,
                     "no space left on device",
                 ));
             }
-            Some(room) => buf.len().min(usize::try_from(room).unwrap_or(usize::MAX)),
-            None => buf.len(),
-        };
+            n = n.min(usize::try_from(left).unwrap_or(usize::MAX));
+        }
         let n = self.file.write(&buf[..n])?;
-        if let Some(room) = self.room.as_mut() {
-            *room -= n as u64;
+        if let Some(room) = room() {
+            room.fetch_sub(n as u64, Relaxed);
         }
         Ok(n)
     }
@@ -202,6 +214,49 @@ pub fn write_bytes_atomic(target: &Path, bytes: &[u8]) -> anyhow::Result<()> {
     let mut batch = Batch::new();
     batch.add_bytes(target, bytes)?;
     batch.commit()
+}
+
+/// Writes the folder `target` whole or not at all: `fill` writes every file into a
+/// staging folder beside it, which then takes `target`'s place (the previous folder moved
+/// aside and removed). A failure removes the staging folder and leaves `target` as it
+/// was. For outputs that own their whole folder (the demo's report).
+pub fn replace_folder<T>(
+    target: &Path,
+    fill: impl FnOnce(&Path) -> anyhow::Result<T>,
+) -> anyhow::Result<T> {
+    let staging = temporary_beside(target, "part");
+    let _ = std::fs::remove_dir_all(&staging);
+    std::fs::create_dir_all(&staging)
+        .with_context(|| format!("cannot create {}", staging.display()))?;
+    let filled = match fill(&staging) {
+        Ok(v) => v,
+        Err(e) => {
+            let _ = std::fs::remove_dir_all(&staging);
+            return Err(e);
+        }
+    };
+    let old = temporary_beside(target, "old");
+    let had = target.exists();
+    let swapped = (|| {
+        if had {
+            std::fs::rename(target, &old)
+                .with_context(|| format!("cannot move {} aside", target.display()))?;
+        }
+        std::fs::rename(&staging, target).with_context(|| {
+            if had {
+                let _ = std::fs::rename(&old, target);
+            }
+            format!("cannot move {} into place", target.display())
+        })
+    })();
+    if let Err(e) = swapped {
+        let _ = std::fs::remove_dir_all(&staging);
+        return Err(e);
+    }
+    if had {
+        let _ = std::fs::remove_dir_all(&old);
+    }
+    Ok(filled)
 }
 
 /// A file written bit by bit under a temporary name beside its target, moved into place

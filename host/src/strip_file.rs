@@ -9,7 +9,7 @@
 //!
 //! Memory: one segment, `segment_rows × width × channels` samples.
 
-use crate::files::{PngLayout, write_bytes_atomic, write_png};
+use crate::files::{Batch, PngLayout, add_png, write_bytes_atomic};
 use anyhow::{Context, ensure};
 use std::path::{Path, PathBuf};
 
@@ -56,6 +56,8 @@ pub struct StripWriter {
     data: Vec<u8>,
     /// Segments written, each under its temporary numbered name until `finish`.
     written: Vec<Segment>,
+    /// Whether an older index has been removed (see [`StripWriter::retire_old_index`]).
+    index_retired: bool,
 }
 
 impl StripWriter {
@@ -82,6 +84,7 @@ impl StripWriter {
             current_rows: 0,
             data: Vec::new(),
             written: Vec::new(),
+            index_retired: false,
         })
     }
 
@@ -97,6 +100,44 @@ impl StripWriter {
         let stem = self.out.file_stem().unwrap_or_default().to_string_lossy();
         let ext = self.out.extension().unwrap_or_default().to_string_lossy();
         self.out.with_file_name(format!("{stem}.{n:04}.{ext}"))
+    }
+
+    /// Segments are written in place as the strip grows and the index comes last: an
+    /// older index is removed as the first segment is about to replace an older one (once
+    /// written whole beside it), so no index ever describes a mix of two strips, and a
+    /// strip that fails before its first segment leaves the older one as it was.
+    fn retire_old_index(&mut self) -> anyhow::Result<()> {
+        if self.index_retired {
+            return Ok(());
+        }
+        let index = Self::index_path(&self.out);
+        match std::fs::remove_file(&index) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => {
+                return Err(e)
+                    .with_context(|| format!("cannot remove the old {}", index.display()));
+            }
+        }
+        self.index_retired = true;
+        Ok(())
+    }
+
+    /// Removes what an older strip of the same name left that this one did not write:
+    /// segments numbered past this one's, and the lone `out` when this one has segments.
+    fn remove_stale(&self) -> anyhow::Result<()> {
+        let mut stale: Vec<PathBuf> = (self.written.len()..)
+            .map(|n| self.numbered(n))
+            .take_while(|p| p.exists())
+            .collect();
+        if self.written.len() > 1 && self.out.exists() {
+            stale.push(self.out.clone());
+        }
+        for p in stale {
+            std::fs::remove_file(&p)
+                .with_context(|| format!("cannot remove the stale {}", p.display()))?;
+        }
+        Ok(())
     }
 
     /// The index's path, `STEM.json`.
@@ -151,12 +192,16 @@ impl StripWriter {
             return Ok(());
         };
         let path = self.numbered(self.written.len());
-        write_png(
+        let mut segment = Batch::new();
+        add_png(
+            &mut segment,
             &path,
             &self.data,
             (self.width, self.current_rows),
             self.layout,
         )?;
+        self.retire_old_index()?;
+        segment.commit()?;
         self.written.push(Segment {
             file: path
                 .file_name()
@@ -179,6 +224,7 @@ impl StripWriter {
             !self.written.is_empty(),
             "the strip has no rows: nothing was written"
         );
+        self.remove_stale()?;
         if self.written.len() == 1 {
             let lone = self.numbered(0);
             std::fs::rename(&lone, &self.out)
@@ -263,5 +309,37 @@ mod tests {
         assert!(!dir.path().join("s.0000.png").exists());
         let empty = StripWriter::new(&dir.path().join("e.png"), 2, 1, 8, 10).unwrap();
         assert!(empty.finish(()).is_err());
+    }
+
+    #[test]
+    fn an_older_strip_is_never_described_as_a_mix_and_its_leftovers_go() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("strip.png");
+        let mut old = StripWriter::new(&out, 2, 1, 8, 2).unwrap();
+        for row in 0..6 {
+            old.push(row, &[&[9.0; 2]]).unwrap();
+        }
+        assert_eq!(old.finish("old").unwrap().len(), 3);
+        // A new strip starts: the old index stands until its first segment replaces an
+        // old one, then goes; a strip that stops midway leaves no index to take the
+        // segments for one strip.
+        let mut cut = StripWriter::new(&out, 2, 1, 8, 2).unwrap();
+        cut.push(0, &[&[1.0; 2]]).unwrap();
+        assert!(dir.path().join("strip.json").exists());
+        for row in 1..3 {
+            cut.push(row, &[&[1.0; 2]]).unwrap();
+        }
+        assert!(!dir.path().join("strip.json").exists());
+        drop(cut);
+        // A short strip finishing: one file, the older segments removed.
+        let mut short = StripWriter::new(&out, 2, 1, 8, 10).unwrap();
+        short.push(0, &[&[5.0; 2]]).unwrap();
+        short.finish("new").unwrap();
+        let mut names: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        assert_eq!(names, ["strip.json", "strip.png"]);
     }
 }

@@ -1,5 +1,6 @@
-//! Every command on a disk that fills up: with `ROLLFUSE_FAIL_WRITES_AFTER=N` each output
-//! fails after N bytes, as a full disk would. Each command is run once to have outputs,
+//! Every command on a disk that fills up: with `ROLLFUSE_FAIL_WRITES_AFTER=N` the
+//! process's outputs fail once N bytes are written in all, as a disk filling up midway
+//! would. Each command is run once to have outputs,
 //! then again on the "full" disk: it must fail with a non-zero exit and one clear line, and
 //! leave every file as the good run left it — nothing half-written, nothing destroyed, no
 //! temporary behind. And outputs that would overwrite an input are refused.
@@ -36,9 +37,11 @@ fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
     files
 }
 
-/// Runs `args` well, then on a disk that fills after 0 and after 100 bytes of each file:
-/// both fail and change nothing.
-fn survives_a_full_disk(dir: &Path, args: &[&str]) {
+/// Runs `args` well, then `again` (the same outputs with other content, so a partial
+/// update would show) on a disk that fills at once, after 100 bytes, and halfway through
+/// what the good run wrote: each fails and changes nothing.
+fn survives_a_full_disk(dir: &Path, args: &[&str], again: &[&str]) {
+    let inputs = snapshot(dir);
     let good = rollfuse(args, None);
     assert!(
         good.status.success(),
@@ -46,14 +49,20 @@ fn survives_a_full_disk(dir: &Path, args: &[&str]) {
         String::from_utf8_lossy(&good.stderr)
     );
     let before = snapshot(dir);
-    for fail_after in [0, 100] {
-        let run = rollfuse(args, Some(fail_after));
+    // What the good run wrote (new or changed files).
+    let written: u64 = before
+        .iter()
+        .filter(|(p, b)| inputs.get(*p) != Some(*b))
+        .map(|(_, b)| b.len() as u64)
+        .sum();
+    for fail_after in [0, 100, written / 2] {
+        let run = rollfuse(again, Some(fail_after));
         let err = String::from_utf8_lossy(&run.stderr);
-        assert!(!run.status.success(), "{args:?} succeeded on a full disk");
-        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(!run.status.success(), "{again:?} succeeded on a full disk");
+        assert!(!err.contains("panicked"), "{again:?}: {err}");
         assert!(
             err.contains("no space left"),
-            "{args:?}: the error does not say why: {err}"
+            "{again:?}: the error does not say why: {err}"
         );
         let after = snapshot(dir);
         let changed: Vec<_> = after
@@ -63,7 +72,7 @@ fn survives_a_full_disk(dir: &Path, args: &[&str]) {
             .collect();
         assert!(
             changed.is_empty(),
-            "{args:?} with {fail_after} bytes of room changed {changed:?}"
+            "{again:?} with {fail_after} bytes of room changed {changed:?}"
         );
     }
 }
@@ -77,24 +86,25 @@ fn simulate_fuse_and_splice_leave_their_outputs_whole_on_a_full_disk() {
     let tmp = tempfile::tempdir().unwrap();
     let sim = tmp.path().join("sim");
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/letters.toml");
+    let simulate = ["simulate", scene, "--out", s(&sim), "--frames", "8"];
     survives_a_full_disk(
         tmp.path(),
-        &["simulate", scene, "--out", s(&sim), "--frames", "8"],
+        &simulate,
+        &[&simulate[..], &["--seed", "99"]].concat(),
     );
     let frames: Vec<String> = (0..8)
         .map(|k| s(&sim.join(format!("frame_{k:04}.png"))).to_string())
         .collect();
     let frames: Vec<&str> = frames.iter().map(String::as_str).collect();
-    let strip = tmp.path().join("strip.png");
-    survives_a_full_disk(
-        tmp.path(),
-        &[&["fuse"], &frames[..], &["--out", s(&strip)]].concat(),
-    );
-    let spliced = tmp.path().join("spliced.png");
-    survives_a_full_disk(
-        tmp.path(),
-        &[&["splice"], &frames[..], &["--out", s(&spliced)]].concat(),
-    );
+    for (command, out) in [("fuse", "strip.png"), ("splice", "spliced.png")] {
+        let out = tmp.path().join(out);
+        let out = ["--out", s(&out)];
+        survives_a_full_disk(
+            tmp.path(),
+            &[&[command], &frames[..], &out].concat(),
+            &[&[command], &frames[1..7], &out].concat(),
+        );
+    }
 }
 
 #[test]
@@ -103,41 +113,49 @@ fn depth_calibrate_and_stream_leave_their_outputs_whole_on_a_full_disk() {
     let l = Lights::product(0.02);
     let lights = tmp.path().join("lights.toml");
     l.save(&lights).unwrap();
-    let (_, img) = ball((120, 100), (60.0, 50.0), 1.0, 0.2, &l, 180.0);
-    let image = tmp.path().join("ball.png");
-    img.save_png(&image).unwrap();
+    let ball_png = |name: &str, press: f64| {
+        let (_, img) = ball((120, 100), (60.0, 50.0), 1.0, press, &l, 180.0);
+        let path = tmp.path().join(name);
+        img.save_png(&path).unwrap();
+        s(&path).to_string()
+    };
+    let (deep, shallow) = (ball_png("ball.png", 0.2), ball_png("other.png", 0.15));
     let d = tmp.path().join("d");
-    survives_a_full_disk(
-        tmp.path(),
-        &[
+    let depth = |image: &str| -> Vec<String> {
+        [
             "depth",
-            s(&image),
+            image,
             "--lights",
             s(&lights),
             "--out",
             s(&d),
             "--ply",
-        ],
-    );
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    let (good, again) = (depth(&deep), depth(&shallow));
+    survives_a_full_disk(tmp.path(), &strs(&good), &strs(&again));
     let cal = tmp.path().join("cal.toml");
-    survives_a_full_disk(
-        tmp.path(),
-        &[
+    let calibrate = |radius: &str| -> Vec<String> {
+        [
             "calibrate",
-            s(&image),
+            &deep,
             "--radius-mm",
-            "1",
+            radius,
             "--mm-per-px",
             "0.02",
             "--out",
             s(&cal),
-        ],
-    );
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    survives_a_full_disk(tmp.path(), &strs(&calibrate("1")), &strs(&calibrate("1.1")));
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/letters.toml");
     let (out, rec) = (tmp.path().join("live"), tmp.path().join("rec.bin"));
-    survives_a_full_disk(
-        tmp.path(),
-        &[
+    let stream = |tiles: &str| -> Vec<String> {
+        [
             "stream",
             "--device",
             "sim",
@@ -146,11 +164,18 @@ fn depth_calibrate_and_stream_leave_their_outputs_whole_on_a_full_disk() {
             "--out",
             s(&out),
             "--tiles",
-            "6",
+            tiles,
             "--record",
             s(&rec),
-        ],
-    );
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    survives_a_full_disk(tmp.path(), &strs(&stream("6")), &strs(&stream("9")));
+}
+
+fn strs(v: &[String]) -> Vec<&str> {
+    v.iter().map(String::as_str).collect()
 }
 
 #[test]
@@ -247,4 +272,28 @@ fn outputs_that_are_inputs_are_refused_before_anything_is_written() {
     let err = String::from_utf8_lossy(&run.stderr);
     assert!(!run.status.success() && !err.contains("panicked"), "{err}");
     assert!(err.contains("--seconds"), "{err}");
+}
+
+#[test]
+fn eval_and_demo_leave_their_outputs_whole_on_a_full_disk() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dots = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/dots.toml");
+    let e = tmp.path().join("eval");
+    let lines = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/lines.toml");
+    survives_a_full_disk(
+        tmp.path(),
+        &["eval", "--scene", dots, "--out", s(&e)],
+        &["eval", "--scene", lines, "--out", s(&e)],
+    );
+    // The depth table has one form; its rewrite fails all the same.
+    let depth = ["eval", "--depth", "--out", s(&e)];
+    survives_a_full_disk(tmp.path(), &depth, &depth);
+    let d = tmp.path().join("demo");
+    let demo = ["demo", "--out", s(&d)];
+    let fabric = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/fabric.toml");
+    survives_a_full_disk(
+        tmp.path(),
+        &demo,
+        &[&demo[..], &["--letters", fabric]].concat(),
+    );
 }

@@ -24,17 +24,20 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let opts = Options {
-        out: args.out.clone(),
-        letters: args.letters,
-        spheres: args.spheres,
-        bench: Some(args.bench),
-    };
     let started = Instant::now();
     let bar = super::simulate::progress(STAGES.len(), "stages", String::new());
-    let result = demo::run(&opts, |k, name| {
-        bar.set_position(k as u64);
-        bar.set_message(name.to_string());
+    // The report's folder is replaced whole: a failed run leaves the last report as it was.
+    let result = crate::files::replace_folder(&args.out, |staging| {
+        let opts = Options {
+            out: staging.to_path_buf(),
+            letters: args.letters.clone(),
+            spheres: args.spheres.clone(),
+            bench: Some(args.bench.clone()),
+        };
+        demo::run(&opts, |k, name| {
+            bar.set_position(k as u64);
+            bar.set_message(name.to_string());
+        })
     });
     bar.finish_and_clear();
     let d = result?;
