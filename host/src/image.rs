@@ -22,15 +22,19 @@ pub fn max_pixels() -> u64 {
     MAX_PIXELS.load(Ordering::Relaxed)
 }
 
+/// An image file's width and height, from its header alone.
+pub fn dimensions(path: &Path) -> anyhow::Result<(u32, u32)> {
+    image::ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .map_err(image::ImageError::IoError)
+        .and_then(|r| r.into_dimensions())
+        .with_context(|| format!("cannot read image {}", path.display()))
+}
+
 /// Reads `path`'s header, refusing an image over the pixel limit before anything is
 /// decoded or allocated.
 fn open_within_limit(path: &Path) -> anyhow::Result<image::DynamicImage> {
-    let reader = image::ImageReader::open(path)
-        .and_then(|r| r.with_guessed_format())
-        .with_context(|| format!("cannot read image {}", path.display()))?;
-    let (w, h) = reader
-        .into_dimensions()
-        .with_context(|| format!("cannot read image {}", path.display()))?;
+    let (w, h) = dimensions(path)?;
     let pixels = u64::from(w) * u64::from(h);
     let limit = max_pixels();
     ensure!(

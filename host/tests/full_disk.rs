@@ -230,6 +230,40 @@ fn outputs_that_are_inputs_are_refused_before_anything_is_written() {
         !again.exists(),
         "the output folder was made before the refusal"
     );
+    // `depth --out` whose stem names the background: its .png would be the background.
+    let lights = tmp.path().join("lights.toml");
+    rollfuse::depth::lights::Lights::product(0.02)
+        .save(&lights)
+        .unwrap();
+    let rgb = rollfuse::image::Planes {
+        width: 8,
+        height: 8,
+        planes: vec![vec![0.5; 64]; 3],
+    };
+    let (img, bg) = (tmp.path().join("img.png"), tmp.path().join("bg.png"));
+    rgb.save_png(&img).unwrap();
+    rgb.save_png(&bg).unwrap();
+    let background = std::fs::read(&bg).unwrap();
+    let stem = tmp.path().join("bg");
+    let run = rollfuse(
+        &[
+            "depth",
+            s(&img),
+            "--lights",
+            s(&lights),
+            "--background",
+            s(&bg),
+            "--out",
+            s(&stem),
+        ],
+        None,
+    );
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        !run.status.success() && err.contains("is the background"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&bg).unwrap(), background);
     // `calibrate --out` naming its own image.
     let image = tmp.path().join("img.png");
     let planes = rollfuse::image::Planes {
@@ -275,7 +309,7 @@ fn outputs_that_are_inputs_are_refused_before_anything_is_written() {
 }
 
 #[test]
-fn eval_and_demo_leave_their_outputs_whole_on_a_full_disk() {
+fn eval_tradeoff_and_demo_leave_their_outputs_whole_on_a_full_disk() {
     let tmp = tempfile::tempdir().unwrap();
     let dots = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/dots.toml");
     let e = tmp.path().join("eval");
@@ -288,6 +322,18 @@ fn eval_and_demo_leave_their_outputs_whole_on_a_full_disk() {
     // The depth table has one form; its rewrite fails all the same.
     let depth = ["eval", "--depth", "--out", s(&e)];
     survives_a_full_disk(tmp.path(), &depth, &depth);
+    // Timings differ run to run: the rewrite has other content by itself.
+    let t = tmp.path().join("tradeoff");
+    let tradeoff = [
+        "tradeoff",
+        "--out",
+        s(&t),
+        "--repeats",
+        "1",
+        "--bench",
+        "/nonexistent.csv",
+    ];
+    survives_a_full_disk(tmp.path(), &tradeoff, &tradeoff);
     let d = tmp.path().join("demo");
     let demo = ["demo", "--out", s(&d)];
     let fabric = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/fabric.toml");

@@ -172,3 +172,49 @@ fn an_image_output_not_named_png_is_refused_before_any_work_and_touches_nothing(
         assert!(!tmp.path().join("precious.offsets.json").exists());
     }
 }
+
+#[test]
+fn frames_held_at_once_share_the_pixel_limit_and_a_roll_holds_a_few() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sim = tmp.path().join("sim");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/letters.toml");
+    let made = rollfuse(&[
+        "simulate",
+        scene,
+        "--out",
+        sim.to_str().unwrap(),
+        "--frames",
+        "8",
+    ]);
+    assert!(made.status.success());
+    let frames: Vec<String> = (0..8)
+        .map(|k| {
+            sim.join(format!("frame_{k:04}.png"))
+                .to_str()
+                .unwrap()
+                .to_string()
+        })
+        .collect();
+    let out = tmp.path().join("o.png");
+    // 8 frames of 320 × 240 are 614 400 pixels; each alone is 76 800.
+    let with = |rest: &[&'static str]| -> Vec<String> {
+        ["--max-pixels", "200000", "fuse"]
+            .into_iter()
+            .map(String::from)
+            .chain(frames.iter().cloned())
+            .chain(["--out".to_string(), out.to_str().unwrap().to_string()])
+            .chain(rest.iter().map(|s| s.to_string()))
+            .collect()
+    };
+    let mosaic = with(&["--mode", "mosaic"]);
+    let mosaic: Vec<&str> = mosaic.iter().map(String::as_str).collect();
+    fails_saying(&mosaic, "over the limit of 200000 held at once");
+    let roll = with(&["--mode", "roll"]);
+    let roll: Vec<&str> = roll.iter().map(String::as_str).collect();
+    let run = rollfuse(&roll);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+}

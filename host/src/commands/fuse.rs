@@ -7,7 +7,7 @@ use crate::fullres::align::{Aligned, Match, Offset, TemplateParams, align_chain}
 use crate::fullres::track::Tracker;
 use crate::fullres::{Precision, fuse_mosaic_mut};
 use crate::image::Planes;
-use anyhow::{Context, bail};
+use anyhow::{Context, bail, ensure};
 use rollfuse_core::{FuseConfig, SaliencyNorm};
 use std::path::{Path, PathBuf};
 
@@ -155,6 +155,19 @@ pub fn refuse_overwriting_inputs(out: &Path, inputs: &[PathBuf]) -> anyhow::Resu
 
 /// Loads every frame, checking they agree in size and colour.
 pub fn load_frames(paths: &[PathBuf]) -> anyhow::Result<Vec<Planes>> {
+    // Held together, the frames share the pixel limit: checked from their headers first.
+    let mut pixels = 0u64;
+    for p in paths {
+        let (w, h) = crate::image::dimensions(p)?;
+        pixels = pixels.saturating_add(u64::from(w) * u64::from(h));
+    }
+    let limit = crate::image::max_pixels();
+    ensure!(
+        pixels <= limit,
+        "{} frames of {pixels} pixels in all are over the limit of {limit} held at once \
+         (--max-pixels): fuse a long sequence as a roll (--mode roll), which holds a few",
+        paths.len()
+    );
     let frames: Vec<Planes> = paths
         .iter()
         .map(|p| Planes::load(p))
@@ -332,8 +345,7 @@ fn plan(args: &Args) -> anyhow::Result<Plan> {
         (ModeArg::Roll, _) => return Ok(Plan::Roll(None)),
         (ModeArg::Auto, align) => align,
     };
-    let (_, h) = image::image_dimensions(&args.frames[0])
-        .with_context(|| format!("cannot read image {}", args.frames[0].display()))?;
+    let (_, h) = crate::image::dimensions(&args.frames[0])?;
     let h = f64::from(h);
     let span = |rows: &mut dyn Iterator<Item = f64>| {
         let (lo, hi) = rows.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), r| {

@@ -12,7 +12,7 @@ use crate::fullres::track::TrackParams;
 use crate::fullres::window::Geometry;
 use crate::image::Planes;
 use crate::strip_file::{Segment, StripWriter};
-use anyhow::{Context, bail};
+use anyhow::bail;
 use rollfuse_core::FuseConfig;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::sync_channel;
@@ -117,8 +117,7 @@ pub fn run(args: &Args, loaded: Option<Vec<Planes>>, cfg: &FuseConfig) -> anyhow
     if args.precision == crate::fullres::Precision::Fixed && args.out_bits == OutBits::Sixteen {
         eprintln!("note: --precision fixed makes 8-bit values; the 16-bit file holds them scaled");
     }
-    let (w, h) = image::image_dimensions(&args.frames[0])
-        .with_context(|| format!("cannot read image {}", args.frames[0].display()))?;
+    let (w, h) = crate::image::dimensions(&args.frames[0])?;
     let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
     let commanded = || -> anyhow::Result<Vec<f64>> {
         Ok(motion_offsets(&manifest, &args.frames)?
