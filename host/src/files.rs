@@ -79,6 +79,23 @@ fn room() -> Option<&'static std::sync::atomic::AtomicU64> {
     .as_ref()
 }
 
+/// Refuses, before any work, inputs inside `folder`, an output folder replaced whole
+/// ([`replace_folder`]).
+pub fn refuse_inside(folder: &Path, inputs: &[(&str, &Path)]) -> anyhow::Result<()> {
+    let folder_at = resolved(folder);
+    if let Some((what, input)) = inputs
+        .iter()
+        .find(|(_, p)| resolved(p).starts_with(&folder_at))
+    {
+        anyhow::bail!(
+            "the {what} {} is inside {}, which is replaced whole: refusing to remove an input",
+            input.display(),
+            folder.display()
+        );
+    }
+    Ok(())
+}
+
 /// An output file being written (its temporary).
 pub struct Output {
     file: File,

@@ -264,6 +264,18 @@ fn outputs_that_are_inputs_are_refused_before_anything_is_written() {
         "{err}"
     );
     assert_eq!(std::fs::read(&bg).unwrap(), background);
+    // `demo --out` holding its own scene: the folder is replaced whole.
+    let mine = tmp.path().join("mine");
+    std::fs::create_dir(&mine).unwrap();
+    let letters = mine.join("letters.toml");
+    std::fs::copy(scene, &letters).unwrap();
+    let run = rollfuse(&["demo", "--out", s(&mine), "--letters", s(&letters)], None);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        !run.status.success() && err.contains("refusing to remove an input"),
+        "{err}"
+    );
+    assert!(letters.exists());
     // `calibrate --out` naming its own image.
     let image = tmp.path().join("img.png");
     let planes = rollfuse::image::Planes {

@@ -24,6 +24,14 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    crate::files::refuse_inside(
+        &args.out,
+        &[
+            ("letters scene", &args.letters),
+            ("spheres scene", &args.spheres),
+            ("bench CSV", &args.bench),
+        ],
+    )?;
     let started = Instant::now();
     let bar = super::simulate::progress(STAGES.len(), "stages", String::new());
     // The report's folder is replaced whole: a failed run leaves the last report as it was.

@@ -144,13 +144,20 @@ struct Skipped<'a> {
     reason: String,
 }
 
-/// Refuses an output path that is one of the input frames.
-pub fn refuse_overwriting_inputs(out: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> {
-    let frames: Vec<(&str, &Path)> = inputs
+/// Refuses outputs that are one of the input frames or the manifest (given, or the one
+/// beside the frames).
+pub fn refuse_overwriting_inputs(
+    outputs: &[&Path],
+    frames: &[PathBuf],
+    manifest: Option<&Path>,
+) -> anyhow::Result<()> {
+    let manifest = manifest_path(manifest, frames);
+    let inputs: Vec<(&str, &Path)> = frames
         .iter()
         .map(|p| ("input frame", p.as_path()))
+        .chain([("manifest", manifest.as_path())])
         .collect();
-    crate::files::refuse_overwriting(&[out], &frames)
+    crate::files::refuse_overwriting(outputs, &inputs)
 }
 
 /// Loads every frame, checking they agree in size and colour.
@@ -381,8 +388,11 @@ fn run_mosaic(args: &Args, frames: Vec<Planes>, cfg: &FuseConfig) -> anyhow::Res
     let offsets_path = args.out.with_extension("offsets.json");
     check_writable(&args.out)?;
     check_writable(&offsets_path)?;
-    refuse_overwriting_inputs(&args.out, &args.frames)?;
-    refuse_overwriting_inputs(&offsets_path, &args.frames)?;
+    refuse_overwriting_inputs(
+        &[&args.out, &offsets_path],
+        &args.frames,
+        args.manifest.as_deref(),
+    )?;
     let (t0, t1) = (args.template_rows[0], args.template_rows[1]);
     let mut placed = Vec::new();
     let mut record = OffsetsFile {

@@ -111,8 +111,12 @@ pub fn run(args: &Args, loaded: Option<Vec<Planes>>, cfg: &FuseConfig) -> anyhow
     let index_path = StripWriter::index_path(out);
     for p in [out, &csv_path, &index_path] {
         check_writable(p)?;
-        refuse_overwriting_inputs(p, &args.frames)?;
     }
+    refuse_overwriting_inputs(
+        &[out, &csv_path, &index_path],
+        &args.frames,
+        args.manifest.as_deref(),
+    )?;
     refuse_segment_names(out, &args.frames)?;
     if args.precision == crate::fullres::Precision::Fixed && args.out_bits == OutBits::Sixteen {
         eprintln!("note: --precision fixed makes 8-bit values; the 16-bit file holds them scaled");
