@@ -33,6 +33,32 @@ fn png_header(path: &Path, w: u32, h: u32) {
     std::fs::write(path, bytes).unwrap();
 }
 
+/// `n` frames of the letters scene simulated into `dir/sim`: the folder and the frames'
+/// paths.
+fn letters_frames(dir: &Path, n: usize) -> (std::path::PathBuf, Vec<String>) {
+    let sim = dir.join("sim");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/letters.toml");
+    let frames = n.to_string();
+    let made = rollfuse(&[
+        "simulate",
+        scene,
+        "--out",
+        sim.to_str().unwrap(),
+        "--frames",
+        &frames,
+    ]);
+    assert!(made.status.success());
+    let paths = (0..n)
+        .map(|k| {
+            sim.join(format!("frame_{k:04}.png"))
+                .to_str()
+                .unwrap()
+                .to_string()
+        })
+        .collect();
+    (sim, paths)
+}
+
 fn fails_saying(args: &[&str], says: &str) {
     let run = rollfuse(args);
     let err = String::from_utf8_lossy(&run.stderr);
@@ -66,31 +92,13 @@ fn an_image_over_the_pixel_limit_is_refused_from_its_header() {
 #[test]
 fn a_manifest_offset_far_off_is_refused_before_the_canvas_is_allocated() {
     let tmp = tempfile::tempdir().unwrap();
-    let sim = tmp.path().join("sim");
-    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/letters.toml");
-    let made = rollfuse(&[
-        "simulate",
-        scene,
-        "--out",
-        sim.to_str().unwrap(),
-        "--frames",
-        "4",
-    ]);
-    assert!(made.status.success());
+    let (sim, frames) = letters_frames(tmp.path(), 4);
     // A typo in one frame's strip row: 300 000 rows instead of 150 (a 96 Mpx canvas).
     let manifest = sim.join("manifest.json");
     let mut doc: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
     doc["frames"][2]["strip_row"] = serde_json::json!(3e5);
     std::fs::write(&manifest, doc.to_string()).unwrap();
-    let frames: Vec<String> = (0..4)
-        .map(|k| {
-            sim.join(format!("frame_{k:04}.png"))
-                .to_str()
-                .unwrap()
-                .to_string()
-        })
-        .collect();
     let out = tmp.path().join("spliced.png");
     let args: Vec<&str> = ["splice"]
         .into_iter()
@@ -140,25 +148,7 @@ fn scene_values_that_would_overflow_are_refused_and_a_scene_without_contact_is_s
 #[test]
 fn an_image_output_not_named_png_is_refused_before_any_work_and_touches_nothing() {
     let tmp = tempfile::tempdir().unwrap();
-    let sim = tmp.path().join("sim");
-    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/letters.toml");
-    let made = rollfuse(&[
-        "simulate",
-        scene,
-        "--out",
-        sim.to_str().unwrap(),
-        "--frames",
-        "3",
-    ]);
-    assert!(made.status.success());
-    let frames: Vec<String> = (0..3)
-        .map(|k| {
-            sim.join(format!("frame_{k:04}.png"))
-                .to_str()
-                .unwrap()
-                .to_string()
-        })
-        .collect();
+    let (_, frames) = letters_frames(tmp.path(), 3);
     for command in ["fuse", "splice"] {
         let out = tmp.path().join("precious.tiff");
         std::fs::write(&out, b"precious").unwrap();
@@ -176,25 +166,7 @@ fn an_image_output_not_named_png_is_refused_before_any_work_and_touches_nothing(
 #[test]
 fn frames_held_at_once_share_the_pixel_limit_and_a_roll_holds_a_few() {
     let tmp = tempfile::tempdir().unwrap();
-    let sim = tmp.path().join("sim");
-    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/letters.toml");
-    let made = rollfuse(&[
-        "simulate",
-        scene,
-        "--out",
-        sim.to_str().unwrap(),
-        "--frames",
-        "8",
-    ]);
-    assert!(made.status.success());
-    let frames: Vec<String> = (0..8)
-        .map(|k| {
-            sim.join(format!("frame_{k:04}.png"))
-                .to_str()
-                .unwrap()
-                .to_string()
-        })
-        .collect();
+    let (_, frames) = letters_frames(tmp.path(), 8);
     let out = tmp.path().join("o.png");
     // 8 frames of 320 × 240 are 614 400 pixels; each alone is 76 800.
     let with = |rest: &[&'static str]| -> Vec<String> {
