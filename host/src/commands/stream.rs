@@ -94,6 +94,38 @@ impl Args {
 
 /// Runs `rollfuse stream`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // Every option checked, and no output an input, before the output folder is made.
+    let checked = check(&args)?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create output folder {}", args.out.display()))?;
+    super::check_writable(&args.out.join("manifest.json"))?;
+    if let Some(r) = &args.record {
+        super::check_writable(r)?;
+    }
+    let (mut link, config) = open_link(&args, checked.replay.as_deref())?;
+    let opts = Options {
+        out: args.out.clone(),
+        config,
+        max_tiles: args.tiles,
+        max_duration: checked.max_duration,
+        record: args.record.clone(),
+        progress: true,
+    };
+    let outcome = stream::run(link.as_mut(), &opts)?;
+    print_summary(&args.out, &outcome);
+    Ok(())
+}
+
+/// What the options say, once checked.
+struct Checked {
+    /// `--device replay:FILE`'s file.
+    replay: Option<std::path::PathBuf>,
+    /// `--seconds`.
+    max_duration: Option<Duration>,
+}
+
+/// Checks the options and that the recording written is none of the inputs.
+fn check(args: &Args) -> anyhow::Result<Checked> {
     if let Some(s) = args.seconds
         && !(s > 0.0 && s.is_finite())
     {
@@ -107,7 +139,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .map(Duration::try_from_secs_f64)
         .transpose()
         .map_err(|_| anyhow::anyhow!("--seconds is too long: {:?}", args.seconds))?;
-    // Every option checked, and no output an input, before the output folder is made.
     let replay = match args.device.as_str() {
         "usb" | "sim" => None,
         other => match other.strip_prefix("replay:") {
@@ -124,13 +155,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         inputs.extend(args.scene.as_deref().map(|p| ("scene", p)));
         crate::files::refuse_overwriting(&[r], &inputs)?;
     }
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create output folder {}", args.out.display()))?;
-    super::check_writable(&args.out.join("manifest.json"))?;
-    if let Some(r) = &args.record {
-        super::check_writable(r)?;
-    }
-    let (mut link, config): (Box<dyn Transport>, Option<DeviceConfig>) = match &replay {
+    Ok(Checked {
+        replay,
+        max_duration,
+    })
+}
+
+/// The link the options name, and the configuration to send (none to a recording).
+fn open_link(
+    args: &Args,
+    replay: Option<&std::path::Path>,
+) -> anyhow::Result<(Box<dyn Transport>, Option<DeviceConfig>)> {
+    Ok(match replay {
         Some(file) => (Box::new(Replay::open(file)?), None),
         None if args.device == "usb" => (Box::new(Usb::open()?), Some(args.config(16))),
         None => {
@@ -139,24 +175,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let spacing = dev.default_config().frame_spacing_px;
             (Box::new(dev), Some(args.config(spacing)))
         }
-    };
-    let opts = Options {
-        out: args.out.clone(),
-        config,
-        max_tiles: args.tiles,
-        max_duration,
-        record: args.record.clone(),
-        progress: true,
-    };
-    let outcome = stream::run(link.as_mut(), &opts)?;
+    })
+}
+
+/// The session's summary: tiles and rate, the strip's files, why it stopped, the
+/// device's counters, what was missing or faulty.
+fn print_summary(out: &std::path::Path, outcome: &stream::Outcome) {
     let m = &outcome.manifest;
     let secs = outcome.elapsed.as_secs_f64().max(1e-9);
     let written = match outcome.strip_files.as_slice() {
         [] => "no strip (no tile was taken)".to_string(),
-        [one] => args.out.join(one).display().to_string(),
+        [one] => out.join(one).display().to_string(),
         [first, .., last] => format!(
             "{} … {} ({} segments, index strip.json)",
-            args.out.join(first).display(),
+            out.join(first).display(),
             last,
             outcome.strip_files.len()
         ),
@@ -199,7 +231,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if m.faults.total() > 0 {
         println!("link faults (details in manifest.json): {:?}", m.faults);
     }
-    Ok(())
 }
 
 /// Runs `rollfuse devices`: fails (non-zero exit) when none can be seen, saying why.

@@ -2,7 +2,7 @@
 //! `lights.toml` (RGB scenes: the true light file for `rollfuse depth`) and
 //! `manifest.json`.
 
-use super::render::{Planes, Simulator};
+use super::render::{Planes, Simulator, Strip};
 use crate::files::{Batch, PngLayout, add_png};
 use crate::npy;
 use anyhow::{Context, ensure};
@@ -112,6 +112,48 @@ fn remove_stale_frames(out: &Path, count: usize) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Adds the ground truth under `out/truth/` to `batch`: the height map (`.npy` in mm,
+/// 16-bit `.png` in µm), the ideal contact image and each region's mask; returns the
+/// regions' names and files.
+fn add_truth(
+    batch: &mut Batch,
+    sim: &Simulator,
+    strip: &Strip,
+    out: &Path,
+) -> anyhow::Result<Vec<(String, String)>> {
+    // Validation bounds every scene value; this is the last word on what is written.
+    ensure!(
+        strip.height_mm.iter().all(|h| h.is_finite()),
+        "the scene's height map is not finite everywhere: nothing written"
+    );
+    let truth_dir = out.join("truth");
+    batch.add_bytes(
+        &truth_dir.join("height.npy"),
+        &npy::encode_f32(&strip.height_mm, strip.rows, strip.width)?,
+    )?;
+    let microns: Vec<u8> = strip
+        .height_mm
+        .iter()
+        .flat_map(|h| ((h * 1000.0).round().clamp(0.0, 65535.0) as u16).to_ne_bytes())
+        .collect();
+    let size = (strip.width, strip.rows);
+    add_png(
+        batch,
+        &truth_dir.join("height.png"),
+        &microns,
+        size,
+        PngLayout::Gray16,
+    )?;
+    sim.ideal().add_png(batch, &truth_dir.join("ideal.png"))?;
+    let mut regions = Vec::new();
+    for (name, mask) in &strip.regions {
+        let file = format!("truth/region_{name}.png");
+        add_png(batch, &out.join(&file), mask, size, PngLayout::Gray8)?;
+        regions.push((name.clone(), file));
+    }
+    Ok(regions)
+}
+
 /// Renders every frame of `sim` into `out` with its ground truth and manifest, calling
 /// `progress(done, total)` after each frame.
 pub fn write(
@@ -147,38 +189,8 @@ pub fn write(
         progress(k + 1, sim.frames());
     }
     let strip = sim.strip();
-    // Validation bounds every scene value; this is the last word on what is written.
-    ensure!(
-        strip.height_mm.iter().all(|h| h.is_finite()),
-        "the scene's height map is not finite everywhere: nothing written"
-    );
-    let truth_dir = out.join("truth");
-    batch.add_bytes(
-        &truth_dir.join("height.npy"),
-        &npy::encode_f32(&strip.height_mm, strip.rows, strip.width)?,
-    )?;
-    let microns: Vec<u8> = strip
-        .height_mm
-        .iter()
-        .flat_map(|h| ((h * 1000.0).round().clamp(0.0, 65535.0) as u16).to_ne_bytes())
-        .collect();
-    let size = (strip.width, strip.rows);
-    add_png(
-        &mut batch,
-        &truth_dir.join("height.png"),
-        &microns,
-        size,
-        PngLayout::Gray16,
-    )?;
-    sim.ideal()
-        .add_png(&mut batch, &truth_dir.join("ideal.png"))?;
+    let regions = add_truth(&mut batch, sim, strip, out)?;
     contact_sheet(&sheet).add_png(&mut batch, &out.join("contact_sheet.png"))?;
-    let mut regions = Vec::new();
-    for (name, mask) in &strip.regions {
-        let file = format!("truth/region_{name}.png");
-        add_png(&mut batch, &out.join(&file), mask, size, PngLayout::Gray8)?;
-        regions.push((name.clone(), file));
-    }
     if scene.has(super::Effect::Rgb) {
         // The lights the frames were rendered with: what `rollfuse depth` needs.
         let lights = crate::depth::lights::Lights {
