@@ -291,6 +291,77 @@ pub struct Outcome {
     pub elapsed: Duration,
 }
 
+/// Greets a live device, configures it and starts its stream; the commands whose
+/// refusal ends the session, with their names.
+fn start_session(
+    link: &mut dyn Transport,
+    opts: &Options,
+    cmd_seq: &mut u32,
+) -> anyhow::Result<Vec<(u32, &'static str)>> {
+    let mut essential = Vec::new();
+    send(link, cmd_seq, &Command::Hello)?;
+    if let Some(cfg) = opts.config {
+        essential.push((send(link, cmd_seq, &Command::Configure(cfg))?, "configure"));
+    }
+    essential.push((send(link, cmd_seq, &Command::StreamStart)?, "stream start"));
+    Ok(essential)
+}
+
+/// The limit (`--tiles`, `--seconds`) the session has reached, if any.
+fn limit_reached(opts: &Options, manifest: &Manifest, started: Instant) -> Option<StopReason> {
+    if opts.max_tiles.is_some_and(|n| manifest.tiles_received >= n) {
+        Some(StopReason::TileLimit)
+    } else if opts.max_duration.is_some_and(|d| started.elapsed() >= d) {
+        Some(StopReason::TimeLimit)
+    } else {
+        None
+    }
+}
+
+/// Counts what sequence number `seq` says about lost or repeated messages; `false` for a
+/// repeat, which is not taken.
+fn in_sequence(
+    seqs: &mut SeqTracker,
+    seq: u32,
+    faults: &mut Faults,
+    bar: &indicatif::ProgressBar,
+) -> bool {
+    match seqs.observe(seq) {
+        SeqEvent::InOrder => true,
+        SeqEvent::Gap { missing } => {
+            faults.sequence_gaps += 1;
+            faults.messages_missing += u64::from(missing);
+            bar.println(format!("{missing} message(s) lost before #{seq}"));
+            true
+        }
+        SeqEvent::Repeat => {
+            faults.repeated += 1;
+            false
+        }
+    }
+}
+
+/// Places a tile in the strip, or counts why not; whether it was placed.
+fn take_tile(
+    strip: &mut StreamedStrip,
+    tile: &protocol::Tile<'_>,
+    manifest: &mut Manifest,
+) -> anyhow::Result<bool> {
+    let size = (tile.width, tile.height);
+    let fault = match strip.take(tile.index, size, tile.pixels, manifest)? {
+        Ok(()) => {
+            *manifest.observations.entry(tile.observations).or_default() += 1;
+            manifest.tiles_received += 1;
+            return Ok(true);
+        }
+        Err(Refused::Mismatched) => &mut manifest.faults.mismatched_tiles,
+        Err(Refused::Duplicate) => &mut manifest.faults.duplicate_tiles,
+        Err(Refused::Late) => &mut manifest.faults.late_tiles,
+    };
+    *fault += 1;
+    Ok(false)
+}
+
 /// Sends a command, returning its sequence number.
 fn send(link: &mut dyn Transport, seq: &mut u32, cmd: &Command) -> anyhow::Result<u32> {
     let mut buf = [0u8; 256];
@@ -312,21 +383,11 @@ pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> 
     let live = link.is_live();
 
     let mut cmd_seq = 0u32;
-    // Commands whose refusal ends the session.
-    let mut essential = Vec::new();
-    if live {
-        send(link, &mut cmd_seq, &Command::Hello)?;
-        if let Some(cfg) = opts.config {
-            essential.push((
-                send(link, &mut cmd_seq, &Command::Configure(cfg))?,
-                "configure",
-            ));
-        }
-        essential.push((
-            send(link, &mut cmd_seq, &Command::StreamStart)?,
-            "stream start",
-        ));
-    }
+    let essential = if live {
+        start_session(link, opts, &mut cmd_seq)?
+    } else {
+        Vec::new()
+    };
 
     let bar = if opts.progress {
         crate::commands::simulate::progress_spinner("receiving tiles")
@@ -350,19 +411,13 @@ pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> 
             last_heartbeat = Instant::now();
         }
         // Ask the device to stop once a limit is reached; its flush and status follow.
-        if live && !stop_sent {
-            let limit = if opts.max_tiles.is_some_and(|n| manifest.tiles_received >= n) {
-                Some(StopReason::TileLimit)
-            } else if opts.max_duration.is_some_and(|d| started.elapsed() >= d) {
-                Some(StopReason::TimeLimit)
-            } else {
-                None
-            };
-            if let Some(reason) = limit {
-                send(link, &mut cmd_seq, &Command::StreamStop)?;
-                stop_sent = true;
-                stop = reason;
-            }
+        if live
+            && !stop_sent
+            && let Some(reason) = limit_reached(opts, &manifest, started)
+        {
+            send(link, &mut cmd_seq, &Command::StreamStop)?;
+            stop_sent = true;
+            stop = reason;
         }
         let n = match link.receive(&mut buf, Duration::from_millis(200))? {
             Received::Message(n) => n,
@@ -398,17 +453,8 @@ pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> 
                 continue;
             }
         };
-        match seqs.observe(header.seq) {
-            SeqEvent::InOrder => {}
-            SeqEvent::Gap { missing } => {
-                manifest.faults.sequence_gaps += 1;
-                manifest.faults.messages_missing += u64::from(missing);
-                bar.println(format!("{missing} message(s) lost before #{}", header.seq));
-            }
-            SeqEvent::Repeat => {
-                manifest.faults.repeated += 1;
-                continue;
-            }
+        if !in_sequence(&mut seqs, header.seq, &mut manifest.faults, &bar) {
+            continue;
         }
         match msg {
             DeviceMessage::Info(info) => manifest.device = Some(info),
@@ -425,6 +471,7 @@ pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> 
                     "{} refused: {reason:?}",
                     what.unwrap_or("a command")
                 ));
+                // An essential command refused ends the session.
                 if let Some(what) = what {
                     write_manifest(&manifest_path, &manifest)?;
                     bail!("the device refused {what}: {reason:?}");
@@ -449,24 +496,9 @@ pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> 
                 manifest.log.push(line.to_string());
             }
             DeviceMessage::Tile(tile) => {
-                let size = (tile.width, tile.height);
-                match strip.take(tile.index, size, tile.pixels, &mut manifest)? {
-                    Ok(()) => {}
-                    Err(Refused::Mismatched) => {
-                        manifest.faults.mismatched_tiles += 1;
-                        continue;
-                    }
-                    Err(Refused::Duplicate) => {
-                        manifest.faults.duplicate_tiles += 1;
-                        continue;
-                    }
-                    Err(Refused::Late) => {
-                        manifest.faults.late_tiles += 1;
-                        continue;
-                    }
+                if !take_tile(&mut strip, &tile, &mut manifest)? {
+                    continue;
                 }
-                *manifest.observations.entry(tile.observations).or_default() += 1;
-                manifest.tiles_received += 1;
                 let secs = started.elapsed().as_secs_f64().max(1e-9);
                 bar.set_message(format!(
                     "{} tiles, {:.0} tiles/s, {:.2} MB/s",
