@@ -10,6 +10,7 @@
 //! - [`sim`]: the tactile simulator (scenes, effects on demand, ground truth).
 //! - [`fullres`]: full-resolution fusion of aligned frames into one mosaic.
 //! - [`depth`]: photometric stereo, Poisson integration, light calibration.
+//! - [`detect`]: fabric defect detection and classification with a neural network.
 //! - [`eval`]: the paper's metrics.
 //! - [`link`]: the device link — USB, the virtual device, recorded streams.
 //! - [`strip_file`]: a strip written as it grows, in indexed PNG segments.
@@ -24,6 +25,7 @@ pub use rollfuse_core as core;
 pub mod commands;
 pub mod demo;
 pub mod depth;
+pub mod detect;
 pub mod eval;
 pub mod files;
 pub mod fullres;

@@ -1,7 +1,9 @@
 //! `rollfuse`: the command-line tool of the rollfuse tactile sensor module.
 
 use clap::{Parser, Subcommand};
-use rollfuse::commands::{demo, depth, eval, fuse, metrics, simulate, splice, stream, tradeoff};
+use rollfuse::commands::{
+    demo, depth, detect, eval, fuse, metrics, simulate, splice, stream, tradeoff,
+};
 use std::process::ExitCode;
 
 /// Cyclic wavelet fusion of tactile images from a rolling, curved elastomer sensor.
@@ -36,6 +38,10 @@ enum Command {
     Depth(depth::Args),
     /// Fit the light file from an image of a ball of known radius.
     Calibrate(depth::CalibrateArgs),
+    /// Train the fabric defect detector on simulated rolls (see docs/detect.md).
+    Train(detect::TrainArgs),
+    /// Find fabric defects and classify the fabric in gray tactile images.
+    Detect(detect::Args),
     /// Stream fused tiles from the device (USB, virtual, or a recording) into a strip.
     Stream(stream::Args),
     /// List the rollfuse devices on USB.
@@ -55,6 +61,8 @@ fn main() -> ExitCode {
         Command::Tradeoff(args) => tradeoff::run(args),
         Command::Depth(args) => depth::run(args),
         Command::Calibrate(args) => depth::calibrate_run(args),
+        Command::Train(args) => detect::train_run(args),
+        Command::Detect(args) => detect::run(args),
         Command::Stream(args) => stream::run(args),
         Command::Devices => stream::devices(),
     };

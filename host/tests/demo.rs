@@ -148,6 +148,11 @@ fn the_demo_writes_a_self_contained_report_with_sane_figures() {
         assert!(m.host_ns_per_px.is_finite() && m.host_ns_per_px > 0.0);
         assert!(m.mcu.is_none(), "no bench given");
     }
+    assert_eq!(d.detection.rows.len(), 2, "frames and fused tiles");
+    for r in &d.detection.rows {
+        assert!(r.count > 0 && r.tally.hits + r.tally.misses > 0, "{r:?}");
+        assert!((0.0..=1.0).contains(&r.accuracy()));
+    }
     assert_eq!(
         d.stages.len(),
         STAGES.len() - 1,
@@ -158,14 +163,14 @@ fn the_demo_writes_a_self_contained_report_with_sane_figures() {
     // The report: every section, every picture embedded, nothing fetched from elsewhere.
     let html = read(&out.join(Files::REPORT));
     assert!(html.starts_with("<!DOCTYPE html>") && html.trim_end().ends_with("</html>"));
-    for h in ["1. ", "2. ", "3. ", "4. ", "5. ", "6. ", "7. "] {
+    for h in ["1. ", "2. ", "3. ", "4. ", "5. ", "6. ", "7. ", "8. "] {
         assert!(html.contains(&format!("<h2>{h}")), "section {h}");
     }
     let images = html.matches("<img src=\"data:image/png;base64,").count();
     assert_eq!(
         images,
-        6 + 1 + 4 + 3,
-        "frames, device strip, the host's strip beside it and the pair, depth maps"
+        6 + 1 + 4 + 3 + 2,
+        "frames, device strip, the host's strip beside it and the pair, depth maps, detections"
     );
     assert_eq!(html.matches("src=").count(), images, "only data URIs");
     assert!(!html.contains("<script") && !html.contains("<link"));

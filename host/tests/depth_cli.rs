@@ -4,14 +4,9 @@
 use rollfuse::depth::lights::Lights;
 use rollfuse::depth::synthetic::ball;
 use std::path::Path;
-use std::process::{Command, Output};
+mod common;
 
-fn rollfuse(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rollfuse"))
-        .args(args)
-        .output()
-        .unwrap()
-}
+use common::{fails, rollfuse};
 
 fn lights() -> Lights {
     Lights::product(0.02)
@@ -26,15 +21,6 @@ fn ball_and_lights() -> (tempfile::TempDir, Lights) {
     let (_, img) = ball((240, 200), (120.0, 100.0), 2.0, 0.4, &l, 180.0);
     img.save_png(&tmp.path().join("ball.png")).unwrap();
     (tmp, l)
-}
-
-fn fails(args: &[&str], says: &str) {
-    let out = rollfuse(args);
-    assert!(!out.status.success(), "{args:?} should fail");
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!err.contains("panicked"), "{err}");
-    assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
-    assert!(err.contains(says), "{args:?}: {err}");
 }
 
 #[test]

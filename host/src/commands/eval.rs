@@ -27,6 +27,16 @@ pub struct Args {
     /// matrices).
     #[arg(long, conflicts_with = "depth")]
     pub roll: bool,
+    /// The defect-detection table instead: the detector on every frame and on the fused
+    /// tiles of held-out textile rolls (seeds training never uses).
+    #[arg(long, conflicts_with_all = ["depth", "roll"])]
+    pub detect: bool,
+    /// With --detect: a model file (else the built-in model).
+    #[arg(long, requires = "detect")]
+    pub model: Option<PathBuf>,
+    /// With --detect: held-out rolls to simulate (fabric = seed mod 17).
+    #[arg(long, default_value_t = 34)]
+    pub rolls: usize,
 }
 
 /// The built-in standardized samples.
@@ -99,8 +109,48 @@ fn run_roll(args: &Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Runs `rollfuse eval --detect`.
+fn run_detect(args: &Args) -> anyhow::Result<()> {
+    use crate::eval::detect::{evaluate_detect, markdown};
+    let detector = match &args.model {
+        Some(m) => crate::detect::Detector::load(m)?,
+        None => crate::detect::Detector::built_in()?,
+    };
+    let shape = crate::detect::data::RollShape::STANDARD;
+    let bar = progress(args.rolls, "rolls", "simulating held-out rolls".into());
+    let rows = evaluate_detect(&detector, args.rolls, &shape, |n| {
+        bar.set_position(n as u64)
+    })?;
+    bar.finish_and_clear();
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let md = format!(
+        "Held-out rolls: {} (seeds {}..{}), model: {}\n\n{}",
+        args.rolls,
+        crate::eval::detect::EVAL_SEEDS,
+        crate::eval::detect::EVAL_SEEDS + args.rolls as u64,
+        args.model
+            .as_ref()
+            .map_or("built in".to_string(), |m| m.display().to_string()),
+        markdown(&rows)
+    );
+    let mut batch = Batch::new();
+    batch.add_bytes(
+        &args.out.join("detect.json"),
+        serde_json::to_string_pretty(&rows)?.as_bytes(),
+    )?;
+    batch.add_bytes(&args.out.join("detect.md"), md.as_bytes())?;
+    batch.commit()?;
+    print!("{md}");
+    println!("\nwritten: {}/detect.md, detect.json", args.out.display());
+    Ok(())
+}
+
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.detect {
+        return run_detect(&args);
+    }
     if args.depth {
         return run_depth(&args);
     }

@@ -2,6 +2,7 @@
 
 pub mod demo;
 pub mod depth;
+pub mod detect;
 pub mod eval;
 pub mod fuse;
 pub mod fuse_roll;

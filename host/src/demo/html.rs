@@ -127,11 +127,18 @@ pub fn report(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
         tables(&read(Files::DEPTH_MD)?)
     )?;
 
+    body += &super::detection::section(
+        &demo.detection,
+        6,
+        png,
+        tables(&read(super::detection::TABLE_MD)?),
+    )?;
+
     let svg = read(Files::PARETO)?;
     let svg = svg.find("<svg").map_or(svg.as_str(), |i| &svg[i..]);
     writeln!(
         body,
-        "<h2>6. What accuracy costs in time</h2>\n<p>Each device configuration against the \
+        "<h2>7. What accuracy costs in time</h2>\n<p>Each device configuration against the \
          f64 full-resolution reference of the same tile schedule: PSNR against host time \
          (one run each, as <code>rollfuse tradeoff --repeats 1</code>) and {}.</p>\n<div class=plot>{svg}</div>\n<details><summary>the whole table</summary>{}\
          </details>",
@@ -148,7 +155,7 @@ pub fn report(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
     )?;
 
     body.push_str(
-        "<h2>7. How long each stage took</h2>\n<table><tr><th>stage</th><th>what</th>\
+        "<h2>8. How long each stage took</h2>\n<table><tr><th>stage</th><th>what</th>\
          <th>seconds</th></tr>",
     );
     for st in &demo.stages {

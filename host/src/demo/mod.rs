@@ -12,13 +12,16 @@
 //!    `rollfuse eval` computes them.
 //! 5. **depth** — the three-sphere RGB scene: depth from single and fused frames (Table IV,
 //!    as `rollfuse eval --depth`).
-//! 6. **trade-off** — every device configuration against the f64 reference on the letters
+//! 6. **detection** — the built-in defect detector on a held-out textile roll, and frames
+//!    against fused tiles over one roll of each fabric ([`detection`]).
+//! 7. **trade-off** — every device configuration against the f64 reference on the letters
 //!    scene (`rollfuse tradeoff`, one repeat): the accuracy/time Pareto plot.
-//! 7. **report** — `report.html`, one self-contained page ([`html`]).
+//! 8. **report** — `report.html`, one self-contained page ([`html`]).
 //!
 //! Every figure comes from the same functions the single-purpose commands use, so the
 //! demo's tables are the ones those commands print for the same scenes.
 
+pub mod detection;
 pub mod html;
 
 use crate::eval::depth::{self as depth_eval, DepthRow};
@@ -103,6 +106,8 @@ pub struct Demo {
     pub eval: Vec<Row>,
     /// Table IV on the sphere scene.
     pub depth: Vec<DepthRow>,
+    /// The defect detector on held-out textile rolls.
+    pub detection: detection::DetectionDemo,
     /// The trade-off study on the letters scene.
     pub tradeoff: Vec<Measured>,
     /// The bench build the MCU figures come from, if any.
@@ -245,6 +250,17 @@ pub fn run(opts: &Options, mut stage: impl FnMut(usize, &str)) -> anyhow::Result
     );
 
     stage(5, STAGES[5]);
+    let detection = detection::run(&opts.out)?;
+    clock.lap(
+        STAGES[5],
+        format!(
+            "the detector on a {} roll and on {} held-out rolls",
+            detection.fabric,
+            crate::sim::textile::FABRICS.len()
+        ),
+    );
+
+    stage(6, STAGES[6]);
     let mcu = match &opts.bench {
         Some(p) if p.exists() => McuTable::load(p)?,
         _ => McuTable::empty(),
@@ -263,7 +279,7 @@ pub fn run(opts: &Options, mut stage: impl FnMut(usize, &str)) -> anyhow::Result
         &tradeoff_report::pareto_svg(&measured)?,
     )?;
     clock.lap(
-        STAGES[5],
+        STAGES[6],
         format!(
             "{} device configurations against the f64 reference",
             setups.len()
@@ -283,11 +299,12 @@ pub fn run(opts: &Options, mut stage: impl FnMut(usize, &str)) -> anyhow::Result
             / (acq.rows[n - 1] - acq.rows[0]).max(1) as f64,
         eval,
         depth,
+        detection,
         tradeoff: measured,
         mcu_build: mcu.build.clone(),
         stages,
     };
-    stage(6, STAGES[6]);
+    stage(7, STAGES[7]);
     // The report's own time cannot be in the report: the command prints it.
     let page = html::report(&demo, &opts.out)?;
     write(&out(Files::REPORT), &page)?;
@@ -295,12 +312,13 @@ pub fn run(opts: &Options, mut stage: impl FnMut(usize, &str)) -> anyhow::Result
 }
 
 /// The stages' names, in order.
-pub const STAGES: [&str; 7] = [
+pub const STAGES: [&str; 8] = [
     "acquire",
     "device",
     "full-res fusion",
     "evaluation",
     "depth",
+    "detection",
     "trade-off",
     "report",
 ];

@@ -3,6 +3,7 @@
 //!
 //! - [`scene`]: the scene file (TOML) and its checks.
 //! - [`object`]: the objects' height maps.
+//! - [`textile`]: the detector's fabrics and their defects.
 //! - [`render`]: the stages — contact, gel, shading, defocus, background, noise, jitter.
 //! - [`output`]: frames, truth and manifest on disk.
 
@@ -11,6 +12,7 @@ pub mod object;
 pub mod output;
 pub mod render;
 pub mod scene;
+pub mod textile;
 
 pub use render::{Frame, Planes, Simulator, Strip};
 pub use scene::{Effect, Scene};

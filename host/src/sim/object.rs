@@ -6,6 +6,7 @@
 
 use super::font;
 use super::scene::{Object, Shape};
+use super::textile::{self, Defect, Textile};
 use std::f64::consts::PI;
 
 /// Edge rounding of raised features, mm: how wide the shoulder of a 1 mm step is.
@@ -33,6 +34,8 @@ pub struct Layout {
     height: Box<dyn Fn(f64, f64) -> f64 + Send + Sync>,
     /// The regions the object defines (may be empty).
     pub regions: Vec<Region>,
+    /// The defects placed on a textile (empty for other objects).
+    pub defects: Vec<Defect>,
 }
 
 impl Layout {
@@ -75,8 +78,8 @@ fn wire(r: f64, d: f64) -> f64 {
     }
 }
 
-/// Lays `object` out in `canvas`.
-pub fn layout(object: &Object, canvas: Canvas) -> Layout {
+/// Lays `object` out in `canvas`; `seed` places what a scene leaves to chance.
+pub fn layout(object: &Object, canvas: Canvas, seed: u64) -> Layout {
     let (w, l) = (canvas.width_mm, canvas.length_mm);
     let no_regions = Vec::new;
     match object.clone() {
@@ -115,6 +118,7 @@ pub fn layout(object: &Object, canvas: Canvas) -> Layout {
                     shoulder(height_mm, d)
                 }),
                 regions: no_regions(),
+                defects: Vec::new(),
             }
         }
         Object::Dots {
@@ -128,6 +132,7 @@ pub fn layout(object: &Object, canvas: Canvas) -> Layout {
                     shoulder(height_mm, (u * u + v * v).sqrt() - r)
                 }),
                 regions: no_regions(),
+                defects: Vec::new(),
             }
         }
         Object::Lines {
@@ -144,6 +149,7 @@ pub fn layout(object: &Object, canvas: Canvas) -> Layout {
                     )
                 }),
                 regions: no_regions(),
+                defects: Vec::new(),
             }
         }
         Object::Curves {
@@ -164,6 +170,7 @@ pub fn layout(object: &Object, canvas: Canvas) -> Layout {
                     shoulder(height_mm, d - size_mm / 2.0)
                 }),
                 regions: no_regions(),
+                defects: Vec::new(),
             }
         }
         Object::Spheres { diameter_mm } => {
@@ -188,6 +195,7 @@ pub fn layout(object: &Object, canvas: Canvas) -> Layout {
                         .fold(0.0, f64::max)
                 }),
                 regions,
+                defects: Vec::new(),
             }
         }
         Object::Fabric { yarn_mm, pitch_mm } => fabric(w, l, yarn_mm, pitch_mm),
@@ -217,6 +225,7 @@ pub fn layout(object: &Object, canvas: Canvas) -> Layout {
                     wire(r * (0.85 + 0.15 * tooth), d)
                 }),
                 regions: no_regions(),
+                defects: Vec::new(),
             }
         }
         Object::Paperclip { wire_mm } => {
@@ -231,9 +240,24 @@ pub fn layout(object: &Object, canvas: Canvas) -> Layout {
                     wire(r, d)
                 }),
                 regions: no_regions(),
+                defects: Vec::new(),
             }
         }
         Object::Primitives { shapes } => primitives(shapes),
+        Object::Textile {
+            fabric,
+            defects,
+            scale,
+        } => {
+            let fabric = *textile::fabric(&fabric).unwrap_or(&textile::FABRICS[0]);
+            let t = Textile::new(fabric, scale, defects, (w, l), seed);
+            let defects = t.defects.clone();
+            Layout {
+                height: Box::new(move |x, y| t.height(x, y)),
+                regions: no_regions(),
+                defects,
+            }
+        }
     }
 }
 
@@ -326,6 +350,7 @@ fn fabric(w: f64, l: f64, yarn: f64, pitch: f64) -> Layout {
     Layout {
         height: Box::new(height),
         regions,
+        defects: Vec::new(),
     }
 }
 
@@ -433,5 +458,6 @@ fn primitives(shapes: Vec<Shape>) -> Layout {
     Layout {
         height: Box::new(height),
         regions,
+        defects: Vec::new(),
     }
 }

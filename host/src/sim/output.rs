@@ -2,7 +2,9 @@
 //! `lights.toml` (RGB scenes: the true light file for `rollfuse depth`) and
 //! `manifest.json`.
 
-use super::render::{Planes, Simulator, Strip};
+use super::render::{FrameDefect, Planes, Simulator, Strip, StripDefect};
+use super::scene::Object;
+use super::textile;
 use crate::files::{Batch, PngLayout, add_png};
 use crate::npy;
 use anyhow::{Context, ensure};
@@ -66,6 +68,35 @@ pub struct Truth {
     pub regions: Vec<(String, String)>,
     /// Up to six frames across the roll, side by side.
     pub contact_sheet_png: String,
+    /// A textile's fabric and defects ([`DefectsTruth`]); absent for other objects.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub defects_json: Option<String>,
+}
+
+/// `truth/defects.json`: what the detector should find.
+#[derive(Debug, Serialize)]
+pub struct DefectsTruth {
+    /// The fabric's name.
+    pub fabric: String,
+    /// Its label: the place in `sim::textile::FABRICS`.
+    pub class: usize,
+    /// Belt position of strip row 0, mm.
+    pub strip_origin_mm: f64,
+    /// Belt mm per pixel.
+    pub mm_per_px: f64,
+    /// The defects, boxes on the canvas (mm) and on the strip (pixels).
+    pub defects: Vec<StripDefect>,
+    /// Each frame's view of them, in frame order.
+    pub frames: Vec<FrameDefects>,
+}
+
+/// The defects one frame shows.
+#[derive(Debug, Serialize)]
+pub struct FrameDefects {
+    /// The frame's file.
+    pub file: String,
+    /// The defects in view.
+    pub defects: Vec<FrameDefect>,
 }
 
 /// Puts up to six evenly spaced frames side by side, 4 px apart on white.
@@ -171,6 +202,7 @@ pub fn write(
     let mut frames = Vec::with_capacity(sim.frames());
     let sheet_every = sim.frames().div_ceil(6).max(1);
     let mut sheet = Vec::new();
+    let mut frame_defects = Vec::new();
     for k in 0..sim.frames() {
         let f = sim.frame(k);
         if k % sheet_every == sheet_every / 2 || sim.frames() == 1 {
@@ -178,6 +210,10 @@ pub fn write(
         }
         let file = format!("frame_{k:04}.png");
         f.image.add_png(&mut batch, &out.join(&file))?;
+        frame_defects.push(FrameDefects {
+            file: file.clone(),
+            defects: sim.defects_in(&f),
+        });
         frames.push(FrameRecord {
             file,
             offset_mm: f.offset_mm,
@@ -190,6 +226,26 @@ pub fn write(
     }
     let strip = sim.strip();
     let regions = add_truth(&mut batch, sim, strip, out)?;
+    let defects_json = match &scene.object {
+        Object::Textile { fabric, .. } => {
+            let truth = DefectsTruth {
+                fabric: fabric.clone(),
+                class: textile::FABRICS
+                    .iter()
+                    .position(|f| f.name == fabric)
+                    .context("unknown fabric")?,
+                strip_origin_mm: strip.origin_mm,
+                mm_per_px: mmpp,
+                defects: strip.defects.clone(),
+                frames: frame_defects,
+            };
+            let file = "truth/defects.json";
+            let json = serde_json::to_string_pretty(&truth)? + "\n";
+            batch.add_bytes(&out.join(file), json.as_bytes())?;
+            Some(file.to_string())
+        }
+        _ => None,
+    };
     contact_sheet(&sheet).add_png(&mut batch, &out.join("contact_sheet.png"))?;
     if scene.has(super::Effect::Rgb) {
         // The lights the frames were rendered with: what `rollfuse depth` needs.
@@ -222,6 +278,7 @@ pub fn write(
             strip_origin_mm: strip.origin_mm,
             regions,
             contact_sheet_png: "contact_sheet.png".into(),
+            defects_json,
         },
         scene_file: toml::Value::try_from(scene).context("cannot record the scene")?,
     };

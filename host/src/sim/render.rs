@@ -3,6 +3,7 @@
 
 use super::object::{Canvas, layout};
 use super::scene::{Effect, Scene};
+use super::textile::DefectKind;
 pub use crate::image::Planes;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, Normal};
@@ -39,6 +40,33 @@ pub struct Strip {
     pub height_mm: Vec<f32>,
     /// Region masks (name, one byte per pixel: 255 inside).
     pub regions: Vec<(String, Vec<u8>)>,
+    /// A textile's defects, boxes in strip pixels (`[x0, y0, x1, y1]`, edges).
+    pub defects: Vec<StripDefect>,
+}
+
+/// A defect on the strip.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct StripDefect {
+    /// Its kind.
+    pub kind: DefectKind,
+    /// Bounding box on the object's canvas, mm.
+    pub box_mm: [f64; 4],
+    /// Bounding box in strip pixels (column and row edges).
+    pub box_px: [f64; 4],
+}
+
+/// A defect as one frame shows it.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct FrameDefect {
+    /// Its place in [`Strip::defects`].
+    pub index: usize,
+    /// Its kind.
+    pub kind: DefectKind,
+    /// Bounding box in the frame's pixels, clipped to the image.
+    pub box_px: [f64; 4],
+    /// Whether its centre lies inside the roller's contact band (a frame shows a defect
+    /// sharply only there).
+    pub in_contact: bool,
 }
 
 /// A scene ready to render: the object rasterized once, frames on demand.
@@ -94,7 +122,7 @@ impl Simulator {
             apex_mm[s.frames - 1] + (s.height_px as f64 - centre) * mmpp + jitter_mm + 2.0 * mmpp;
         let rows = ((end_mm - origin_mm) / mmpp).ceil() as usize + 1;
         let width = s.width_px;
-        let object = layout(&scene.object, canvas);
+        let object = layout(&scene.object, canvas, scene.seed);
         let mut height_mm = vec![0f32; rows * width];
         for r in 0..rows {
             let y = origin_mm + r as f64 * mmpp;
@@ -119,6 +147,19 @@ impl Simulator {
                 (reg.name.clone(), mask)
             })
             .collect();
+        let defects = object
+            .defects
+            .iter()
+            .map(|d| {
+                let [x0, y0, x1, y1] = d.box_mm;
+                let row = |y: f64| (y - origin_mm) / mmpp;
+                StripDefect {
+                    kind: d.kind,
+                    box_mm: d.box_mm,
+                    box_px: [x0 / mmpp, row(y0), x1 / mmpp, row(y1)],
+                }
+            })
+            .collect();
         let top = height_mm.iter().copied().fold(0f32, f32::max) as f64;
         Ok(Self {
             scene: scene.clone(),
@@ -128,6 +169,7 @@ impl Simulator {
                 origin_mm,
                 height_mm,
                 regions,
+                defects,
             },
             apex_mm,
             apex_height_mm: top - s.press_depth_mm,
@@ -153,6 +195,40 @@ impl Simulator {
     pub fn strip_row_of_top(&self, offset_mm: f64) -> f64 {
         let s = &self.scene.sensor;
         (offset_mm - self.strip.origin_mm) / s.mm_per_px - s.height_px as f64 / 2.0
+    }
+
+    /// The strip's defects that `frame` shows, boxes in its pixels. Without `contact` the
+    /// gel is pressed flat and every defect in view is in contact.
+    pub fn defects_in(&self, frame: &Frame) -> Vec<FrameDefect> {
+        let s = &self.scene.sensor;
+        let (w, h) = (s.width_px as f64, s.height_px as f64);
+        let top = self.strip_row_of_top(frame.actual_offset_mm);
+        let half_band = if self.scene.has(Effect::Contact) {
+            (2.0 * s.roller_radius_mm * s.press_depth_mm).sqrt() / s.mm_per_px
+        } else {
+            f64::INFINITY
+        };
+        // The roller's apex is at the image's middle row (see `strip_row_of_top`).
+        let apex = h / 2.0;
+        self.strip
+            .defects
+            .iter()
+            .enumerate()
+            .filter_map(|(index, d)| {
+                let [x0, y0, x1, y1] = d.box_px;
+                let (y0, y1) = (y0 - top, y1 - top);
+                if y1 <= 0.0 || y0 >= h {
+                    return None;
+                }
+                let centre = (y0 + y1) / 2.0;
+                Some(FrameDefect {
+                    index,
+                    kind: d.kind,
+                    box_px: [x0.max(0.0), y0.max(0.0), x1.min(w), y1.min(h)],
+                    in_contact: (centre - apex).abs() < half_band && (0.0..h).contains(&centre),
+                })
+            })
+            .collect()
     }
 
     /// A seeded generator for `stage` of frame `k`: frames and stages draw independently,

@@ -13,6 +13,9 @@ pub const MAX_FRAMES: usize = 10_000;
 /// Largest accepted ground-truth strip (the belt area all frames see), in pixels.
 pub const MAX_STRIP_PIXELS: usize = 1 << 26;
 
+/// Most defects one textile scene places.
+pub const MAX_DEFECTS: usize = 100;
+
 /// A complete scene.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -173,6 +176,19 @@ pub enum Object {
         #[serde(default = "wire_mm")]
         wire_mm: f64,
     },
+    /// One fabric of the detector's 17 classes (`docs/simulator.md`, Textiles) with
+    /// `defects` holes, snags and slubs placed at random from the scene's seed; their
+    /// boxes are written to `truth/defects.json`.
+    Textile {
+        /// The fabric's name, one of `rollfuse::sim::textile::FABRICS`.
+        fabric: String,
+        /// How many defects to place.
+        #[serde(default = "three")]
+        defects: usize,
+        /// Yarn size and spacing as a multiple of the fabric's own.
+        #[serde(default = "unit")]
+        scale: f64,
+    },
     /// Height-map primitives placed by hand, in belt millimetres (x across the belt from
     /// the image's left edge, y along the belt on the object's canvas; see
     /// `docs/simulator.md`, Coordinates).
@@ -227,6 +243,12 @@ fn half_mm() -> f64 {
 }
 fn four_mm() -> f64 {
     4.0
+}
+fn three() -> usize {
+    3
+}
+fn unit() -> f64 {
+    1.0
 }
 fn yarn_mm() -> f64 {
     0.3
@@ -540,6 +562,25 @@ impl Scene {
                 at_least_a_pixel("object.pitch_mm", *pitch_mm, self.sensor.mm_per_px)?;
             }
             Object::Paperclip { wire_mm } => positive("object.wire_mm", *wire_mm)?,
+            Object::Textile {
+                fabric,
+                defects,
+                scale,
+            } => {
+                if super::textile::fabric(fabric).is_none() {
+                    let names: Vec<&str> = super::textile::FABRICS.iter().map(|f| f.name).collect();
+                    bail!(
+                        "object.fabric must be one of {}, got {fabric:?}",
+                        names.join(", ")
+                    );
+                }
+                if *defects > MAX_DEFECTS {
+                    bail!("object.defects must be at most {MAX_DEFECTS}, got {defects}");
+                }
+                if !(0.5..=2.0).contains(scale) {
+                    bail!("object.scale must be in 0.5..=2, got {scale}");
+                }
+            }
             Object::Primitives { shapes } => {
                 if shapes.is_empty() {
                     bail!("object.shapes must list at least one shape");

@@ -1,0 +1,271 @@
+//! `rollfuse train` and `rollfuse detect`: the fabric defect detector's model, and the
+//! detector run on images (frames, fused images, strips).
+
+use crate::detect::train::{Progress, TrainOptions, train};
+use crate::detect::{Detection, Detector, model};
+use crate::files::{Batch, PngLayout, add_png};
+use crate::image::Planes;
+use crate::sim::textile::DefectKind;
+use anyhow::Context;
+use indicatif::ProgressBar;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `rollfuse train`.
+#[derive(Debug, clap::Args)]
+pub struct TrainArgs {
+    /// Where to write the model (safetensors).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Optimizer steps.
+    #[arg(long, default_value_t = TrainOptions::default().steps)]
+    pub steps: usize,
+    /// Simulated training rolls (fabric = seed mod 17, so 17 or a multiple covers every class).
+    #[arg(long, default_value_t = TrainOptions::default().rolls)]
+    pub rolls: usize,
+    /// Simulated validation rolls.
+    #[arg(long, default_value_t = TrainOptions::default().validation_rolls)]
+    pub validation_rolls: usize,
+    /// Crops a step.
+    #[arg(long, default_value_t = TrainOptions::default().batch)]
+    pub batch: usize,
+    /// Seed of the initial weights and the crops.
+    #[arg(long, default_value_t = TrainOptions::default().seed)]
+    pub seed: u64,
+}
+
+/// Progress bars for the simulation and the steps.
+struct Bars {
+    rolls: Option<ProgressBar>,
+    steps: Option<ProgressBar>,
+}
+
+impl Progress for Bars {
+    fn rolls(&mut self, done: usize, total: usize) {
+        let bar = self.rolls.get_or_insert_with(|| {
+            super::simulate::progress(total, "rolls", "simulating and fusing".into())
+        });
+        bar.set_position(done as u64);
+        if done == total {
+            bar.finish();
+        }
+    }
+
+    fn step(&mut self, step: usize, total: usize, loss: f32) {
+        let bar = self
+            .steps
+            .get_or_insert_with(|| super::simulate::progress(total, "steps", "training".into()));
+        bar.set_position(step as u64);
+        bar.set_message(format!("training, loss {loss:.3}"));
+        if step == total {
+            bar.finish();
+        }
+    }
+}
+
+/// Runs `rollfuse train`.
+pub fn train_run(args: TrainArgs) -> anyhow::Result<()> {
+    super::check_writable(&args.out)?;
+    anyhow::ensure!(
+        args.out.extension().is_some_and(|e| e == "safetensors"),
+        "{}: models are written as safetensors; name the file .safetensors",
+        args.out.display()
+    );
+    let opts = TrainOptions {
+        steps: args.steps,
+        rolls: args.rolls,
+        validation_rolls: args.validation_rolls,
+        batch: args.batch,
+        seed: args.seed,
+        ..TrainOptions::default()
+    };
+    let made_by = format!(
+        "rollfuse train --steps {} --rolls {} --validation-rolls {} --batch {} --seed {}",
+        args.steps, args.rolls, args.validation_rolls, args.batch, args.seed
+    );
+    let started = std::time::Instant::now();
+    let mut bars = Bars {
+        rolls: None,
+        steps: None,
+    };
+    let (net, about, report) = train(&opts, &made_by, &mut bars)?;
+    model::save(&args.out, &net, &about)?;
+    let l = &report.losses;
+    let mean = |s: &[f32]| s.iter().sum::<f32>() / s.len().max(1) as f32;
+    let tail = l.len().min(50);
+    println!(
+        "trained {} steps in {:.0} s: loss {:.3} → {:.3}; validation fabric accuracy {:.3} on fused tiles, {:.3} on frames → {}",
+        l.len(),
+        started.elapsed().as_secs_f64(),
+        mean(&l[..tail]),
+        mean(&l[l.len() - tail..]),
+        report.validation_fused_accuracy,
+        report.validation_frame_accuracy,
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// Arguments of `rollfuse detect`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Gray images: frames, fused images or strip segments.
+    #[arg(required = true)]
+    pub images: Vec<PathBuf>,
+    /// A model file (else the built-in model).
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Write every image's results to this JSON file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write each image with its boxes drawn to DIR/STEM_detect.png.
+    #[arg(long)]
+    pub draw: Option<PathBuf>,
+    /// Heatmap score a detection needs, 0..1.
+    #[arg(long, default_value_t = crate::detect::DEFAULT_THRESHOLD)]
+    pub threshold: f32,
+}
+
+/// One image's results in the JSON file.
+#[derive(serde::Serialize)]
+struct ImageResult<'a> {
+    image: String,
+    #[serde(flatten)]
+    detection: &'a Detection,
+}
+
+/// Runs `rollfuse detect`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        (0.0..=1.0).contains(&args.threshold),
+        "--threshold must be in 0..=1, got {}",
+        args.threshold
+    );
+    let drawn: Vec<PathBuf> = match &args.draw {
+        Some(dir) => args
+            .images
+            .iter()
+            .map(|i| drawn_path(dir, i))
+            .collect::<anyhow::Result<_>>()?,
+        None => Vec::new(),
+    };
+    let mut outputs: Vec<&Path> = drawn.iter().map(PathBuf::as_path).collect();
+    outputs.extend(args.json.as_deref());
+    let mut inputs: Vec<(&str, &Path)> = args
+        .images
+        .iter()
+        .map(|i| ("input image", i.as_path()))
+        .collect();
+    inputs.extend(args.model.as_deref().map(|m| ("model", m)));
+    crate::files::refuse_overwriting(&outputs, &inputs)?;
+    if let Some(dir) = &args.draw {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    let mut detector = match &args.model {
+        Some(m) => Detector::load(m)?,
+        None => Detector::built_in()?,
+    };
+    detector.threshold = args.threshold;
+    let mut batch = Batch::new();
+    let mut results = Vec::new();
+    for (k, path) in args.images.iter().enumerate() {
+        let image = Planes::load(path)?;
+        let d = detector
+            .detect(&image)
+            .with_context(|| format!("{}", path.display()))?;
+        println!("{}", summary(path, &d));
+        if let Some(out) = drawn.get(k) {
+            let (w, h, rgb) = draw(&image, &d.defects);
+            add_png(&mut batch, out, &rgb, (w, h), PngLayout::Rgb8)?;
+        }
+        results.push((path.display().to_string(), d));
+    }
+    if let Some(json) = &args.json {
+        let list: Vec<ImageResult> = results
+            .iter()
+            .map(|(image, detection)| ImageResult {
+                image: image.clone(),
+                detection,
+            })
+            .collect();
+        batch.add_bytes(
+            json,
+            (serde_json::to_string_pretty(&list)? + "\n").as_bytes(),
+        )?;
+    }
+    batch.commit()
+}
+
+/// `DIR/STEM_detect.png` for an input image.
+fn drawn_path(dir: &Path, image: &Path) -> anyhow::Result<PathBuf> {
+    let stem = image
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .with_context(|| format!("{} has no file name", image.display()))?;
+    Ok(dir.join(format!("{stem}_detect.png")))
+}
+
+/// One line of what was found.
+fn summary(path: &Path, d: &Detection) -> String {
+    let defects: Vec<String> = d
+        .defects
+        .iter()
+        .map(|f| {
+            let b = f.box_px.map(|v| v.round() as i64);
+            format!(
+                "{} {:.2} at ({}, {})–({}, {})",
+                f.kind.name(),
+                f.score,
+                b[0],
+                b[1],
+                b[2],
+                b[3]
+            )
+        })
+        .collect();
+    format!(
+        "{}: {} (p {:.2}); {} defect{}{}{}",
+        path.display(),
+        d.fabric,
+        d.probability,
+        d.defects.len(),
+        if d.defects.len() == 1 { "" } else { "s" },
+        if defects.is_empty() { "" } else { ": " },
+        defects.join(", ")
+    )
+}
+
+/// The colour a defect kind is drawn in.
+pub fn kind_colour(kind: DefectKind) -> [u8; 3] {
+    match kind {
+        DefectKind::Hole => [230, 40, 40],
+        DefectKind::Snag => [40, 200, 60],
+        DefectKind::Slub => [50, 110, 255],
+    }
+}
+
+/// A gray image as RGB with each box outlined 2 px wide in its kind's colour.
+pub fn draw(image: &Planes, found: &[crate::detect::Found]) -> (usize, usize, Vec<u8>) {
+    let (w, h) = (image.width, image.height);
+    let mut rgb: Vec<u8> = image.to_u8().iter().flat_map(|&g| [g, g, g]).collect();
+    for f in found {
+        let c = kind_colour(f.kind);
+        let [x0, y0, x1, y1] = f.box_px.map(|v| v.round() as i64);
+        let mut put = |x: i64, y: i64| {
+            if (0..w as i64).contains(&x) && (0..h as i64).contains(&y) {
+                let at = 3 * (y as usize * w + x as usize);
+                rgb[at..at + 3].copy_from_slice(&c);
+            }
+        };
+        for t in 0..2 {
+            for x in x0..=x1 {
+                put(x, y0 + t);
+                put(x, y1 - t);
+            }
+            for y in y0..=y1 {
+                put(x0 + t, y);
+                put(x1 - t, y);
+            }
+        }
+    }
+    (w, h, rgb)
+}

@@ -1,0 +1,231 @@
+//! Fabric defect detection and classification (the paper's §IV.B): a CenterNet-style
+//! detector for holes, snags and slubs with a fabric classifier beside it, trained on the
+//! simulator's textiles. `docs/detect.md` has the network, the data, the measured figures
+//! and why it is built on candle.
+//!
+//! - [`targets`]: boxes to heatmaps and back, matching against the truth (plain Rust).
+//! - [`net`]: the network.
+//! - [`model`]: the model file.
+//! - [`data`]: training and evaluation images from simulated rolls.
+//! - [`train`]: the training loop.
+
+pub mod data;
+pub mod model;
+pub mod net;
+pub mod targets;
+pub mod train;
+
+use crate::image::Planes;
+use anyhow::{Context, ensure};
+use burn::tensor::{Device, Tensor, TensorData, activation};
+use serde::Serialize;
+use std::path::Path;
+pub use targets::Found;
+
+/// Smallest image side the detector takes, pixels.
+pub const MIN_SIDE: usize = 32;
+/// Rows run through the network at once; longer images (strips) go in overlapping tiles.
+pub const TILE_ROWS: usize = 480;
+/// Rows tiles overlap by: a defect is reported by the tile whose own part holds its centre.
+pub const TILE_OVERLAP: usize = 64;
+/// Heatmap score a detection needs.
+pub const DEFAULT_THRESHOLD: f32 = 0.3;
+/// Most detections reported per tile.
+const MAX_PER_TILE: usize = 100;
+
+/// What the detector finds in one image.
+#[derive(Debug, Clone, Serialize)]
+pub struct Detection {
+    /// The most probable fabric.
+    pub fabric: String,
+    /// Its probability.
+    pub probability: f32,
+    /// Every class's probability, in the model's label order.
+    pub probabilities: Vec<f32>,
+    /// Defects, best first.
+    pub defects: Vec<Found>,
+}
+
+/// A loaded detector.
+pub struct Detector {
+    net: net::Net,
+    about: model::About,
+    /// Heatmap score a detection needs.
+    pub threshold: f32,
+}
+
+impl Detector {
+    /// Loads a model file (see [`model`]).
+    pub fn load(path: &Path) -> anyhow::Result<Self> {
+        let (net, about) = model::load(path)?;
+        Ok(Self {
+            net,
+            about,
+            threshold: DEFAULT_THRESHOLD,
+        })
+    }
+
+    /// The model built into the tool.
+    pub fn built_in() -> anyhow::Result<Self> {
+        let (net, about) = model::built_in()?;
+        Ok(Self::from_net(net, about))
+    }
+
+    /// Wraps a network already in memory (training's validation).
+    pub fn from_net(net: net::Net, about: model::About) -> Self {
+        Self {
+            net,
+            about,
+            threshold: DEFAULT_THRESHOLD,
+        }
+    }
+
+    /// What the model file says about itself.
+    pub fn about(&self) -> &model::About {
+        &self.about
+    }
+
+    /// Detects defects and classifies the fabric in a gray image of any length: images
+    /// longer than [`TILE_ROWS`] are run in overlapping tiles, the fabric's probabilities
+    /// averaged over them by rows.
+    pub fn detect(&self, image: &Planes) -> anyhow::Result<Detection> {
+        ensure!(
+            image.planes.len() == 1,
+            "the detector takes gray images, this one has {} channels",
+            image.planes.len()
+        );
+        let (w, h) = (image.width, image.height);
+        ensure!(
+            w >= MIN_SIDE && h >= MIN_SIDE,
+            "the image is {w}×{h}, smaller than the detector's {MIN_SIDE}×{MIN_SIDE}"
+        );
+        let classes = self.about.fabrics.len();
+        let mut mean = vec![0f32; classes];
+        let mut defects = Vec::new();
+        for (top, own) in tiles(h) {
+            let rows = (h - top).min(TILE_ROWS);
+            let tile = &image.planes[0][top * w..(top + rows) * w];
+            let (probs, found) = self.run(tile, w, rows)?;
+            for (m, p) in mean.iter_mut().zip(&probs) {
+                *m += p * (own.end - own.start) as f32 / h as f32;
+            }
+            defects.extend(found.into_iter().filter_map(|mut f| {
+                let centre = (f.box_px[1] + f.box_px[3]) / 2.0 + top as f32;
+                f.box_px[1] += top as f32;
+                f.box_px[3] += top as f32;
+                own.contains(&(centre.max(0.0) as usize)).then_some(f)
+            }));
+        }
+        defects.sort_by(|a, b| b.score.total_cmp(&a.score));
+        let (class, probability) = mean
+            .iter()
+            .copied()
+            .enumerate()
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .context("the model has no classes")?;
+        Ok(Detection {
+            fabric: self.about.fabrics[class].clone(),
+            probability,
+            probabilities: mean,
+            defects,
+        })
+    }
+
+    /// One tile through the network: class probabilities and decoded boxes.
+    fn run(&self, pixels: &[f32], w: usize, h: usize) -> anyhow::Result<(Vec<f32>, Vec<Found>)> {
+        let data = TensorData::new(normalized(pixels), [1, 1, h, w]);
+        let x = Tensor::<4>::from_data(data, &Device::flex());
+        let raw = self.net.forward(x);
+        let probs = floats(activation::softmax(raw.fabric, 1))?;
+        let heat = floats(activation::sigmoid(raw.heat))?;
+        let size = floats(raw.size)?;
+        let offset = floats(raw.offset)?;
+        let out = targets::Outputs {
+            cells: targets::cells(w, h),
+            heat: &heat,
+            size: &size,
+            offset: &offset,
+        };
+        Ok((probs, targets::decode(&out, self.threshold, MAX_PER_TILE)))
+    }
+}
+
+/// A tensor's values, row-major.
+pub fn floats<const N: usize>(t: Tensor<N>) -> anyhow::Result<Vec<f32>> {
+    t.into_data()
+        .try_to_vec::<f32>()
+        .map_err(|e| anyhow::anyhow!("cannot read the network's output: {e:?}"))
+}
+
+/// Tiles of an image `h` rows long: each tile's first row and the rows it answers for
+/// (its own part; together they cover `0..h` once).
+pub fn tiles(h: usize) -> Vec<(usize, std::ops::Range<usize>)> {
+    if h <= TILE_ROWS {
+        return vec![(0, 0..h)];
+    }
+    let step = TILE_ROWS - TILE_OVERLAP;
+    let mut tops: Vec<usize> = (0..)
+        .map(|k| k * step)
+        .take_while(|&t| t + TILE_ROWS < h)
+        .collect();
+    tops.push(h - TILE_ROWS);
+    // Neighbours hand over in the middle of their overlap.
+    let cuts: Vec<usize> = std::iter::once(0)
+        .chain(tops.windows(2).map(|p| (p[0] + TILE_ROWS + p[1]) / 2))
+        .chain(std::iter::once(h))
+        .collect();
+    tops.iter()
+        .zip(cuts.windows(2))
+        .map(|(&top, c)| (top, c[0]..c[1]))
+        .collect()
+}
+
+/// An image standardized to zero mean and unit spread (the spread at least 1 gray level):
+/// lighting and gain differ between frames and fused strips; texture is what counts.
+pub fn normalized(pixels: &[f32]) -> Vec<f32> {
+    let n = pixels.len().max(1) as f64;
+    let mean = pixels.iter().map(|&p| f64::from(p)).sum::<f64>() / n;
+    let var = pixels
+        .iter()
+        .map(|&p| (f64::from(p) - mean).powi(2))
+        .sum::<f64>()
+        / n;
+    let scale = 1.0 / var.sqrt().max(1.0);
+    pixels
+        .iter()
+        .map(|&p| ((f64::from(p) - mean) * scale) as f32)
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tiles_cover_every_row_once() {
+        for h in [32, 480, 481, 500, 900, 1000, 4321] {
+            let t = tiles(h);
+            let mut next = 0;
+            for (top, own) in &t {
+                assert_eq!(own.start, next, "h {h}: {t:?}");
+                assert!(
+                    *top <= own.start && own.end <= top + TILE_ROWS.min(h),
+                    "{h}: {t:?}"
+                );
+                assert!(top + TILE_ROWS.min(h) <= h);
+                next = own.end;
+            }
+            assert_eq!(next, h, "{t:?}");
+        }
+    }
+
+    #[test]
+    fn normalized_has_zero_mean_unit_spread() {
+        let v: Vec<f32> = (0..100).map(|k| (k % 7) as f32 * 10.0 + 50.0).collect();
+        let n = normalized(&v);
+        let mean: f32 = n.iter().sum::<f32>() / 100.0;
+        let var: f32 = n.iter().map(|x| (x - mean).powi(2)).sum::<f32>() / 100.0;
+        assert!(mean.abs() < 1e-5 && (var - 1.0).abs() < 1e-4);
+        assert!(normalized(&[5.0; 10]).iter().all(|&x| x == 0.0));
+    }
+}

@@ -1,0 +1,364 @@
+//! Training: simulated rolls (frames and fused tiles), random crops, CenterNet's losses
+//! plus cross-entropy for the fabric, AdamW with a cosine-decaying rate, on the CPU.
+//!
+//! Seeds: training rolls are `TRAIN_SEEDS + k`, validation rolls `VALIDATION_SEEDS + k`;
+//! `rollfuse eval --detect` measures on seeds below [`TRAIN_SEEDS`], which training never
+//! touches.
+
+use super::data::{Roll, RollShape, Sample, Source, roll};
+use super::model::About;
+use super::net::{Net, Widths};
+use super::targets::{KINDS, Labelled, Targets, encode};
+use super::{floats, normalized};
+use crate::sim::textile::FABRICS;
+use anyhow::ensure;
+use burn::module::Module;
+use burn::nn::loss::CrossEntropyLossConfig;
+use burn::optim::{AdamWConfig, GradientsParams};
+use burn::tensor::{Device, Int, Tensor, TensorData, activation::log_sigmoid, activation::sigmoid};
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+use rayon::prelude::*;
+
+/// First seed of the training rolls.
+pub const TRAIN_SEEDS: u64 = 1_000_000;
+/// First seed of the validation rolls.
+pub const VALIDATION_SEEDS: u64 = 2_000_000;
+
+/// How to train.
+#[derive(Debug, Clone)]
+pub struct TrainOptions {
+    /// Training rolls.
+    pub rolls: usize,
+    /// Validation rolls.
+    pub validation_rolls: usize,
+    /// Optimizer steps.
+    pub steps: usize,
+    /// Crops a step.
+    pub batch: usize,
+    /// Crop side, pixels (a multiple of 8).
+    pub crop: usize,
+    /// Peak learning rate.
+    pub rate: f64,
+    /// Seed of the initial weights and the crops.
+    pub seed: u64,
+    /// The network's widths.
+    pub widths: Widths,
+    /// The rolls' shape.
+    pub shape: RollShape,
+}
+
+impl Default for TrainOptions {
+    /// The shipped model's recipe.
+    fn default() -> Self {
+        Self {
+            rolls: 68,
+            validation_rolls: 17,
+            steps: 2500,
+            batch: 16,
+            crop: 160,
+            rate: 2e-3,
+            seed: 1,
+            widths: Widths::SHIPPED,
+            shape: RollShape::STANDARD,
+        }
+    }
+}
+
+/// What training measured.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct TrainReport {
+    /// Loss of each step.
+    pub losses: Vec<f32>,
+    /// Fabric accuracy on the validation rolls' fused tiles.
+    pub validation_fused_accuracy: f64,
+    /// Fabric accuracy on the validation rolls' frames.
+    pub validation_frame_accuracy: f64,
+}
+
+/// Progress callbacks.
+pub trait Progress {
+    /// `done` of `total` rolls simulated.
+    fn rolls(&mut self, done: usize, total: usize);
+    /// Step `step` of `total` done with `loss`.
+    fn step(&mut self, step: usize, total: usize, loss: f32);
+}
+
+/// Simulates `count` rolls from `first_seed` in parallel.
+pub fn rolls(
+    first_seed: u64,
+    count: usize,
+    shape: &RollShape,
+    mut done: impl FnMut(usize),
+) -> anyhow::Result<Vec<Roll>> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    let made = std::thread::scope(|s| {
+        let worker = s.spawn(move || {
+            (0..count as u64)
+                .into_par_iter()
+                .map(|k| {
+                    let r = roll(first_seed + k, shape);
+                    let _ = tx.send(());
+                    r
+                })
+                .collect::<anyhow::Result<Vec<_>>>()
+        });
+        for n in 1..=count {
+            if rx.recv().is_err() {
+                break;
+            }
+            done(n);
+        }
+        worker.join()
+    });
+    made.map_err(|_| anyhow::anyhow!("a simulation thread panicked"))?
+}
+
+/// Trains a network; returns it with its model description and what was measured.
+pub fn train(
+    opts: &TrainOptions,
+    made_by: &str,
+    progress: &mut dyn Progress,
+) -> anyhow::Result<(Net, About, TrainReport)> {
+    ensure!(
+        opts.crop >= 32 && opts.crop.is_multiple_of(8),
+        "the crop side must be a multiple of 8, at least 32"
+    );
+    ensure!(
+        opts.rolls > 0 && opts.batch > 0,
+        "training needs at least one roll and one crop a step"
+    );
+    let (w, h) = opts.shape.size;
+    ensure!(
+        opts.crop <= w.min(h),
+        "the crop ({}) is larger than the frames ({w}×{h})",
+        opts.crop
+    );
+    let total = opts.rolls + opts.validation_rolls;
+    let train_rolls = rolls(TRAIN_SEEDS, opts.rolls, &opts.shape, |n| {
+        progress.rolls(n, total)
+    })?;
+    let validation = rolls(VALIDATION_SEEDS, opts.validation_rolls, &opts.shape, |n| {
+        progress.rolls(opts.rolls + n, total)
+    })?;
+    let frames: Vec<&Sample> = train_rolls.iter().flat_map(|r| &r.frames).collect();
+    let fused: Vec<&Sample> = train_rolls.iter().flat_map(|r| &r.fused).collect();
+    ensure!(!fused.is_empty(), "the training rolls fused to no tiles");
+
+    let device = Device::flex().autodiff();
+    device.seed(opts.seed);
+    let mut net = Net::new(opts.widths, FABRICS.len(), &device);
+    let mut optim = AdamWConfig::new().init();
+    let mut rng = Pcg64Mcg::seed_from_u64(opts.seed);
+    let mut losses = Vec::with_capacity(opts.steps);
+    for step in 0..opts.steps {
+        let crops: Vec<Crop> = (0..opts.batch)
+            .map(|_| {
+                // Half the crops from fused tiles, half from frames.
+                let pool = if rng.random_bool(0.5) {
+                    &fused
+                } else {
+                    &frames
+                };
+                crop(pool[rng.random_range(0..pool.len())], opts.crop, &mut rng)
+            })
+            .collect();
+        let batch = Batch::new(&crops, &device);
+        let loss = losses_of(&net, &batch);
+        losses.push(floats(loss.clone())?.first().copied().unwrap_or(f32::NAN));
+        let grads = GradientsParams::from_grads(loss.backward(), &net);
+        let t = step as f64 / opts.steps.max(1) as f64;
+        let rate = 1e-5 + (opts.rate - 1e-5) * (1.0 + (std::f64::consts::PI * t).cos()) / 2.0;
+        net = optim.step(rate, net, grads);
+        progress.step(step + 1, opts.steps, losses[step]);
+    }
+    let about = About {
+        widths: opts.widths,
+        fabrics: FABRICS.iter().map(|f| f.name.to_string()).collect(),
+        made_by: made_by.to_string(),
+    };
+    let net = net.valid();
+    let detector = super::Detector::from_net(net.clone(), about.clone());
+    let accuracy = |source: Source| -> anyhow::Result<f64> {
+        let samples: Vec<&Sample> = validation
+            .iter()
+            .flat_map(|r| r.frames.iter().chain(&r.fused))
+            .filter(|s| s.source == source)
+            .collect();
+        let mut right = 0;
+        for s in &samples {
+            let d = detector.detect(&s.image)?;
+            right += usize::from(d.fabric == FABRICS[s.class].name);
+        }
+        Ok(right as f64 / samples.len().max(1) as f64)
+    };
+    let report = TrainReport {
+        validation_fused_accuracy: accuracy(Source::Fused)?,
+        validation_frame_accuracy: accuracy(Source::Frame)?,
+        losses,
+    };
+    Ok((net, about, report))
+}
+
+/// A training crop: normalized pixels, targets and the fabric's label.
+pub struct Crop {
+    pixels: Vec<f32>,
+    side: usize,
+    targets: Targets,
+    class: usize,
+}
+
+/// A random `side × side` crop of `s`; half the time placed to hold one of its defects.
+pub fn crop(s: &Sample, side: usize, rng: &mut Pcg64Mcg) -> Crop {
+    let (w, h) = (s.image.width, s.image.height);
+    let mut x0 = rng.random_range(0..=w - side);
+    let mut y0 = rng.random_range(0..=h - side);
+    if !s.boxes.is_empty() && rng.random_bool(0.5) {
+        let b = s.boxes[rng.random_range(0..s.boxes.len())].box_px;
+        let (cx, cy) = (
+            ((b[0] + b[2]) / 2.0) as usize,
+            ((b[1] + b[3]) / 2.0) as usize,
+        );
+        let around = |c: usize, limit: usize| {
+            let lo = c.saturating_sub(side - 8).min(limit - side);
+            let hi = c.saturating_sub(8).min(limit - side).max(lo);
+            (lo, hi)
+        };
+        let (lx, hx) = around(cx, w);
+        let (ly, hy) = around(cy, h);
+        x0 = rng.random_range(lx..=hx);
+        y0 = rng.random_range(ly..=hy);
+    }
+    let shift = |boxes: &[Labelled]| -> Vec<Labelled> {
+        boxes
+            .iter()
+            .map(|l| {
+                let [a, b, c, d] = l.box_px;
+                let (x, y) = (x0 as f32, y0 as f32);
+                Labelled {
+                    kind: l.kind,
+                    box_px: [a - x, b - y, c - x, d - y],
+                }
+            })
+            .collect()
+    };
+    let pixels: Vec<f32> = (y0..y0 + side)
+        .flat_map(|y| {
+            s.image.planes[0][y * w + x0..y * w + x0 + side]
+                .iter()
+                .copied()
+        })
+        .collect();
+    Crop {
+        pixels: normalized(&pixels),
+        side,
+        targets: encode(&shift(&s.boxes), &shift(&s.blurred), side, side),
+        class: s.class,
+    }
+}
+
+/// A batch as tensors.
+struct Batch {
+    images: Tensor<4>,
+    heat: Tensor<4>,
+    size: Tensor<4>,
+    offset: Tensor<4>,
+    mask: Tensor<4>,
+    counted: Tensor<4>,
+    classes: Tensor<1, Int>,
+}
+
+impl Batch {
+    fn new(crops: &[Crop], device: &Device) -> Self {
+        let b = crops.len();
+        let side = crops[0].side;
+        let (gw, gh) = crops[0].targets.cells;
+        let stack = |f: &dyn Fn(&Crop) -> &[f32], c: usize, hw: (usize, usize)| {
+            let v: Vec<f32> = crops.iter().flat_map(|k| f(k).iter().copied()).collect();
+            Tensor::<4>::from_data(TensorData::new(v, [b, c, hw.1, hw.0]), device)
+        };
+        let cells = (gw, gh);
+        Self {
+            images: stack(&|k| &k.pixels, 1, (side, side)),
+            heat: stack(&|k| &k.targets.heat, KINDS, cells),
+            size: stack(&|k| &k.targets.size, 2, cells),
+            offset: stack(&|k| &k.targets.offset, 2, cells),
+            mask: stack(&|k| &k.targets.mask, 1, cells),
+            counted: stack(&|k| &k.targets.counted, 1, cells),
+            classes: Tensor::<1, Int>::from_data(
+                TensorData::new(crops.iter().map(|k| k.class as i64).collect(), [b]),
+                device,
+            ),
+        }
+    }
+}
+
+/// The training loss of a batch: CenterNet's focal loss on the heatmap (negatives near a
+/// blurred defect not counted), L1 on sizes (weighted 0.1) and offsets at the centres,
+/// and cross-entropy on the fabric.
+fn losses_of(net: &Net, batch: &Batch) -> Tensor<1> {
+    let raw = net.forward(batch.images.clone());
+    let positives = batch.mask.clone().sum().clamp_min(1.0);
+    let is_peak = batch.heat.clone().equal_elem(1.0).float();
+    // log p and log (1 - p) straight from the logits: no log of 0 however sure the net is.
+    let log_p = log_sigmoid(raw.heat.clone());
+    let log_not_p = log_sigmoid(raw.heat.clone().neg());
+    let p = sigmoid(raw.heat);
+    let not_p = p.clone().neg().add_scalar(1.0);
+    let pos = (log_p * not_p.powi_scalar(2) * is_peak.clone()).sum();
+    let far = batch.heat.clone().neg().add_scalar(1.0).powi_scalar(4);
+    let neg = (log_not_p
+        * p.powi_scalar(2)
+        * far
+        * is_peak.neg().add_scalar(1.0)
+        * batch.counted.clone())
+    .sum();
+    let heat = (pos + neg).neg() / positives.clone();
+    let l1 = |out: Tensor<4>, want: Tensor<4>| {
+        ((out - want).abs() * batch.mask.clone()).sum() / positives.clone()
+    };
+    let size = l1(raw.size, batch.size.clone()).mul_scalar(0.1);
+    let offset = l1(raw.offset, batch.offset.clone());
+    let fabric = CrossEntropyLossConfig::new()
+        .init(&raw.fabric.device())
+        .forward(raw.fabric, batch.classes.clone());
+    heat + size + offset + fabric
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    struct Quiet;
+    impl Progress for Quiet {
+        fn rolls(&mut self, _: usize, _: usize) {}
+        fn step(&mut self, _: usize, _: usize, _: f32) {}
+    }
+
+    #[test]
+    fn a_tiny_network_learns_tiny_rolls() {
+        let opts = TrainOptions {
+            rolls: 2,
+            validation_rolls: 1,
+            steps: 40,
+            batch: 4,
+            crop: 48,
+            rate: 3e-3,
+            seed: 3,
+            widths: Widths([4, 8, 8, 8]),
+            shape: RollShape {
+                frames: 6,
+                spacing_mm: 0.6,
+                size: (64, 64),
+                defects: 1,
+            },
+        };
+        let (_, about, report) = train(&opts, "test", &mut Quiet).unwrap();
+        assert_eq!(about.fabrics.len(), 17);
+        let l = &report.losses;
+        assert!(l.iter().all(|v| v.is_finite()), "{l:?}");
+        let first: f32 = l[..5].iter().sum::<f32>() / 5.0;
+        let last: f32 = l[l.len() - 5..].iter().sum::<f32>() / 5.0;
+        assert!(last < 0.7 * first, "loss {first} → {last}");
+    }
+}

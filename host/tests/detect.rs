@@ -1,0 +1,240 @@
+//! The defect detector from the command line and the library: the model file's round
+//! trip, the outputs of `rollfuse detect`, and one clear line for each kind of bad input
+//! (missing, corrupt or mismatched model; wrong channels; too small).
+
+use burn::tensor::Device;
+use rollfuse::detect::model::{About, save};
+use rollfuse::detect::net::{Net, Widths};
+use rollfuse::detect::{Detector, data};
+use rollfuse::image::Planes;
+use std::path::Path;
+mod common;
+
+use common::{fails, rollfuse};
+
+const TINY: Widths = Widths([4, 8, 8, 8]);
+
+fn about(widths: Widths) -> About {
+    About {
+        widths,
+        fabrics: rollfuse::sim::textile::FABRICS
+            .iter()
+            .map(|f| f.name.to_string())
+            .collect(),
+        made_by: "test".into(),
+    }
+}
+
+/// An untrained tiny model written to `path`; its about says `says`.
+fn tiny_model(path: &Path, says: Widths) {
+    let net = Net::new(TINY, 17, &Device::flex());
+    save(path, &net, &about(says)).unwrap();
+}
+
+/// A 320×240 frame of a simulated textile roll, saved as PNG.
+fn frame(dir: &Path) -> std::path::PathBuf {
+    let shape = data::RollShape {
+        frames: 3,
+        ..data::RollShape::STANDARD
+    };
+    let roll = data::roll(7, &shape).unwrap();
+    let path = dir.join("frame.png");
+    roll.frames[1].image.save_png(&path).unwrap();
+    path
+}
+
+#[test]
+fn a_saved_model_loads_and_detects_the_same() {
+    let tmp = tempfile::tempdir().unwrap();
+    let model = tmp.path().join("m.safetensors");
+    tiny_model(&model, TINY);
+    let img = Planes::load(&frame(tmp.path())).unwrap();
+    let a = Detector::load(&model).unwrap().detect(&img).unwrap();
+    let b = Detector::load(&model).unwrap().detect(&img).unwrap();
+    assert_eq!(a.probabilities, b.probabilities);
+    assert_eq!(a.probabilities.len(), 17);
+    let sum: f32 = a.probabilities.iter().sum();
+    assert!((sum - 1.0).abs() < 1e-4, "{sum}");
+    assert_eq!(Detector::load(&model).unwrap().about().widths, TINY);
+}
+
+#[test]
+fn detect_writes_json_and_drawings_and_keeps_its_inputs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let model = tmp.path().join("m.safetensors");
+    tiny_model(&model, TINY);
+    let img = frame(tmp.path());
+    let (m, i) = (model.to_str().unwrap(), img.to_str().unwrap());
+    let json = tmp.path().join("out.json");
+    let draw = tmp.path().join("drawn");
+    let out = rollfuse(&[
+        "detect",
+        i,
+        "--model",
+        m,
+        "--json",
+        json.to_str().unwrap(),
+        "--draw",
+        draw.to_str().unwrap(),
+        "--threshold",
+        "0.05",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    assert_eq!(v[0]["image"], i);
+    assert_eq!(v[0]["probabilities"].as_array().unwrap().len(), 17);
+    assert!(v[0]["defects"].is_array());
+    let drawn = Planes::load(&draw.join("frame_detect.png")).unwrap();
+    assert_eq!(
+        (drawn.width, drawn.height, drawn.planes.len()),
+        (320, 240, 3)
+    );
+    // The JSON may not be written over the image it reads.
+    fails(&["detect", i, "--model", m, "--json", i], "input image");
+}
+
+#[test]
+fn bad_models_are_one_clear_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let img = frame(tmp.path());
+    let i = img.to_str().unwrap();
+    let missing = tmp.path().join("none.safetensors");
+    fails(
+        &["detect", i, "--model", missing.to_str().unwrap()],
+        "cannot read model",
+    );
+    let junk = tmp.path().join("junk.safetensors");
+    std::fs::write(&junk, b"\xff\x00\x00\x00\x00\x00\x00\x00not a model at all").unwrap();
+    fails(
+        &["detect", i, "--model", junk.to_str().unwrap()],
+        "is not a safetensors file",
+    );
+    let shaped = tmp.path().join("shaped.safetensors");
+    tiny_model(&shaped, Widths([4, 8, 16, 8]));
+    fails(
+        &["detect", i, "--model", shaped.to_str().unwrap()],
+        "does not fit",
+    );
+    // A real model cut short.
+    let good = tmp.path().join("good.safetensors");
+    tiny_model(&good, TINY);
+    let bytes = std::fs::read(&good).unwrap();
+    let cut = tmp.path().join("cut.safetensors");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    fails(&["detect", i, "--model", cut.to_str().unwrap()], "model");
+}
+
+#[test]
+fn bad_images_are_one_clear_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let model = tmp.path().join("m.safetensors");
+    tiny_model(&model, TINY);
+    let m = model.to_str().unwrap();
+    let rgb = tmp.path().join("rgb.png");
+    Planes {
+        width: 64,
+        height: 64,
+        planes: vec![vec![100.0; 64 * 64]; 3],
+    }
+    .save_png(&rgb)
+    .unwrap();
+    fails(
+        &["detect", rgb.to_str().unwrap(), "--model", m],
+        "gray images",
+    );
+    let small = tmp.path().join("small.png");
+    Planes {
+        width: 16,
+        height: 40,
+        planes: vec![vec![100.0; 16 * 40]],
+    }
+    .save_png(&small)
+    .unwrap();
+    fails(
+        &["detect", small.to_str().unwrap(), "--model", m],
+        "smaller than",
+    );
+    let text = tmp.path().join("text.png");
+    std::fs::write(&text, "not a png").unwrap();
+    fails(
+        &["detect", text.to_str().unwrap(), "--model", m],
+        "text.png",
+    );
+}
+
+#[test]
+fn a_textile_scene_writes_its_defects() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/textile.toml");
+    let out = rollfuse(&["simulate", scene, "--out", tmp.path().to_str().unwrap()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(tmp.path().join("truth/defects.json")).unwrap())
+            .unwrap();
+    assert_eq!(v["fabric"], "twill_2_2");
+    assert_eq!(v["class"], 5);
+    assert_eq!(v["defects"].as_array().unwrap().len(), 3);
+    assert_eq!(v["frames"].as_array().unwrap().len(), 30);
+    // Some frame shows some defect in its contact band.
+    let frames = v["frames"].as_array().unwrap();
+    assert!(frames.iter().any(|f| {
+        f["defects"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|d| d["in_contact"] == true)
+    }));
+    // Other objects write none.
+    let letters = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/letters.toml");
+    let other = tmp.path().join("letters");
+    let out = rollfuse(&[
+        "simulate",
+        letters,
+        "--out",
+        other.to_str().unwrap(),
+        "--frames",
+        "2",
+    ]);
+    assert!(out.status.success());
+    assert!(!other.join("truth/defects.json").exists());
+    let out = tmp.path().join("never");
+    for (from, to, says) in [
+        (
+            "\"twill_2_2\"",
+            "\"silk\"",
+            "object.fabric must be one of plain, voile",
+        ),
+        (
+            "defects = 3",
+            "defects = 101",
+            "object.defects must be at most 100",
+        ),
+        (
+            "defects = 3",
+            "defects = 3\nscale = 3.0",
+            "object.scale must be in 0.5..=2",
+        ),
+    ] {
+        let scene = write_scene(tmp.path(), from, to);
+        fails(&["simulate", &scene, "--out", out.to_str().unwrap()], says);
+    }
+    assert!(!out.exists());
+}
+
+/// The textile scene with `from` replaced by `to`.
+fn write_scene(dir: &Path, from: &str, to: &str) -> String {
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/textile.toml"))
+        .unwrap()
+        .replace(from, to);
+    let p = dir.join("bad.toml");
+    std::fs::write(&p, text).unwrap();
+    p.to_str().unwrap().to_string()
+}
