@@ -62,6 +62,36 @@ pub struct Planes {
 }
 
 impl Planes {
+    /// The first plane upsampled `d`× bilinearly (sample centres aligned), as a gray
+    /// image: the device's downsampled strips brought back to camera pixels.
+    pub fn upsampled(&self, d: usize) -> Planes {
+        let img = self;
+        let (w, h) = (img.width, img.height);
+        let (ow, oh) = (w * d, h * d);
+        let src = &img.planes[0];
+        let at = |x: isize, y: isize| {
+            let (x, y) = (x.clamp(0, w as isize - 1), y.clamp(0, h as isize - 1));
+            src[y as usize * w + x as usize]
+        };
+        let mut out = vec![0f32; ow * oh];
+        for oy in 0..oh {
+            let fy = (oy as f32 + 0.5) / d as f32 - 0.5;
+            let (y0, ty) = (fy.floor() as isize, fy - fy.floor());
+            for ox in 0..ow {
+                let fx = (ox as f32 + 0.5) / d as f32 - 0.5;
+                let (x0, tx) = (fx.floor() as isize, fx - fx.floor());
+                let top = at(x0, y0) + tx * (at(x0 + 1, y0) - at(x0, y0));
+                let bottom = at(x0, y0 + 1) + tx * (at(x0 + 1, y0 + 1) - at(x0, y0 + 1));
+                out[oy * ow + ox] = top + ty * (bottom - top);
+            }
+        }
+        Planes {
+            width: ow,
+            height: oh,
+            planes: vec![out],
+        }
+    }
+
     /// Rounds and clamps to 8-bit: one byte per pixel (gray) or three interleaved (RGB).
     pub fn to_u8(&self) -> Vec<u8> {
         let n = self.width * self.height;

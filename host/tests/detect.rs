@@ -93,6 +93,57 @@ fn detect_writes_json_and_drawings_and_keeps_its_inputs() {
         (drawn.width, drawn.height, drawn.planes.len()),
         (320, 240, 3)
     );
+    // Upsampled first, boxes still in the image's own pixels.
+    let half = tmp.path().join("half.png");
+    let small = Planes::load(&img).unwrap();
+    let (w, h) = (small.width / 2, small.height / 2);
+    Planes {
+        width: w,
+        height: h,
+        planes: vec![
+            (0..w * h)
+                .map(|k| small.planes[0][(k / w) * 2 * small.width + (k % w) * 2])
+                .collect(),
+        ],
+    }
+    .save_png(&half)
+    .unwrap();
+    let json2 = tmp.path().join("half.json");
+    let out = rollfuse(&[
+        "detect",
+        half.to_str().unwrap(),
+        "--model",
+        m,
+        "--json",
+        json2.to_str().unwrap(),
+        "--threshold",
+        "0.01",
+        "--upsample",
+        "2",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json2).unwrap()).unwrap();
+    let boxes = v[0]["defects"].as_array().unwrap();
+    assert!(
+        !boxes.is_empty(),
+        "an untrained model at threshold 0.01 finds something"
+    );
+    for b in boxes {
+        let b: Vec<f64> = b["box_px"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        assert!(
+            b[0] >= 0.0 && b[2] <= w as f64 && b[1] >= 0.0 && b[3] <= h as f64,
+            "{b:?}"
+        );
+    }
     // The JSON may not be written over the image it reads.
     fails(&["detect", i, "--model", m, "--json", i], "input image");
 }

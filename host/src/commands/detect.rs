@@ -123,6 +123,11 @@ pub struct Args {
     /// Heatmap score a detection needs, 0..1.
     #[arg(long, default_value_t = crate::detect::DEFAULT_THRESHOLD)]
     pub threshold: f32,
+    /// Upsample the images N× first (bilinear), for images downsampled from the camera's
+    /// scale, such as `rollfuse stream`'s strips (2× by default); boxes are reported in
+    /// the images' own pixels.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=4))]
+    pub upsample: u8,
 }
 
 /// One image's results in the JSON file.
@@ -169,8 +174,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut results = Vec::new();
     for (k, path) in args.images.iter().enumerate() {
         let image = Planes::load(path)?;
-        let d = detector
-            .detect(&image)
+        let d = detect_at_scale(&detector, &image, args.upsample.into())
             .with_context(|| format!("{}", path.display()))?;
         println!("{}", summary(path, &d));
         if let Some(out) = drawn.get(k) {
@@ -193,6 +197,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )?;
     }
     batch.commit()
+}
+
+/// Detects on `image` upsampled `d`× (a gray image; others go to the detector as they
+/// are, to be refused), boxes scaled back to its pixels.
+fn detect_at_scale(detector: &Detector, image: &Planes, d: usize) -> anyhow::Result<Detection> {
+    if d == 1 || image.planes.len() != 1 {
+        return detector.detect(image);
+    }
+    let mut found = detector.detect(&image.upsampled(d))?;
+    for f in &mut found.defects {
+        f.box_px = f.box_px.map(|v| v / d as f32);
+    }
+    Ok(found)
 }
 
 /// `DIR/STEM_detect.png` for an input image.

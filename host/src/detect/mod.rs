@@ -87,7 +87,7 @@ impl Detector {
 
     /// Detects defects and classifies the fabric in a gray image of any length: images
     /// longer than [`TILE_ROWS`] are run in overlapping tiles, the fabric's probabilities
-    /// averaged over them by rows.
+    /// averaged over them by rows. Boxes are clipped to the image.
     pub fn detect(&self, image: &Planes) -> anyhow::Result<Detection> {
         ensure!(
             image.planes.len() == 1,
@@ -111,8 +111,15 @@ impl Detector {
             }
             defects.extend(found.into_iter().filter_map(|mut f| {
                 let centre = (f.box_px[1] + f.box_px[3]) / 2.0 + top as f32;
-                f.box_px[1] += top as f32;
-                f.box_px[3] += top as f32;
+                let (wf, hf) = (w as f32, h as f32);
+                let [x0, y0, x1, y1] = f.box_px;
+                let (y0, y1) = (y0 + top as f32, y1 + top as f32);
+                f.box_px = [
+                    x0.clamp(0.0, wf),
+                    y0.clamp(0.0, hf),
+                    x1.clamp(0.0, wf),
+                    y1.clamp(0.0, hf),
+                ];
                 own.contains(&(centre.max(0.0) as usize)).then_some(f)
             }));
         }

@@ -45,34 +45,6 @@ pub fn rolled(scene: &Scene) -> anyhow::Result<Scene> {
     Ok(s)
 }
 
-/// A `w × h` gray image upsampled `d`× bilinearly (sample centres aligned).
-fn upsample(img: &Planes, d: usize) -> Planes {
-    let (w, h) = (img.width, img.height);
-    let (ow, oh) = (w * d, h * d);
-    let src = &img.planes[0];
-    let at = |x: isize, y: isize| {
-        let (x, y) = (x.clamp(0, w as isize - 1), y.clamp(0, h as isize - 1));
-        src[y as usize * w + x as usize]
-    };
-    let mut out = vec![0f32; ow * oh];
-    for oy in 0..oh {
-        let fy = (oy as f32 + 0.5) / d as f32 - 0.5;
-        let (y0, ty) = (fy.floor() as isize, fy - fy.floor());
-        for ox in 0..ow {
-            let fx = (ox as f32 + 0.5) / d as f32 - 0.5;
-            let (x0, tx) = (fx.floor() as isize, fx - fx.floor());
-            let top = at(x0, y0) + tx * (at(x0 + 1, y0) - at(x0, y0));
-            let bottom = at(x0, y0 + 1) + tx * (at(x0 + 1, y0 + 1) - at(x0, y0 + 1));
-            out[oy * ow + ox] = top + ty * (bottom - top);
-        }
-    }
-    Planes {
-        width: ow,
-        height: oh,
-        planes: vec![out],
-    }
-}
-
 /// The virtual device's strip of `scene`, upsampled to camera pixels, and the strip row
 /// of its first row.
 fn device_strip(scene: &Scene, sim: &Simulator) -> anyhow::Result<(i64, Planes)> {
@@ -103,7 +75,7 @@ fn device_strip(scene: &Scene, sim: &Simulator) -> anyhow::Result<(i64, Planes)>
         let strip = Planes::load(&tmp.join(file))?;
         // Device rows count from the first frame's top, in downsampled rows.
         let origin = sim.strip_row_of_top(sim.frame(0).offset_mm).round() as i64;
-        Ok((origin + first * d as i64, upsample(&strip, d)))
+        Ok((origin + first * d as i64, strip.upsampled(d)))
     })();
     let _ = std::fs::remove_dir_all(&tmp);
     result
