@@ -19,6 +19,7 @@
 //! - [`demo`]: the whole system end to end, and its HTML report.
 //! - [`commands`]: the `rollfuse` subcommands.
 //! - [`npy`]: NumPy array files.
+//! - [`progress`]: progress bars for long work.
 
 pub use rollfuse_core as core;
 
@@ -32,6 +33,7 @@ pub mod fullres;
 pub mod image;
 pub mod link;
 pub mod npy;
+pub mod progress;
 pub mod sim;
 pub mod stream;
 pub mod strip_file;

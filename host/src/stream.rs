@@ -390,7 +390,7 @@ pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> 
     };
 
     let bar = if opts.progress {
-        crate::commands::simulate::progress_spinner("receiving tiles")
+        crate::progress::progress_spinner("receiving tiles")
     } else {
         indicatif::ProgressBar::hidden()
     };

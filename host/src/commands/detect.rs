@@ -1,11 +1,11 @@
 //! `rollfuse train` and `rollfuse detect`: the fabric defect detector's model, and the
 //! detector run on images (frames, fused images, strips).
 
+use crate::detect::draw::draw;
 use crate::detect::train::{Progress, TrainOptions, train};
 use crate::detect::{Detection, Detector, model};
 use crate::files::{Batch, PngLayout, add_png};
 use crate::image::Planes;
-use crate::sim::textile::DefectKind;
 use anyhow::Context;
 use indicatif::ProgressBar;
 use std::path::{Path, PathBuf};
@@ -92,14 +92,15 @@ pub fn train_run(args: TrainArgs) -> anyhow::Result<()> {
     let l = &report.losses;
     let mean = |s: &[f32]| s.iter().sum::<f32>() / s.len().max(1) as f32;
     let tail = l.len().min(50);
+    let accuracy = |a: Option<f64>| a.map_or("no validation".to_string(), |a| format!("{a:.3}"));
     println!(
-        "trained {} steps in {:.0} s: loss {:.3} → {:.3}; validation fabric accuracy {:.3} on fused tiles, {:.3} on frames → {}",
+        "trained {} steps in {:.0} s: loss {:.3} → {:.3}; validation fabric accuracy {} on fused tiles, {} on frames → {}",
         l.len(),
         started.elapsed().as_secs_f64(),
         mean(&l[..tail]),
         mean(&l[l.len() - tail..]),
-        report.validation_fused_accuracy,
-        report.validation_frame_accuracy,
+        accuracy(report.validation_fused_accuracy),
+        accuracy(report.validation_frame_accuracy),
         args.out.display()
     );
     Ok(())
@@ -249,40 +250,4 @@ fn summary(path: &Path, d: &Detection) -> String {
         if defects.is_empty() { "" } else { ": " },
         defects.join(", ")
     )
-}
-
-/// The colour a defect kind is drawn in.
-pub fn kind_colour(kind: DefectKind) -> [u8; 3] {
-    match kind {
-        DefectKind::Hole => [230, 40, 40],
-        DefectKind::Snag => [40, 200, 60],
-        DefectKind::Slub => [50, 110, 255],
-    }
-}
-
-/// A gray image as RGB with each box outlined 2 px wide in its kind's colour.
-pub fn draw(image: &Planes, found: &[crate::detect::Found]) -> (usize, usize, Vec<u8>) {
-    let (w, h) = (image.width, image.height);
-    let mut rgb: Vec<u8> = image.to_u8().iter().flat_map(|&g| [g, g, g]).collect();
-    for f in found {
-        let c = kind_colour(f.kind);
-        let [x0, y0, x1, y1] = f.box_px.map(|v| v.round() as i64);
-        let mut put = |x: i64, y: i64| {
-            if (0..w as i64).contains(&x) && (0..h as i64).contains(&y) {
-                let at = 3 * (y as usize * w + x as usize);
-                rgb[at..at + 3].copy_from_slice(&c);
-            }
-        };
-        for t in 0..2 {
-            for x in x0..=x1 {
-                put(x, y0 + t);
-                put(x, y1 - t);
-            }
-            for y in y0..=y1 {
-                put(x0 + t, y);
-                put(x1 - t, y);
-            }
-        }
-    }
-    (w, h, rgb)
 }

@@ -35,7 +35,7 @@ pub struct Args {
     #[arg(long, requires = "detect")]
     pub model: Option<PathBuf>,
     /// With --detect: held-out rolls to simulate (fabric = seed mod 17).
-    #[arg(long, default_value_t = 34)]
+    #[arg(long, default_value_t = 34, requires = "detect")]
     pub rolls: usize,
 }
 

@@ -75,27 +75,4 @@ impl From<LlWeightingArg> for LlWeighting {
     }
 }
 
-/// Fails early, with the path in the message, if `path` cannot be written, before any
-/// long work starts. Leaves an existing file as it is and creates nothing.
-pub fn check_writable(path: &std::path::Path) -> anyhow::Result<()> {
-    let parent = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(std::path::Path::new("."));
-    anyhow::ensure!(
-        parent.is_dir(),
-        "cannot write {}: folder {} does not exist",
-        path.display(),
-        parent.display()
-    );
-    let probe = if path.exists() {
-        std::fs::OpenOptions::new()
-            .append(true)
-            .open(path)
-            .map(|_| ())
-    } else {
-        let tmp = parent.join(format!(".rollfuse-write-check-{}", std::process::id()));
-        std::fs::File::create(&tmp).and_then(|_| std::fs::remove_file(&tmp))
-    };
-    probe.map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
-}
+pub use crate::files::check_writable;

@@ -3,9 +3,9 @@
 //! roll of every fabric, as `rollfuse eval --detect --rolls 17` measures it.
 
 use super::html::escape;
-use crate::commands::detect::draw;
 use crate::detect::Detector;
 use crate::detect::data::{RollShape, roll};
+use crate::detect::draw::draw;
 use crate::eval::detect::{DetectRow, EVAL_SEEDS, evaluate_detect, markdown};
 use crate::files::{Batch, PngLayout, add_png};
 use crate::sim::textile::FABRICS;

@@ -164,7 +164,7 @@ const SHOWN_FRAMES: usize = 6;
 pub fn run(opts: &Options, mut stage: impl FnMut(usize, &str)) -> anyhow::Result<Demo> {
     std::fs::create_dir_all(&opts.out)
         .with_context(|| format!("cannot create {}", opts.out.display()))?;
-    crate::commands::check_writable(&opts.out.join(Files::REPORT))?;
+    crate::files::check_writable(&opts.out.join(Files::REPORT))?;
     let letters = Scene::load(&opts.letters)?;
     let spheres = Scene::load(&opts.spheres)?;
     let mut stages = Vec::new();

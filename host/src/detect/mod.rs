@@ -7,9 +7,11 @@
 //! - [`net`]: the network.
 //! - [`model`]: the model file.
 //! - [`data`]: training and evaluation images from simulated rolls.
+//! - [`draw`]: boxes drawn on the image.
 //! - [`train`]: the training loop.
 
 pub mod data;
+pub mod draw;
 pub mod model;
 pub mod net;
 pub mod targets;
@@ -123,6 +125,10 @@ impl Detector {
                 own.contains(&(centre.max(0.0) as usize)).then_some(f)
             }));
         }
+        ensure!(
+            mean.iter().all(|p| p.is_finite()),
+            "the model's outputs are not finite numbers (a damaged model?)"
+        );
         defects.sort_by(|a, b| b.score.total_cmp(&a.score));
         let (class, probability) = mean
             .iter()

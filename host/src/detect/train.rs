@@ -70,10 +70,10 @@ impl Default for TrainOptions {
 pub struct TrainReport {
     /// Loss of each step.
     pub losses: Vec<f32>,
-    /// Fabric accuracy on the validation rolls' fused tiles.
-    pub validation_fused_accuracy: f64,
-    /// Fabric accuracy on the validation rolls' frames.
-    pub validation_frame_accuracy: f64,
+    /// Fabric accuracy on the validation rolls' fused tiles (none without such tiles).
+    pub validation_fused_accuracy: Option<f64>,
+    /// Fabric accuracy on the validation rolls' frames (none without validation rolls).
+    pub validation_frame_accuracy: Option<f64>,
 }
 
 /// Progress callbacks.
@@ -125,8 +125,8 @@ pub fn train(
         "the crop side must be a multiple of 8, at least 32"
     );
     ensure!(
-        opts.rolls > 0 && opts.batch > 0,
-        "training needs at least one roll and one crop a step"
+        opts.rolls > 0 && opts.batch > 0 && opts.steps > 0,
+        "training needs at least one roll, one step and one crop a step"
     );
     let (w, h) = opts.shape.size;
     ensure!(
@@ -179,7 +179,7 @@ pub fn train(
     };
     let net = net.valid();
     let detector = super::Detector::from_net(net.clone(), about.clone());
-    let accuracy = |source: Source| -> anyhow::Result<f64> {
+    let accuracy = |source: Source| -> anyhow::Result<Option<f64>> {
         let samples: Vec<&Sample> = validation
             .iter()
             .flat_map(|r| r.frames.iter().chain(&r.fused))
@@ -190,7 +190,7 @@ pub fn train(
             let d = detector.detect(&s.image)?;
             right += usize::from(d.fabric == FABRICS[s.class].name);
         }
-        Ok(right as f64 / samples.len().max(1) as f64)
+        Ok((!samples.is_empty()).then(|| right as f64 / samples.len() as f64))
     };
     let report = TrainReport {
         validation_fused_accuracy: accuracy(Source::Fused)?,

@@ -4,5 +4,6 @@
 pub mod depth;
 pub mod detect;
 pub mod metrics;
+pub mod report;
 pub mod roll;
 pub mod tables;

@@ -13,8 +13,8 @@
 //! - **contact-window strip**: `rollfuse fuse` on the roll, aligned by matching
 //!   (commanded rows as the prediction), fused over the contact window.
 
+use super::report::measure;
 use super::tables::{Row, acquire, crop_rows};
-use crate::commands::metrics::measure;
 use crate::eval::metrics::StripAxis;
 use crate::fullres::align::Offset;
 use crate::fullres::roll::StripInMemory;

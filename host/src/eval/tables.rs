@@ -6,7 +6,7 @@
 //! measured over the middle frame's footprint against the ideal contact image of the same
 //! belt rows (the simulator's ground truth, standing in for the paper's optical image).
 
-use crate::commands::metrics::{Report, measure};
+use super::report::{Report, measure};
 use crate::eval::metrics::StripAxis;
 use crate::fullres::align::Offset;
 use crate::fullres::{Placed, Precision, fuse_mosaic, splice};
