@@ -248,16 +248,20 @@ pub fn layout(object: &Object, canvas: Canvas, seed: u64) -> Layout {
             fabric,
             defects,
             scale,
-        } => {
-            let fabric = *textile::fabric(&fabric).unwrap_or(&textile::FABRICS[0]);
-            let t = Textile::new(fabric, scale, defects, (w, l), seed);
-            let defects = t.defects.clone();
-            Layout {
-                height: Box::new(move |x, y| t.height(x, y)),
-                regions: no_regions(),
-                defects,
-            }
-        }
+        } => textile_layout(&fabric, defects, scale, (w, l), seed),
+    }
+}
+
+/// A textile of the fabric named `fabric` (the first fabric if the name is unknown:
+/// validation refuses those) with `defects` placed from `seed`.
+fn textile_layout(fabric: &str, defects: usize, scale: f64, size: (f64, f64), seed: u64) -> Layout {
+    let fabric = *textile::fabric(fabric).unwrap_or(&textile::FABRICS[0]);
+    let t = Textile::new(fabric, scale, defects, size, seed);
+    let defects = t.defects.clone();
+    Layout {
+        height: Box::new(move |x, y| t.height(x, y)),
+        regions: Vec::new(),
+        defects,
     }
 }
 

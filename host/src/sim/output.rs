@@ -185,6 +185,35 @@ fn add_truth(
     Ok(regions)
 }
 
+/// Adds `truth/defects.json` to `batch` for a textile scene, with each frame's view of
+/// the defects; returns its file name (none for other objects).
+fn add_defects(
+    batch: &mut Batch,
+    sim: &Simulator,
+    frames: Vec<FrameDefects>,
+    out: &Path,
+) -> anyhow::Result<Option<String>> {
+    let Object::Textile { fabric, .. } = &sim.scene().object else {
+        return Ok(None);
+    };
+    let strip = sim.strip();
+    let truth = DefectsTruth {
+        fabric: fabric.clone(),
+        class: textile::FABRICS
+            .iter()
+            .position(|f| f.name == fabric)
+            .context("unknown fabric")?,
+        strip_origin_mm: strip.origin_mm,
+        mm_per_px: sim.scene().sensor.mm_per_px,
+        defects: strip.defects.clone(),
+        frames,
+    };
+    let file = "truth/defects.json";
+    let json = serde_json::to_string_pretty(&truth)? + "\n";
+    batch.add_bytes(&out.join(file), json.as_bytes())?;
+    Ok(Some(file.to_string()))
+}
+
 /// Renders every frame of `sim` into `out` with its ground truth and manifest, calling
 /// `progress(done, total)` after each frame.
 pub fn write(
@@ -226,26 +255,7 @@ pub fn write(
     }
     let strip = sim.strip();
     let regions = add_truth(&mut batch, sim, strip, out)?;
-    let defects_json = match &scene.object {
-        Object::Textile { fabric, .. } => {
-            let truth = DefectsTruth {
-                fabric: fabric.clone(),
-                class: textile::FABRICS
-                    .iter()
-                    .position(|f| f.name == fabric)
-                    .context("unknown fabric")?,
-                strip_origin_mm: strip.origin_mm,
-                mm_per_px: mmpp,
-                defects: strip.defects.clone(),
-                frames: frame_defects,
-            };
-            let file = "truth/defects.json";
-            let json = serde_json::to_string_pretty(&truth)? + "\n";
-            batch.add_bytes(&out.join(file), json.as_bytes())?;
-            Some(file.to_string())
-        }
-        _ => None,
-    };
+    let defects_json = add_defects(&mut batch, sim, frame_defects, out)?;
     contact_sheet(&sheet).add_png(&mut batch, &out.join("contact_sheet.png"))?;
     if scene.has(super::Effect::Rgb) {
         // The lights the frames were rendered with: what `rollfuse depth` needs.

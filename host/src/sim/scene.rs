@@ -13,6 +13,24 @@ pub const MAX_FRAMES: usize = 10_000;
 /// Largest accepted ground-truth strip (the belt area all frames see), in pixels.
 pub const MAX_STRIP_PIXELS: usize = 1 << 26;
 
+/// Checks a textile's fields: a known fabric, a bounded number of defects, a sane scale.
+fn validate_textile(fabric: &str, defects: usize, scale: f64) -> anyhow::Result<()> {
+    if super::textile::fabric(fabric).is_none() {
+        let names: Vec<&str> = super::textile::FABRICS.iter().map(|f| f.name).collect();
+        bail!(
+            "object.fabric must be one of {}, got {fabric:?}",
+            names.join(", ")
+        );
+    }
+    if defects > MAX_DEFECTS {
+        bail!("object.defects must be at most {MAX_DEFECTS}, got {defects}");
+    }
+    if !(0.5..=2.0).contains(&scale) {
+        bail!("object.scale must be in 0.5..=2, got {scale}");
+    }
+    Ok(())
+}
+
 /// Most defects one textile scene places.
 pub const MAX_DEFECTS: usize = 100;
 
@@ -566,21 +584,7 @@ impl Scene {
                 fabric,
                 defects,
                 scale,
-            } => {
-                if super::textile::fabric(fabric).is_none() {
-                    let names: Vec<&str> = super::textile::FABRICS.iter().map(|f| f.name).collect();
-                    bail!(
-                        "object.fabric must be one of {}, got {fabric:?}",
-                        names.join(", ")
-                    );
-                }
-                if *defects > MAX_DEFECTS {
-                    bail!("object.defects must be at most {MAX_DEFECTS}, got {defects}");
-                }
-                if !(0.5..=2.0).contains(scale) {
-                    bail!("object.scale must be in 0.5..=2, got {scale}");
-                }
-            }
+            } => validate_textile(fabric, *defects, *scale)?,
             Object::Primitives { shapes } => {
                 if shapes.is_empty() {
                     bail!("object.shapes must list at least one shape");
