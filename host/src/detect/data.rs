@@ -170,7 +170,7 @@ pub fn roll(seed: u64, shape: &RollShape) -> anyhow::Result<Roll> {
         blurred: Vec::new(),
         source: Source::Fused,
     };
-    let fused = cut(&strip, shape.size.1);
+    let fused = cut(&strip, shape.size.1)?;
     Ok(Roll {
         class,
         frames,
@@ -181,10 +181,10 @@ pub fn roll(seed: u64, shape: &RollShape) -> anyhow::Result<Roll> {
 
 /// `strip` cut into tiles of `rows` (the last one ending at the strip's end), each with
 /// the defects whose centre it holds, clipped to it.
-pub fn cut(strip: &Sample, rows: usize) -> Vec<Sample> {
+pub fn cut(strip: &Sample, rows: usize) -> anyhow::Result<Vec<Sample>> {
     let h = strip.image.height;
     if h < rows {
-        return Vec::new();
+        return Ok(Vec::new());
     }
     let tops: Vec<usize> = (0..h / rows)
         .map(|k| k * rows)
@@ -205,23 +205,13 @@ pub fn cut(strip: &Sample, rows: usize) -> Vec<Sample> {
                     }
                 })
                 .collect();
-            Sample {
-                image: crop(&strip.image, top, rows),
+            Ok(Sample {
+                image: strip.image.crop(top, 0, rows, strip.image.width)?,
                 class: strip.class,
                 boxes,
                 blurred: Vec::new(),
                 source: Source::Fused,
-            }
+            })
         })
         .collect()
-}
-
-/// Rows `top..top + rows` of a gray image.
-fn crop(img: &Planes, top: usize, rows: usize) -> Planes {
-    let w = img.width;
-    Planes {
-        width: w,
-        height: rows,
-        planes: vec![img.planes[0][top * w..(top + rows) * w].to_vec()],
-    }
 }

@@ -60,11 +60,7 @@ impl Detector {
     /// Loads a model file (see [`model`]).
     pub fn load(path: &Path) -> anyhow::Result<Self> {
         let (net, about) = model::load(path)?;
-        Ok(Self {
-            net,
-            about,
-            threshold: DEFAULT_THRESHOLD,
-        })
+        Ok(Self::from_net(net, about))
     }
 
     /// The model built into the tool.
