@@ -6,6 +6,7 @@
 
 use rollfuse::link::replay::Replay;
 use rollfuse::link::sim::{SimDevice, camera_bytes};
+use rollfuse::progress::Silent;
 use rollfuse::sim::{Scene, Simulator};
 use rollfuse::stream::{self, Options};
 use rollfuse_core::fusion::{LlWeight, U8Work, fuse_scratch_len, fuse_u8};
@@ -148,7 +149,6 @@ fn options(out: &Path, config: Option<DeviceConfig>, record: Option<&Path>) -> O
         max_tiles: None,
         max_duration: None,
         record: record.map(Path::to_path_buf),
-        progress: false,
     }
 }
 
@@ -168,7 +168,12 @@ fn the_streamed_strip_matches_the_reference_tile_by_tile_and_replays_identically
             norm,
             ..dev.default_config()
         };
-        let out = stream::run(&mut dev, &options(&live, Some(cfg), Some(&recording))).unwrap();
+        let out = stream::run(
+            &mut dev,
+            &options(&live, Some(cfg), Some(&recording)),
+            &Silent,
+        )
+        .unwrap();
         assert!(out.manifest.device_stopped);
         assert_eq!(out.manifest.faults.total(), 0);
 
@@ -197,7 +202,7 @@ fn the_streamed_strip_matches_the_reference_tile_by_tile_and_replays_identically
         );
 
         let mut replay = Replay::open(&recording).unwrap();
-        stream::run(&mut replay, &options(&replayed, None, None)).unwrap();
+        stream::run(&mut replay, &options(&replayed, None, None), &Silent).unwrap();
         for file in ["strip.png", "manifest.json"] {
             assert_eq!(
                 std::fs::read(live.join(file)).unwrap(),

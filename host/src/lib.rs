@@ -13,13 +13,15 @@
 //! - [`detect`]: fabric defect detection and classification with a neural network.
 //! - [`eval`]: the paper's metrics.
 //! - [`link`]: the device link — USB, the virtual device, recorded streams.
+//! - [`pipeline_memory`]: the memory a device pipeline runs on (virtual device, trade-off
+//!   study).
 //! - [`strip_file`]: a strip written as it grows, in indexed PNG segments.
 //! - [`stream`]: a streaming session — tiles received, checked and stitched into a strip.
 //! - [`tradeoff`]: what each device configuration buys in accuracy and costs in time.
 //! - [`demo`]: the whole system end to end, and its HTML report.
 //! - [`commands`]: the `rollfuse` subcommands.
 //! - [`npy`]: NumPy array files.
-//! - [`progress`]: progress bars for long work.
+//! - [`progress`]: how long work reports its progress ([`progress::Progress`]).
 
 pub use rollfuse_core as core;
 
@@ -33,6 +35,7 @@ pub mod fullres;
 pub mod image;
 pub mod link;
 pub mod npy;
+pub mod pipeline_memory;
 pub mod progress;
 pub mod sim;
 pub mod stream;

@@ -18,11 +18,12 @@
 
 use crate::link::replay::Recorder;
 use crate::link::{Received, Transport};
+use crate::progress::Progress;
 use crate::strip_file::{DEFAULT_SEGMENT_ROWS, StripWriter};
 use anyhow::{Context, bail};
 use rollfuse_core::protocol::{
-    self, Command, DecodeError, DeviceConfig, DeviceInfo, DeviceMessage, MAX_MESSAGE, SeqEvent,
-    SeqTracker, StatusCounters,
+    self, Command, DecodeError, DeviceConfig, DeviceInfo, DeviceMessage, MAX_MESSAGE, NakReason,
+    SeqEvent, SeqTracker, StatusCounters,
 };
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -55,8 +56,6 @@ pub struct Options {
     pub max_duration: Option<Duration>,
     /// Record every received message here.
     pub record: Option<PathBuf>,
-    /// Show a progress bar.
-    pub progress: bool,
 }
 
 /// Messages refused, by reason.
@@ -324,14 +323,14 @@ fn in_sequence(
     seqs: &mut SeqTracker,
     seq: u32,
     faults: &mut Faults,
-    bar: &indicatif::ProgressBar,
+    progress: &dyn Progress,
 ) -> bool {
     match seqs.observe(seq) {
         SeqEvent::InOrder => true,
         SeqEvent::Gap { missing } => {
             faults.sequence_gaps += 1;
             faults.messages_missing += u64::from(missing);
-            bar.println(format!("{missing} message(s) lost before #{seq}"));
+            progress.note(&format!("{missing} message(s) lost before #{seq}"));
             true
         }
         SeqEvent::Repeat => {
@@ -372,157 +371,261 @@ fn send(link: &mut dyn Transport, seq: &mut u32, cmd: &Command) -> anyhow::Resul
     Ok(seq.wrapping_sub(1))
 }
 
-/// Runs a session on `link`, writing to `opts.out`.
-pub fn run(link: &mut dyn Transport, opts: &Options) -> anyhow::Result<Outcome> {
-    std::fs::create_dir_all(&opts.out)
-        .with_context(|| format!("cannot create {}", opts.out.display()))?;
-    let strip_path = opts.out.join("strip.png");
-    let manifest_path = opts.out.join("manifest.json");
-    let mut recorder = opts.record.as_deref().map(Recorder::create).transpose()?;
-    let started = Instant::now();
-    let live = link.is_live();
+/// What the link gave the session.
+enum Next {
+    /// A message of this many bytes.
+    Message(usize),
+    /// Nothing yet.
+    Wait,
+    /// Nothing more will come.
+    Over,
+}
 
-    let mut cmd_seq = 0u32;
-    let essential = if live {
-        start_session(link, opts, &mut cmd_seq)?
-    } else {
-        Vec::new()
-    };
+/// Whether the session goes on after a message.
+#[derive(PartialEq, Eq)]
+enum Flow {
+    Continue,
+    Stop,
+}
 
-    let bar = if opts.progress {
-        crate::progress::progress_spinner("receiving tiles")
-    } else {
-        indicatif::ProgressBar::hidden()
-    };
-    let mut manifest = Manifest::default();
-    let mut strip = StreamedStrip::new(strip_path);
-    let mut seqs = SeqTracker::new();
-    // Room beyond the largest message, so an oversized transfer arrives whole enough to
-    // be counted as too long rather than failing the read.
-    let mut buf = vec![0u8; 2 * MAX_MESSAGE];
-    let mut last_message = Instant::now();
-    let mut stop_sent = false;
-    let mut stop = StopReason::LinkClosed;
-    let mut last_heartbeat = Instant::now();
-    loop {
-        // Only until stop is sent: the final status must not be mistaken for a reply.
-        if live && !stop_sent && last_heartbeat.elapsed() >= HEARTBEAT {
-            send(link, &mut cmd_seq, &Command::Status)?;
-            last_heartbeat = Instant::now();
-        }
-        // Ask the device to stop once a limit is reached; its flush and status follow.
-        if live
-            && !stop_sent
-            && let Some(reason) = limit_reached(opts, &manifest, started)
-        {
-            send(link, &mut cmd_seq, &Command::StreamStop)?;
-            stop_sent = true;
-            stop = reason;
-        }
-        let n = match link.receive(&mut buf, Duration::from_millis(200))? {
-            Received::Message(n) => n,
-            Received::Timeout => {
-                if last_message.elapsed() > SILENCE_LIMIT {
-                    stop = StopReason::Silent;
-                    break;
-                }
-                continue;
-            }
-            Received::Closed => {
-                if !stop_sent && !manifest.device_stopped {
-                    stop = StopReason::LinkClosed;
-                }
-                break;
-            }
+/// A session under way: what has been received, and where the device stands.
+struct Session<'a> {
+    opts: &'a Options,
+    progress: &'a dyn Progress,
+    live: bool,
+    started: Instant,
+    recorder: Option<Recorder>,
+    manifest: Manifest,
+    manifest_path: PathBuf,
+    strip: StreamedStrip,
+    seqs: SeqTracker,
+    /// The next command's sequence number.
+    cmd_seq: u32,
+    /// The commands whose refusal ends the session, with their names.
+    essential: Vec<(u32, &'static str)>,
+    last_message: Instant,
+    last_heartbeat: Instant,
+    stop_sent: bool,
+    stop: StopReason,
+}
+
+impl<'a> Session<'a> {
+    /// Makes the output folder and the recording, and starts a live device streaming.
+    fn open(
+        link: &mut dyn Transport,
+        opts: &'a Options,
+        progress: &'a dyn Progress,
+    ) -> anyhow::Result<Self> {
+        std::fs::create_dir_all(&opts.out)
+            .with_context(|| format!("cannot create {}", opts.out.display()))?;
+        let recorder = opts.record.as_deref().map(Recorder::create).transpose()?;
+        let started = Instant::now();
+        let live = link.is_live();
+        let mut cmd_seq = 0u32;
+        let essential = if live {
+            start_session(link, opts, &mut cmd_seq)?
+        } else {
+            Vec::new()
         };
-        last_message = Instant::now();
-        if manifest.device_stopped {
-            manifest.faults.after_final_status += 1;
+        progress.start("receiving tiles", None, "tiles");
+        Ok(Self {
+            opts,
+            progress,
+            live,
+            started,
+            recorder,
+            manifest: Manifest::default(),
+            manifest_path: opts.out.join("manifest.json"),
+            strip: StreamedStrip::new(opts.out.join("strip.png")),
+            seqs: SeqTracker::new(),
+            cmd_seq,
+            essential,
+            last_message: Instant::now(),
+            last_heartbeat: Instant::now(),
+            stop_sent: false,
+            stop: StopReason::LinkClosed,
+        })
+    }
+
+    /// Keeps a live device streaming (it takes a silent host as gone) and asks it to stop
+    /// once a limit is reached; its flush and final status follow.
+    fn steer(&mut self, link: &mut dyn Transport) -> anyhow::Result<()> {
+        // Only until stop is sent: the final status must not be mistaken for a reply.
+        if !self.live || self.stop_sent {
+            return Ok(());
         }
-        let bytes = &buf[..n];
-        if let Some(r) = recorder.as_mut() {
+        if self.last_heartbeat.elapsed() >= HEARTBEAT {
+            send(link, &mut self.cmd_seq, &Command::Status)?;
+            self.last_heartbeat = Instant::now();
+        }
+        if let Some(reason) = limit_reached(self.opts, &self.manifest, self.started) {
+            send(link, &mut self.cmd_seq, &Command::StreamStop)?;
+            self.stop_sent = true;
+            self.stop = reason;
+        }
+        Ok(())
+    }
+
+    /// Waits a little for the next message; a device silent too long ends the session.
+    fn receive(&mut self, link: &mut dyn Transport, buf: &mut [u8]) -> anyhow::Result<Next> {
+        Ok(match link.receive(buf, Duration::from_millis(200))? {
+            Received::Message(n) => {
+                self.last_message = Instant::now();
+                Next::Message(n)
+            }
+            Received::Timeout if self.last_message.elapsed() > SILENCE_LIMIT => {
+                self.stop = StopReason::Silent;
+                Next::Over
+            }
+            Received::Timeout => Next::Wait,
+            Received::Closed => {
+                if !self.stop_sent && !self.manifest.device_stopped {
+                    self.stop = StopReason::LinkClosed;
+                }
+                Next::Over
+            }
+        })
+    }
+
+    /// Records and counts a message, checks it, and acts on it if it is sound.
+    fn take(&mut self, bytes: &[u8]) -> anyhow::Result<Flow> {
+        if self.manifest.device_stopped {
+            self.manifest.faults.after_final_status += 1;
+        }
+        if let Some(r) = self.recorder.as_mut() {
             r.record(bytes)?;
         }
-        manifest.messages += 1;
-        manifest.bytes += n as u64;
+        self.manifest.messages += 1;
+        self.manifest.bytes += bytes.len() as u64;
         let (header, msg) = match protocol::decode::<DeviceMessage>(bytes) {
             Ok(m) => m,
             Err(e) => {
-                manifest.faults.count(e);
-                bar.println(format!("refused a message: {e}"));
-                continue;
+                self.manifest.faults.count(e);
+                self.progress.note(&format!("refused a message: {e}"));
+                return Ok(Flow::Continue);
             }
         };
-        if !in_sequence(&mut seqs, header.seq, &mut manifest.faults, &bar) {
-            continue;
+        let faults = &mut self.manifest.faults;
+        if !in_sequence(&mut self.seqs, header.seq, faults, self.progress) {
+            return Ok(Flow::Continue);
         }
+        self.on_message(msg)
+    }
+
+    /// Acts on a sound message.
+    fn on_message(&mut self, msg: DeviceMessage<'_>) -> anyhow::Result<Flow> {
         match msg {
-            DeviceMessage::Info(info) => manifest.device = Some(info),
+            DeviceMessage::Info(info) => self.manifest.device = Some(info),
             DeviceMessage::Ack { .. } | DeviceMessage::RawChunk(_) => {}
             DeviceMessage::Nak {
                 command_seq,
                 reason,
-            } => {
-                let what = essential
-                    .iter()
-                    .find(|(s, _)| *s == command_seq)
-                    .map(|(_, w)| *w);
-                manifest.refused.push(format!(
-                    "{} refused: {reason:?}",
-                    what.unwrap_or("a command")
-                ));
-                // An essential command refused ends the session.
-                if let Some(what) = what {
-                    write_manifest(&manifest_path, &manifest)?;
-                    bail!("the device refused {what}: {reason:?}");
-                }
-            }
-            DeviceMessage::Status(c) => {
-                manifest.device_counters = Some(c);
-                if !c.streaming {
-                    manifest.device_stopped = true;
-                    if !stop_sent {
-                        stop = StopReason::DeviceStopped;
-                    }
-                    // A live device has said its last; a recording is read to its end,
-                    // so what follows its final status is seen and counted.
-                    if live {
-                        break;
-                    }
-                }
-            }
+            } => self.on_refusal(command_seq, reason)?,
+            DeviceMessage::Status(c) => return Ok(self.on_status(c)),
             DeviceMessage::Log(line) => {
-                bar.println(format!("device: {line}"));
-                manifest.log.push(line.to_string());
+                self.progress.note(&format!("device: {line}"));
+                self.manifest.log.push(line.to_string());
             }
-            DeviceMessage::Tile(tile) => {
-                if !take_tile(&mut strip, &tile, &mut manifest)? {
-                    continue;
-                }
-                let secs = started.elapsed().as_secs_f64().max(1e-9);
-                bar.set_message(format!(
-                    "{} tiles, {:.0} tiles/s, {:.2} MB/s",
-                    manifest.tiles_received,
-                    manifest.tiles_received as f64 / secs,
-                    manifest.bytes as f64 / secs / 1e6
-                ));
-                bar.tick();
-            }
+            DeviceMessage::Tile(tile) => self.on_tile(&tile)?,
+        }
+        Ok(Flow::Continue)
+    }
+
+    /// A command the device refused: listed, and the end of the session if essential.
+    fn on_refusal(&mut self, command_seq: u32, reason: NakReason) -> anyhow::Result<()> {
+        let what = self
+            .essential
+            .iter()
+            .find(|(s, _)| *s == command_seq)
+            .map(|(_, w)| *w);
+        self.manifest.refused.push(format!(
+            "{} refused: {reason:?}",
+            what.unwrap_or("a command")
+        ));
+        if let Some(what) = what {
+            write_manifest(&self.manifest_path, &self.manifest)?;
+            bail!("the device refused {what}: {reason:?}");
+        }
+        Ok(())
+    }
+
+    /// The device's counters, and whether it has said its last.
+    fn on_status(&mut self, c: StatusCounters) -> Flow {
+        self.manifest.device_counters = Some(c);
+        if c.streaming {
+            return Flow::Continue;
+        }
+        self.manifest.device_stopped = true;
+        if !self.stop_sent {
+            self.stop = StopReason::DeviceStopped;
+        }
+        // A live device has said its last; a recording is read to its end, so what
+        // follows its final status is seen and counted.
+        if self.live {
+            Flow::Stop
+        } else {
+            Flow::Continue
         }
     }
-    bar.finish_and_clear();
-    if let Some(r) = recorder {
-        r.finish()?;
+
+    /// Places a tile in the strip (or counts why not) and reports the rate.
+    fn on_tile(&mut self, tile: &protocol::Tile<'_>) -> anyhow::Result<()> {
+        if !take_tile(&mut self.strip, tile, &mut self.manifest)? {
+            return Ok(());
+        }
+        let m = &self.manifest;
+        let secs = self.started.elapsed().as_secs_f64().max(1e-9);
+        self.progress.message(&format!(
+            "{} tiles, {:.0} tiles/s, {:.2} MB/s",
+            m.tiles_received,
+            m.tiles_received as f64 / secs,
+            m.bytes as f64 / secs / 1e6
+        ));
+        self.progress.advance_to(m.tiles_received);
+        Ok(())
     }
-    manifest.tile_size = strip.size.map(|(w, t)| [w, t]);
-    let strip_files = strip.finish(&mut manifest)?;
-    write_manifest(&manifest_path, &manifest)?;
-    Ok(Outcome {
-        manifest,
-        strip_files,
-        stop,
-        elapsed: started.elapsed(),
-    })
+
+    /// Writes the strip's last tiles, its index and the manifest.
+    fn close(mut self) -> anyhow::Result<Outcome> {
+        self.progress.finish();
+        if let Some(r) = self.recorder {
+            r.finish()?;
+        }
+        self.manifest.tile_size = self.strip.size.map(|(w, t)| [w, t]);
+        let strip_files = self.strip.finish(&mut self.manifest)?;
+        write_manifest(&self.manifest_path, &self.manifest)?;
+        Ok(Outcome {
+            manifest: self.manifest,
+            strip_files,
+            stop: self.stop,
+            elapsed: self.started.elapsed(),
+        })
+    }
+}
+
+/// Runs a session on `link`, writing to `opts.out`. `progress` counts the tiles placed
+/// and is told of every message lost or refused and of the device's log lines.
+pub fn run(
+    link: &mut dyn Transport,
+    opts: &Options,
+    progress: &dyn Progress,
+) -> anyhow::Result<Outcome> {
+    let mut session = Session::open(link, opts, progress)?;
+    // Room beyond the largest message, so an oversized transfer arrives whole enough to
+    // be counted as too long rather than failing the read.
+    let mut buf = vec![0u8; 2 * MAX_MESSAGE];
+    loop {
+        session.steer(link)?;
+        let flow = match session.receive(link, &mut buf)? {
+            Next::Message(n) => session.take(&buf[..n])?,
+            Next::Wait => Flow::Continue,
+            Next::Over => Flow::Stop,
+        };
+        if flow == Flow::Stop {
+            break;
+        }
+    }
+    session.close()
 }
 
 fn write_manifest(path: &Path, manifest: &Manifest) -> anyhow::Result<()> {

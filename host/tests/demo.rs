@@ -3,8 +3,24 @@
 //! `rollfuse eval` writes for the same scenes.
 
 use rollfuse::demo::{self, Files, Options, STAGES};
+use rollfuse::progress::Progress;
 use std::path::Path;
 use std::process::Command;
+use std::sync::Mutex;
+
+/// The stages the demo says it starts, in order.
+#[derive(Default)]
+struct Started(Mutex<Vec<u64>>);
+
+impl Progress for Started {
+    fn start(&self, _: &str, _: Option<u64>, _: &str) {}
+    fn advance_to(&self, done: u64) {
+        self.0.lock().unwrap().push(done);
+    }
+    fn message(&self, _: &str) {}
+    fn note(&self, _: &str) {}
+    fn finish(&self) {}
+}
 
 /// The small camera both scenes use: 160×120 at 0.1 mm per pixel, frames 1 mm apart.
 const SMALL_SENSOR: &str = "
@@ -82,9 +98,10 @@ fn the_demo_writes_a_self_contained_report_with_sane_figures() {
         spheres: spheres.clone(),
         bench: None,
     };
-    let mut started = Vec::new();
-    let d = demo::run(&opts, |k, _| started.push(k)).unwrap();
-    assert_eq!(started, (0..STAGES.len()).collect::<Vec<_>>());
+    let started = Started::default();
+    let d = demo::run(&opts, &started).unwrap();
+    let started = started.0.into_inner().unwrap();
+    assert_eq!(started, (0..STAGES.len() as u64).collect::<Vec<_>>());
 
     // Every artefact, non-empty.
     let mut files = vec![

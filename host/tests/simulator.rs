@@ -1,6 +1,7 @@
 //! The simulator: every built-in scene renders, each effect does what it says and only when
 //! listed, bad scenes are refused with the field named, and runs are deterministic.
 
+use rollfuse::progress::Silent;
 use rollfuse::sim::{Effect, Scene, Simulator, output};
 use std::path::Path;
 
@@ -394,8 +395,8 @@ text = "AB""#,
     );
     let sim = Simulator::new(&s).unwrap();
     let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
-    output::write(&sim, a.path(), |_, _| {}).unwrap();
-    output::write(&Simulator::new(&s).unwrap(), b.path(), |_, _| {}).unwrap();
+    output::write(&sim, a.path(), &Silent).unwrap();
+    output::write(&Simulator::new(&s).unwrap(), b.path(), &Silent).unwrap();
     let mut files: Vec<_> = walk(a.path());
     files.sort();
     assert!(files.len() >= 5 + 4);

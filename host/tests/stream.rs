@@ -7,6 +7,7 @@
 use proptest::prelude::*;
 use rollfuse::link::sim::SimDevice;
 use rollfuse::link::{Received, Transport};
+use rollfuse::progress::Silent;
 use rollfuse::sim::Scene;
 use rollfuse::stream::{self, Options};
 use rollfuse_core::protocol::{self, DeviceMessage, MAX_MESSAGE};
@@ -50,7 +51,7 @@ fn clean_stream() -> &'static Vec<Vec<u8>> {
         let tmp = tempfile::tempdir().unwrap();
         let rec = tmp.path().join("rec.bin");
         let mut dev = SimDevice::start(&scene).unwrap();
-        stream::run(&mut dev, &options(tmp.path(), Some(&rec))).unwrap();
+        stream::run(&mut dev, &options(tmp.path(), Some(&rec)), &Silent).unwrap();
         let bytes = std::fs::read(&rec).unwrap();
         let mut rest = &bytes[8..];
         let mut out = Vec::new();
@@ -70,7 +71,6 @@ fn options(out: &Path, record: Option<&Path>) -> Options {
         max_tiles: None,
         max_duration: None,
         record: record.map(Path::to_path_buf),
-        progress: false,
     }
 }
 
@@ -170,7 +170,7 @@ proptest! {
         }
         let tmp = tempfile::tempdir().unwrap();
         let mut link = Scripted { messages: sent.into_iter() };
-        let out = stream::run(&mut link, &options(tmp.path(), None)).unwrap();
+        let out = stream::run(&mut link, &options(tmp.path(), None), &Silent).unwrap();
         let f = &out.manifest.faults;
         prop_assert_eq!(f.bad_crc + f.truncated, crc_or_short);
         prop_assert_eq!(f.wrong_version, versions);
@@ -207,7 +207,7 @@ fn a_stream_cut_off_midway_keeps_every_tile_received() {
     let mut link = Scripted {
         messages: kept.into_iter(),
     };
-    let out = stream::run(&mut link, &options(tmp.path(), None)).unwrap();
+    let out = stream::run(&mut link, &options(tmp.path(), None), &Silent).unwrap();
     let expected = tiles_in(&clean[..cut]);
     assert!(!expected.is_empty());
     assert_eq!(out.manifest.tiles_received, expected.len() as u64);
@@ -333,7 +333,7 @@ fn a_far_jump_of_the_index_starts_a_segment_and_late_tiles_are_counted() {
     let mut link = Scripted {
         messages: messages.into_iter(),
     };
-    let out = stream::run(&mut link, &options(tmp.path(), None)).unwrap();
+    let out = stream::run(&mut link, &options(tmp.path(), None), &Silent).unwrap();
     let m = &out.manifest;
     assert_eq!(m.tiles_received, 5);
     assert_eq!(m.faults.duplicate_tiles, 1);
@@ -398,7 +398,7 @@ fn a_live_session_asks_for_status_every_second_so_the_device_knows_it_is_there()
         done: false,
     };
     let tmp = tempfile::tempdir().unwrap();
-    stream::run(&mut link, &options(tmp.path(), None)).unwrap();
+    stream::run(&mut link, &options(tmp.path(), None), &Silent).unwrap();
     let sent = sent.lock().unwrap();
     assert!(
         matches!(sent[..2], [Command::Hello, Command::StreamStart]),
@@ -459,7 +459,7 @@ fn a_reversed_recording_is_read_to_its_end_and_its_faults_counted() {
     let mut link = Scripted {
         messages: reversed.into_iter(),
     };
-    let out = stream::run(&mut link, &options(tmp.path(), None)).unwrap();
+    let out = stream::run(&mut link, &options(tmp.path(), None), &Silent).unwrap();
     let f = &out.manifest.faults;
     // The final status comes first; everything after it is counted, and each message
     // goes back in sequence.
@@ -471,6 +471,6 @@ fn a_reversed_recording_is_read_to_its_end_and_its_faults_counted() {
         messages: clean_stream().clone().into_iter(),
     };
     let tmp = tempfile::tempdir().unwrap();
-    let out = stream::run(&mut link, &options(tmp.path(), None)).unwrap();
+    let out = stream::run(&mut link, &options(tmp.path(), None), &Silent).unwrap();
     assert_eq!(out.manifest.faults.after_final_status, 0);
 }

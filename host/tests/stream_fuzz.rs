@@ -11,6 +11,7 @@
 
 use proptest::prelude::*;
 use rollfuse::link::replay::Replay;
+use rollfuse::progress::Silent;
 use rollfuse::stream::{self, Options};
 use rollfuse_core::protocol::{self, DeviceMessage, MAX_MESSAGE};
 use std::path::Path;
@@ -138,10 +139,9 @@ proptest! {
             max_tiles: None,
             max_duration: None,
             record: None,
-            progress: false,
         };
         // An error is an answer; a panic fails the test.
-        let _ = stream::run(&mut link, &options);
+        let _ = stream::run(&mut link, &options, &Silent);
         let written = files(&out);
         for (name, _) in &written {
             prop_assert!(!name.starts_with('.'), "a temporary was left: {name}");

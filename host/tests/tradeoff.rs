@@ -1,6 +1,7 @@
 //! The trade-off study on the letters scene the virtual device streams: the reference is
 //! what it claims to be, and the fixed-point default stays within 1 dB of the f32 path.
 
+use rollfuse::progress::Silent;
 use rollfuse::sim::Scene;
 use rollfuse::tradeoff::bench::McuTable;
 use rollfuse::tradeoff::{Setup, acquire, report, study};
@@ -25,7 +26,7 @@ fn fixed_default_is_within_one_db_of_f32_and_full_resolution_matches_the_referen
         ..Setup::DEFAULT
     };
     let setups = [Setup::DEFAULT, f32_default, full];
-    let rows = study(&[acq], &setups, 1, &McuTable::empty(), |_| {}).unwrap();
+    let rows = study(&[acq], &setups, 1, &McuTable::empty(), &Silent).unwrap();
     let (fixed, float, full) = (&rows[0].accuracy, &rows[1].accuracy, &rows[2].accuracy);
     for a in [fixed, float, full] {
         assert!(

@@ -1,6 +1,6 @@
 //! `rollfuse demo`: the whole system on simulated data, and `report.html`.
 
-use crate::demo::{self, Files, Options, STAGES};
+use crate::demo::{self, Files, Options};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -33,7 +33,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ],
     )?;
     let started = Instant::now();
-    let bar = super::simulate::progress(STAGES.len(), "stages", String::new());
+    let bars = super::bars::Bars::new();
     // The report's folder is replaced whole: a failed run leaves the last report as it was.
     let result = crate::files::replace_folder(&args.out, |staging| {
         let opts = Options {
@@ -42,12 +42,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             spheres: args.spheres.clone(),
             bench: Some(args.bench.clone()),
         };
-        demo::run(&opts, |k, name| {
-            bar.set_position(k as u64);
-            bar.set_message(name.to_string());
-        })
+        demo::run(&opts, &bars)
     });
-    bar.finish_and_clear();
     let d = result?;
     for s in &d.stages {
         println!("{:>16}  {:>6.2} s  {}", s.name, s.secs, s.what);

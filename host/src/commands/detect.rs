@@ -1,13 +1,13 @@
 //! `rollfuse train` and `rollfuse detect`: the fabric defect detector's model, and the
 //! detector run on images (frames, fused images, strips).
 
+use super::bars::Bars;
 use crate::detect::draw::draw;
-use crate::detect::train::{Progress, TrainOptions, train};
+use crate::detect::train::{TrainOptions, train};
 use crate::detect::{Detection, Detector, model};
 use crate::files::{Batch, PngLayout, add_png};
 use crate::image::Planes;
 use anyhow::Context;
-use indicatif::ProgressBar;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `rollfuse train`.
@@ -33,35 +33,6 @@ pub struct TrainArgs {
     pub seed: u64,
 }
 
-/// Progress bars for the simulation and the steps.
-struct Bars {
-    rolls: Option<ProgressBar>,
-    steps: Option<ProgressBar>,
-}
-
-impl Progress for Bars {
-    fn rolls(&mut self, done: usize, total: usize) {
-        let bar = self.rolls.get_or_insert_with(|| {
-            super::simulate::progress(total, "rolls", "simulating and fusing".into())
-        });
-        bar.set_position(done as u64);
-        if done == total {
-            bar.finish();
-        }
-    }
-
-    fn step(&mut self, step: usize, total: usize, loss: f32) {
-        let bar = self
-            .steps
-            .get_or_insert_with(|| super::simulate::progress(total, "steps", "training".into()));
-        bar.set_position(step as u64);
-        bar.set_message(format!("training, loss {loss:.3}"));
-        if step == total {
-            bar.finish();
-        }
-    }
-}
-
 /// Runs `rollfuse train`.
 pub fn train_run(args: TrainArgs) -> anyhow::Result<()> {
     super::check_writable(&args.out)?;
@@ -83,11 +54,8 @@ pub fn train_run(args: TrainArgs) -> anyhow::Result<()> {
         args.steps, args.rolls, args.validation_rolls, args.batch, args.seed
     );
     let started = std::time::Instant::now();
-    let mut bars = Bars {
-        rolls: None,
-        steps: None,
-    };
-    let (net, about, report) = train(&opts, &made_by, &mut bars)?;
+    // Kept on the terminal: the loss the training ended at stays readable.
+    let (net, about, report) = train(&opts, &made_by, &Bars::kept())?;
     model::save(&args.out, &net, &about)?;
     let l = &report.losses;
     let mean = |s: &[f32]| s.iter().sum::<f32>() / s.len().max(1) as f32;

@@ -1,6 +1,6 @@
 //! `rollfuse eval`: Tables II and III on the simulated standardized samples.
 
-use super::simulate::progress;
+use super::bars::{Bars, progress};
 use crate::eval::depth;
 use crate::eval::tables::{csv, evaluate_scene, markdown};
 use crate::files::Batch;
@@ -117,11 +117,7 @@ fn run_detect(args: &Args) -> anyhow::Result<()> {
         None => crate::detect::Detector::built_in()?,
     };
     let shape = crate::detect::data::RollShape::STANDARD;
-    let bar = progress(args.rolls, "rolls", "simulating held-out rolls".into());
-    let rows = evaluate_detect(&detector, args.rolls, &shape, |n| {
-        bar.set_position(n as u64)
-    })?;
-    bar.finish_and_clear();
+    let rows = evaluate_detect(&detector, args.rolls, &shape, &Bars::new())?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     let md = format!(

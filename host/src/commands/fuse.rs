@@ -2,7 +2,7 @@
 //! into one image (the mosaic, paper Tables II–III), or a whole roll into a strip fused
 //! over the contact window (docs/fusion.md, "Whole rolls").
 
-use super::{AblationArg, LlWeightingArg, WaveletArg, check_writable, simulate::progress};
+use super::{AblationArg, LlWeightingArg, WaveletArg, bars::Bars, check_writable};
 use crate::fullres::align::{Aligned, Match, Offset, TemplateParams, align_chain};
 use crate::fullres::track::Tracker;
 use crate::fullres::{Precision, fuse_mosaic_mut};
@@ -433,8 +433,7 @@ fn run_mosaic(args: &Args, frames: Vec<Planes>, cfg: &FuseConfig) -> anyhow::Res
                 max_dx: 8,
                 min_score: args.min_score.unwrap_or(0.5),
             };
-            let bar = progress(frames.len(), "frames", "aligning".into());
-            let chain = align_chain(&frames, &params, |k| bar.set_position(k as u64));
+            let chain = align_chain(&frames, &params, &Bars::new());
             for ((k, file), aligned) in args.frames.iter().enumerate().zip(chain) {
                 match aligned {
                     Aligned::Placed { at, matched } => {
@@ -463,7 +462,6 @@ fn run_mosaic(args: &Args, frames: Vec<Planes>, cfg: &FuseConfig) -> anyhow::Res
                     }
                 }
             }
-            bar.finish_and_clear();
             if placed.len() < 2 {
                 bail!("only one frame could be aligned; nothing to fuse (see the messages above)");
             }

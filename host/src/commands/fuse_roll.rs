@@ -4,7 +4,7 @@
 use super::fuse::{
     AlignArg, Args, OutBits, manifest_path, motion_offsets, refuse_overwriting_inputs,
 };
-use super::{check_writable, simulate::progress};
+use super::{bars::progress, check_writable};
 use crate::files::PendingFile;
 use crate::fullres::roll::Bands;
 use crate::fullres::strip::{Placing, StripOptions, StripReport, WindowChoice, fuse_strip};

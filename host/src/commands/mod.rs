@@ -1,5 +1,6 @@
 //! The `rollfuse` subcommands: argument parsing (clap) and what each one does.
 
+pub mod bars;
 pub mod demo;
 pub mod depth;
 pub mod detect;

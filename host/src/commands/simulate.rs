@@ -20,8 +20,6 @@ pub struct Args {
     pub seed: Option<u64>,
 }
 
-pub use crate::progress::{progress, progress_spinner};
-
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut scene = Scene::load(&args.scene)?;
@@ -38,9 +36,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprintln!("warning: {w}");
     }
     let sim = Simulator::new(&scene)?;
-    let bar = progress(sim.frames(), "frames", format!("simulating {}", scene.name));
-    let manifest = output::write(&sim, &args.out, |done, _| bar.set_position(done as u64))?;
-    bar.finish_and_clear();
+    let manifest = output::write(&sim, &args.out, &super::bars::Bars::new())?;
     println!(
         "{}: {} frames of {}×{} ({}) with [{}] → {}",
         manifest.scene,

@@ -109,9 +109,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         max_tiles: args.tiles,
         max_duration: checked.max_duration,
         record: args.record.clone(),
-        progress: true,
     };
-    let outcome = stream::run(link.as_mut(), &opts)?;
+    let outcome = stream::run(link.as_mut(), &opts, &super::bars::Bars::new())?;
     print_summary(&args.out, &outcome);
     Ok(())
 }

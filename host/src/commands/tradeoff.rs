@@ -1,7 +1,7 @@
 //! `rollfuse tradeoff`: the accuracy/time study over the device configurations
 //! (docs/tradeoff.md).
 
-use super::simulate::progress;
+use super::bars::Bars;
 use crate::sim::Scene;
 use crate::tradeoff::bench::McuTable;
 use crate::tradeoff::{acquire, report, study, sweep};
@@ -63,11 +63,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         acquisitions.push(acquire(&Scene::load(path)?)?);
     }
     let setups = sweep();
-    let bar = progress(setups.len(), "configurations", "measuring".into());
-    let rows = study(&acquisitions, &setups, args.repeats, &mcu, |k| {
-        bar.set_position(k as u64)
-    })?;
-    bar.finish_and_clear();
+    let rows = study(&acquisitions, &setups, args.repeats, &mcu, &Bars::new())?;
     let names: Vec<String> = acquisitions.iter().map(|a| a.name.clone()).collect();
     let md = report::markdown(&rows, &names, mcu.build.as_deref());
     let mut batch = crate::files::Batch::new();

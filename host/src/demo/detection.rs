@@ -8,6 +8,7 @@ use crate::detect::data::{RollShape, roll};
 use crate::detect::draw::draw;
 use crate::eval::detect::{DetectRow, EVAL_SEEDS, evaluate_detect, markdown};
 use crate::files::{Batch, PngLayout, add_png};
+use crate::progress::Silent;
 use crate::sim::textile::FABRICS;
 use std::fmt::Write;
 use std::path::Path;
@@ -59,7 +60,7 @@ pub fn run(out: &Path) -> anyhow::Result<DetectionDemo> {
         let (w, h, rgb) = draw(image, found);
         add_png(&mut batch, &out.join(name), &rgb, (w, h), PngLayout::Rgb8)?;
     }
-    let rows = evaluate_detect(&detector, TABLE_ROLLS, &RollShape::STANDARD, |_| {})?;
+    let rows = evaluate_detect(&detector, TABLE_ROLLS, &RollShape::STANDARD, &Silent)?;
     let table = format!(
         "Held-out rolls: {TABLE_ROLLS} (seeds {EVAL_SEEDS}..{}), the built-in model\n\n{}",
         EVAL_SEEDS + TABLE_ROLLS as u64,

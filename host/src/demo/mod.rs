@@ -25,7 +25,7 @@ pub mod detection;
 pub mod html;
 
 use crate::eval::depth::{self as depth_eval, DepthRow};
-use crate::eval::tables::{self, Row, acquire, evaluate_acquired};
+use crate::eval::tables::{self, Acquisition, Row, acquire, evaluate_acquired};
 use crate::fullres::align::Offset;
 use crate::fullres::roll::StripInMemory;
 use crate::fullres::strip::{StripOptions, fuse_strip};
@@ -33,8 +33,9 @@ use crate::fullres::window::ContactWindow;
 use crate::fullres::{Placed, Precision, fuse_mosaic};
 use crate::image::Planes;
 use crate::link::sim::SimDevice;
+use crate::progress::{Progress, Silent};
 use crate::sim::Scene;
-use crate::stream::{self, Manifest, StopReason};
+use crate::stream::{self, Manifest, Outcome, StopReason};
 use crate::tradeoff::{self, Measured, bench::McuTable, report as tradeoff_report};
 use anyhow::{Context, ensure};
 use rollfuse_core::FuseConfig;
@@ -159,133 +160,37 @@ impl Files {
 /// Frames of the sequence shown in the report.
 const SHOWN_FRAMES: usize = 6;
 
-/// Runs every stage; `stage(k, name)` is called as stage `k` (0-based) of
-/// [`STAGES`] starts, for progress.
-pub fn run(opts: &Options, mut stage: impl FnMut(usize, &str)) -> anyhow::Result<Demo> {
+/// Runs every stage; `progress` counts the [`STAGES`] as they start, each named in its
+/// message.
+pub fn run(opts: &Options, progress: &dyn Progress) -> anyhow::Result<Demo> {
+    progress.start("demo", Some(STAGES.len() as u64), "stages");
+    let demo = run_stages(opts, progress);
+    progress.finish();
+    demo
+}
+
+/// The stages in order, then the report.
+fn run_stages(opts: &Options, progress: &dyn Progress) -> anyhow::Result<Demo> {
     std::fs::create_dir_all(&opts.out)
         .with_context(|| format!("cannot create {}", opts.out.display()))?;
     crate::files::check_writable(&opts.out.join(Files::REPORT))?;
     let letters = Scene::load(&opts.letters)?;
     let spheres = Scene::load(&opts.spheres)?;
-    let mut stages = Vec::new();
-    let mut clock = Clock::new(&mut stages);
-    let out = |name: &str| opts.out.join(name);
+    let out = opts.out.as_path();
+    let mut clock = Clock::new(progress);
 
-    stage(0, STAGES[0]);
-    let acq = acquire(&letters)?;
+    let (acq, shown) = clock.stage(0, || show_frames(&letters, out))?;
+    let (streamed, strip) = clock.stage(1, || stream_device(&letters, out))?;
+    let (host_strip, alignment) = clock.stage(2, || fuse_roll(&letters, &acq, out))?;
+    let eval = clock.stage(3, || evaluate(&letters, &acq, out))?;
+    let depth = clock.stage(4, || measure_depth(&spheres, out))?;
+    let detection = clock.stage(5, || detect_defects(out))?;
+    let (measured, mcu_build) =
+        clock.stage(6, || trade_off(&letters, opts.bench.as_deref(), out))?;
+
     let n = acq.frames.len();
-    ensure!(
-        n >= 7,
-        "scene {} has {n} frames; the demo needs at least 7",
-        letters.name
-    );
     let (fw, fh) = (acq.frames[0].width, acq.frames[0].height);
-    // Evenly spread over the roll, first and last included.
-    let shown: Vec<usize> = (0..SHOWN_FRAMES)
-        .map(|k| k * (n - 1) / (SHOWN_FRAMES - 1))
-        .collect();
-    for &i in &shown {
-        acq.frames[i].save_png(&out(&Files::frame(i)))?;
-    }
-    clock.lap(
-        STAGES[0],
-        format!("{n} frames of {fw}×{fh} rendered from {}", letters.name),
-    );
-
-    stage(1, STAGES[1]);
-    let mut device = SimDevice::start(&letters)?;
-    let session = stream::Options {
-        out: out("stream"),
-        config: Some(device.default_config()),
-        max_tiles: None,
-        max_duration: None,
-        record: None,
-        progress: false,
-    };
-    let streamed = stream::run(&mut device, &session)?;
-    let strip = Planes::load(&out(Files::STRIP))?;
-    clock.lap(
-        STAGES[1],
-        format!(
-            "{} tiles, {} bytes in {} messages through the virtual device",
-            streamed.manifest.tiles_received, streamed.manifest.bytes, streamed.manifest.messages
-        ),
-    );
-
-    stage(2, STAGES[2]);
-    let (host_strip, alignment, middle) = fuse_full_resolution(&letters, &acq.frames, &acq.rows)?;
-    host_strip.save_png(&out(Files::HOST_STRIP))?;
-    let m = (n - 1) / 2;
-    acq.frames[m].save_png(&out(Files::SINGLE))?;
-    middle.save_png(&out(Files::FUSED_MIDDLE))?;
-    clock.lap(
-        STAGES[2],
-        format!(
-            "{} of {n} frames matched, the roll fused over the contact window (db2, 1 level, f32)",
-            alignment.matched + 1
-        ),
-    );
-
-    stage(3, STAGES[3]);
-    let eval = evaluate_acquired(&letters, &acq, &FuseConfig::default(), 10)?;
-    write(&out(Files::EVAL_MD), &tables::markdown(&eval))?;
-    write(&out(Files::EVAL_CSV), &tables::csv(&eval))?;
-    clock.lap(
-        STAGES[3],
-        format!("{} methods measured against the ideal contact", eval.len()),
-    );
-
-    stage(4, STAGES[4]);
-    let depth = depth_eval::evaluate_depth(&spheres)?;
-    let mut pictures = crate::files::Batch::new();
-    for (r, name) in depth.iter().zip(Files::DEPTH_PNGS) {
-        crate::depth::output::write_png(&r.depth, &mut pictures, &out(name))?;
-    }
-    pictures.commit()?;
-    write(&out(Files::DEPTH_MD), &depth_eval::markdown(&depth))?;
-    write(&out(Files::DEPTH_CSV), &depth_eval::csv(&depth))?;
-    clock.lap(
-        STAGES[4],
-        format!("{} height maps from {}", depth.len(), spheres.name),
-    );
-
-    stage(5, STAGES[5]);
-    let detection = detection::run(&opts.out)?;
-    clock.lap(
-        STAGES[5],
-        format!(
-            "the detector on a {} roll and on {} held-out rolls",
-            detection.fabric,
-            crate::sim::textile::FABRICS.len()
-        ),
-    );
-
-    stage(6, STAGES[6]);
-    let mcu = match &opts.bench {
-        Some(p) if p.exists() => McuTable::load(p)?,
-        _ => McuTable::empty(),
-    };
-    let setups = tradeoff::sweep();
-    let study_scene = tradeoff::acquire(&letters)?;
-    let measured = tradeoff::study(&[study_scene], &setups, 1, &mcu, |_| {})?;
-    let names = [letters.name.clone()];
-    write(
-        &out(Files::TRADEOFF_MD),
-        &tradeoff_report::markdown(&measured, &names, mcu.build.as_deref()),
-    )?;
-    write(&out(Files::TRADEOFF_CSV), &tradeoff_report::csv(&measured))?;
-    write(
-        &out(Files::PARETO),
-        &tradeoff_report::pareto_svg(&measured)?,
-    )?;
-    clock.lap(
-        STAGES[6],
-        format!(
-            "{} device configurations against the f64 reference",
-            setups.len()
-        ),
-    );
-
+    clock.announce(7);
     let demo = Demo {
         letters_name: letters.name.clone(),
         frames: (n, fw, fh),
@@ -301,14 +206,137 @@ pub fn run(opts: &Options, mut stage: impl FnMut(usize, &str)) -> anyhow::Result
         depth,
         detection,
         tradeoff: measured,
-        mcu_build: mcu.build.clone(),
-        stages,
+        mcu_build,
+        stages: clock.stages,
     };
-    stage(7, STAGES[7]);
     // The report's own time cannot be in the report: the command prints it.
-    let page = html::report(&demo, &opts.out)?;
-    write(&out(Files::REPORT), &page)?;
+    let page = html::report(&demo, out)?;
+    write(&out.join(Files::REPORT), &page)?;
     Ok(demo)
+}
+
+/// Stage 1: the letters scene's frames, a few of them written for the report; the
+/// indices of those.
+fn show_frames(letters: &Scene, out: &Path) -> Timed<(Acquisition, Vec<usize>)> {
+    let acq = acquire(letters)?;
+    let n = acq.frames.len();
+    ensure!(
+        n >= 7,
+        "scene {} has {n} frames; the demo needs at least 7",
+        letters.name
+    );
+    let (fw, fh) = (acq.frames[0].width, acq.frames[0].height);
+    // Evenly spread over the roll, first and last included.
+    let shown: Vec<usize> = (0..SHOWN_FRAMES)
+        .map(|k| k * (n - 1) / (SHOWN_FRAMES - 1))
+        .collect();
+    for &i in &shown {
+        acq.frames[i].save_png(&out.join(Files::frame(i)))?;
+    }
+    let what = format!("{n} frames of {fw}×{fh} rendered from {}", letters.name);
+    Ok(((acq, shown), what))
+}
+
+/// Stage 2: the scene streamed through the virtual device; the session and its strip.
+fn stream_device(letters: &Scene, out: &Path) -> Timed<(Outcome, Planes)> {
+    let mut device = SimDevice::start(letters)?;
+    let session = stream::Options {
+        out: out.join("stream"),
+        config: Some(device.default_config()),
+        max_tiles: None,
+        max_duration: None,
+        record: None,
+    };
+    let streamed = stream::run(&mut device, &session, &Silent)?;
+    let strip = Planes::load(&out.join(Files::STRIP))?;
+    let m = &streamed.manifest;
+    let what = format!(
+        "{} tiles, {} bytes in {} messages through the virtual device",
+        m.tiles_received, m.bytes, m.messages
+    );
+    Ok(((streamed, strip), what))
+}
+
+/// Stage 3: the roll fused at full resolution; the strip and how the alignment went.
+fn fuse_roll(letters: &Scene, acq: &Acquisition, out: &Path) -> Timed<(Planes, Alignment)> {
+    let (host_strip, alignment, middle) = fuse_full_resolution(letters, &acq.frames, &acq.rows)?;
+    host_strip.save_png(&out.join(Files::HOST_STRIP))?;
+    let n = acq.frames.len();
+    acq.frames[(n - 1) / 2].save_png(&out.join(Files::SINGLE))?;
+    middle.save_png(&out.join(Files::FUSED_MIDDLE))?;
+    let what = format!(
+        "{} of {n} frames matched, the roll fused over the contact window (db2, 1 level, f32)",
+        alignment.matched + 1
+    );
+    Ok(((host_strip, alignment), what))
+}
+
+/// Stage 4: Tables II and III on the letters scene's frames.
+fn evaluate(letters: &Scene, acq: &Acquisition, out: &Path) -> Timed<Vec<Row>> {
+    let eval = evaluate_acquired(letters, acq, &FuseConfig::default(), 10)?;
+    write(&out.join(Files::EVAL_MD), &tables::markdown(&eval))?;
+    write(&out.join(Files::EVAL_CSV), &tables::csv(&eval))?;
+    let what = format!("{} methods measured against the ideal contact", eval.len());
+    Ok((eval, what))
+}
+
+/// Stage 5: Table IV on the sphere scene, and its height maps.
+fn measure_depth(spheres: &Scene, out: &Path) -> Timed<Vec<DepthRow>> {
+    let depth = depth_eval::evaluate_depth(spheres)?;
+    let mut pictures = crate::files::Batch::new();
+    for (r, name) in depth.iter().zip(Files::DEPTH_PNGS) {
+        crate::depth::output::write_png(&r.depth, &mut pictures, &out.join(name))?;
+    }
+    pictures.commit()?;
+    write(&out.join(Files::DEPTH_MD), &depth_eval::markdown(&depth))?;
+    write(&out.join(Files::DEPTH_CSV), &depth_eval::csv(&depth))?;
+    let what = format!("{} height maps from {}", depth.len(), spheres.name);
+    Ok((depth, what))
+}
+
+/// Stage 6: the defect detector on textile rolls.
+fn detect_defects(out: &Path) -> Timed<detection::DetectionDemo> {
+    let detection = detection::run(out)?;
+    let what = format!(
+        "the detector on a {} roll and on {} held-out rolls",
+        detection.fabric,
+        crate::sim::textile::FABRICS.len()
+    );
+    Ok((detection, what))
+}
+
+/// Stage 7: every device configuration on the letters scene; the measurements and the
+/// bench build their MCU figures come from.
+fn trade_off(
+    letters: &Scene,
+    bench: Option<&Path>,
+    out: &Path,
+) -> Timed<(Vec<Measured>, Option<String>)> {
+    let mcu = match bench {
+        Some(p) if p.exists() => McuTable::load(p)?,
+        _ => McuTable::empty(),
+    };
+    let setups = tradeoff::sweep();
+    let study_scene = tradeoff::acquire(letters)?;
+    let measured = tradeoff::study(&[study_scene], &setups, 1, &mcu, &Silent)?;
+    let names = [letters.name.clone()];
+    write(
+        &out.join(Files::TRADEOFF_MD),
+        &tradeoff_report::markdown(&measured, &names, mcu.build.as_deref()),
+    )?;
+    write(
+        &out.join(Files::TRADEOFF_CSV),
+        &tradeoff_report::csv(&measured),
+    )?;
+    write(
+        &out.join(Files::PARETO),
+        &tradeoff_report::pareto_svg(&measured)?,
+    )?;
+    let what = format!(
+        "{} device configurations against the f64 reference",
+        setups.len()
+    );
+    Ok(((measured, mcu.build), what))
 }
 
 /// The stages' names, in order.
@@ -323,28 +351,40 @@ pub const STAGES: [&str; 8] = [
     "report",
 ];
 
-/// Times consecutive stages.
-struct Clock<'s> {
-    stages: &'s mut Vec<Stage>,
-    since: Instant,
+/// A stage's result, and what it did (a line of the report).
+type Timed<T> = anyhow::Result<(T, String)>;
+
+/// Times the stages and announces each to the progress.
+struct Clock<'p> {
+    stages: Vec<Stage>,
+    progress: &'p dyn Progress,
 }
 
-impl<'s> Clock<'s> {
-    fn new(stages: &'s mut Vec<Stage>) -> Self {
+impl<'p> Clock<'p> {
+    fn new(progress: &'p dyn Progress) -> Self {
         Self {
-            stages,
-            since: Instant::now(),
+            stages: Vec::new(),
+            progress,
         }
     }
 
-    /// Ends the current stage and starts the next.
-    fn lap(&mut self, name: &'static str, what: String) {
+    /// Stage `k` of [`STAGES`] starts.
+    fn announce(&self, k: usize) {
+        self.progress.advance_to(k as u64);
+        self.progress.message(STAGES[k]);
+    }
+
+    /// Runs stage `k`, which returns its result and what it did, and times it.
+    fn stage<T>(&mut self, k: usize, run: impl FnOnce() -> Timed<T>) -> anyhow::Result<T> {
+        self.announce(k);
+        let since = Instant::now();
+        let (value, what) = run()?;
         self.stages.push(Stage {
-            name,
+            name: STAGES[k],
             what,
-            secs: self.since.elapsed().as_secs_f64(),
+            secs: since.elapsed().as_secs_f64(),
         });
-        self.since = Instant::now();
+        Ok(value)
     }
 }
 

@@ -10,6 +10,7 @@ use super::model::About;
 use super::net::{Net, Widths};
 use super::targets::{KINDS, Labelled, Targets, encode};
 use super::{floats, normalized};
+use crate::progress::Progress;
 use crate::sim::textile::FABRICS;
 use anyhow::ensure;
 use burn::module::Module;
@@ -76,14 +77,6 @@ pub struct TrainReport {
     pub validation_frame_accuracy: Option<f64>,
 }
 
-/// Progress callbacks.
-pub trait Progress {
-    /// `done` of `total` rolls simulated.
-    fn rolls(&mut self, done: usize, total: usize);
-    /// Step `step` of `total` done with `loss`.
-    fn step(&mut self, step: usize, total: usize, loss: f32);
-}
-
 /// Simulates `count` rolls from `first_seed` in parallel.
 pub fn rolls(
     first_seed: u64,
@@ -115,10 +108,11 @@ pub fn rolls(
 }
 
 /// Trains a network; returns it with its model description and what was measured.
+/// `progress` sees two stages: the rolls simulated, then the optimizer's steps.
 pub fn train(
     opts: &TrainOptions,
     made_by: &str,
-    progress: &mut dyn Progress,
+    progress: &dyn Progress,
 ) -> anyhow::Result<(Net, About, TrainReport)> {
     ensure!(
         opts.crop >= 32 && opts.crop.is_multiple_of(8),
@@ -135,12 +129,14 @@ pub fn train(
         opts.crop
     );
     let total = opts.rolls + opts.validation_rolls;
+    progress.start("simulating and fusing", Some(total as u64), "rolls");
     let train_rolls = rolls(TRAIN_SEEDS, opts.rolls, &opts.shape, |n| {
-        progress.rolls(n, total)
+        progress.advance_to(n as u64)
     })?;
     let validation = rolls(VALIDATION_SEEDS, opts.validation_rolls, &opts.shape, |n| {
-        progress.rolls(opts.rolls + n, total)
+        progress.advance_to((opts.rolls + n) as u64)
     })?;
+    progress.finish();
     let frames: Vec<&Sample> = train_rolls.iter().flat_map(|r| &r.frames).collect();
     let fused: Vec<&Sample> = train_rolls.iter().flat_map(|r| &r.fused).collect();
     ensure!(!fused.is_empty(), "the training rolls fused to no tiles");
@@ -151,6 +147,7 @@ pub fn train(
     let mut optim = AdamWConfig::new().init();
     let mut rng = Pcg64Mcg::seed_from_u64(opts.seed);
     let mut losses = Vec::with_capacity(opts.steps);
+    progress.start("training", Some(opts.steps as u64), "steps");
     for step in 0..opts.steps {
         let crops: Vec<Crop> = (0..opts.batch)
             .map(|_| {
@@ -170,8 +167,10 @@ pub fn train(
         let t = step as f64 / opts.steps.max(1) as f64;
         let rate = 1e-5 + (opts.rate - 1e-5) * (1.0 + (std::f64::consts::PI * t).cos()) / 2.0;
         net = optim.step(rate, net, grads);
-        progress.step(step + 1, opts.steps, losses[step]);
+        progress.advance_to(step as u64 + 1);
+        progress.message(&format!("training, loss {:.3}", losses[step]));
     }
+    progress.finish();
     let about = About {
         widths: opts.widths,
         fabrics: FABRICS.iter().map(|f| f.name.to_string()).collect(),
@@ -329,12 +328,6 @@ fn losses_of(net: &Net, batch: &Batch) -> Tensor<1> {
 mod tests {
     use super::*;
 
-    struct Quiet;
-    impl Progress for Quiet {
-        fn rolls(&mut self, _: usize, _: usize) {}
-        fn step(&mut self, _: usize, _: usize, _: f32) {}
-    }
-
     #[test]
     fn a_tiny_network_learns_tiny_rolls() {
         let opts = TrainOptions {
@@ -353,7 +346,7 @@ mod tests {
                 defects: 1,
             },
         };
-        let (_, about, report) = train(&opts, "test", &mut Quiet).unwrap();
+        let (_, about, report) = train(&opts, "test", &crate::progress::Silent).unwrap();
         assert_eq!(about.fabrics.len(), 17);
         let l = &report.losses;
         assert!(l.iter().all(|v| v.is_finite()), "{l:?}");

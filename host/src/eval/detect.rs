@@ -13,6 +13,7 @@ use crate::detect::Detector;
 use crate::detect::data::{Roll, RollShape, Sample};
 use crate::detect::targets::{Tally, tally_ignoring};
 use crate::detect::train::{TRAIN_SEEDS, rolls};
+use crate::progress::Progress;
 use crate::sim::textile::FABRICS;
 use anyhow::ensure;
 use serde::Serialize;
@@ -87,12 +88,12 @@ fn row(detector: &Detector, images: &str, samples: &[&Sample]) -> anyhow::Result
 }
 
 /// Simulates `count` held-out rolls (seeds from [`EVAL_SEEDS`]) and measures `detector` on
-/// their frames and fused tiles; `done(n)` after each roll is simulated.
+/// their frames and fused tiles; `progress` counts the rolls simulated.
 pub fn evaluate_detect(
     detector: &Detector,
     count: usize,
     shape: &RollShape,
-    done: impl FnMut(usize),
+    progress: &dyn Progress,
 ) -> anyhow::Result<Vec<DetectRow>> {
     ensure!(count > 0, "--rolls must be at least 1");
     ensure!(
@@ -100,7 +101,9 @@ pub fn evaluate_detect(
         "at most {} held-out rolls",
         TRAIN_SEEDS - EVAL_SEEDS
     );
-    let held_out: Vec<Roll> = rolls(EVAL_SEEDS, count, shape, done)?;
+    progress.start("simulating held-out rolls", Some(count as u64), "rolls");
+    let held_out: Vec<Roll> = rolls(EVAL_SEEDS, count, shape, |n| progress.advance_to(n as u64))?;
+    progress.finish();
     let frames: Vec<&Sample> = held_out.iter().flat_map(|r| &r.frames).collect();
     let fused: Vec<&Sample> = held_out.iter().flat_map(|r| &r.fused).collect();
     Ok(vec![

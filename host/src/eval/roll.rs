@@ -57,10 +57,9 @@ fn device_strip(scene: &Scene, sim: &Simulator) -> anyhow::Result<(i64, Planes)>
         max_tiles: None,
         max_duration: None,
         record: None,
-        progress: false,
     };
     let result = (|| {
-        crate::stream::run(&mut device, &opts)?;
+        crate::stream::run(&mut device, &opts, &crate::progress::Silent)?;
         let index: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(tmp.join("strip.json"))?)?;
         let segments = index["segments"].as_array().context("no segments")?;

@@ -8,6 +8,7 @@
 //!   is reported and left out, never fused misaligned.
 
 use crate::image::Planes;
+use crate::progress::Progress;
 use image::{GrayImage, Luma};
 use imageproc::template_matching::{MatchTemplateMethod, find_extremes, match_template_parallel};
 
@@ -186,12 +187,13 @@ impl Match {
 /// Aligns a sequence by template matching: the first frame at the origin, every next one
 /// against the last frame kept. A frame that does not match is skipped (never placed at a
 /// guessed offset) and the next one is matched against the last kept frame instead.
-/// `progress(k)` is called before frame `k` is matched.
+/// `progress` counts the frames matched.
 pub fn align_chain(
     frames: &[Planes],
     params: &TemplateParams,
-    mut progress: impl FnMut(usize),
+    progress: &dyn Progress,
 ) -> Vec<Aligned> {
+    progress.start("aligning", Some(frames.len() as u64), "frames");
     let mut out = Vec::with_capacity(frames.len());
     let mut at = Offset { dy: 0, dx: 0 };
     let mut last = 0;
@@ -200,7 +202,7 @@ pub fn align_chain(
             out.push(Aligned::Placed { at, matched: None });
             continue;
         }
-        progress(k);
+        progress.advance_to(k as u64);
         match match_frames(&frames[last], frame, params) {
             Some(m) if m.score >= params.min_score => {
                 at = Offset {
@@ -222,6 +224,7 @@ pub fn align_chain(
             )),
         }
     }
+    progress.finish();
     out
 }
 

@@ -7,6 +7,7 @@ use super::scene::Object;
 use super::textile;
 use crate::files::{Batch, PngLayout, add_png};
 use crate::npy;
+use crate::progress::Progress;
 use anyhow::{Context, ensure};
 use serde::Serialize;
 use std::path::Path;
@@ -214,13 +215,9 @@ fn add_defects(
     Ok(Some(file.to_string()))
 }
 
-/// Renders every frame of `sim` into `out` with its ground truth and manifest, calling
-/// `progress(done, total)` after each frame.
-pub fn write(
-    sim: &Simulator,
-    out: &Path,
-    mut progress: impl FnMut(usize, usize),
-) -> anyhow::Result<Manifest> {
+/// Renders every frame of `sim` into `out` with its ground truth and manifest; `progress`
+/// counts the frames rendered.
+pub fn write(sim: &Simulator, out: &Path, progress: &dyn Progress) -> anyhow::Result<Manifest> {
     std::fs::create_dir_all(out.join("truth"))
         .with_context(|| format!("cannot create {}", out.display()))?;
     // Every file is written before any is moved into place, the manifest last: a failure
@@ -232,6 +229,8 @@ pub fn write(
     let sheet_every = sim.frames().div_ceil(6).max(1);
     let mut sheet = Vec::new();
     let mut frame_defects = Vec::new();
+    let simulating = format!("simulating {}", scene.name);
+    progress.start(&simulating, Some(sim.frames() as u64), "frames");
     for k in 0..sim.frames() {
         let f = sim.frame(k);
         if k % sheet_every == sheet_every / 2 || sim.frames() == 1 {
@@ -251,8 +250,9 @@ pub fn write(
             actual_strip_row: sim.strip_row_of_top(f.actual_offset_mm),
             stages: f.stages.iter().map(|e| e.name()).collect(),
         });
-        progress(k + 1, sim.frames());
+        progress.advance_to(k as u64 + 1);
     }
+    progress.finish();
     let strip = sim.strip();
     let regions = add_truth(&mut batch, sim, strip, out)?;
     let defects_json = add_defects(&mut batch, sim, frame_defects, out)?;

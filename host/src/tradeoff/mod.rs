@@ -19,12 +19,12 @@ pub mod report;
 
 use crate::eval::metrics::{Gray, entropy, ms_ssim};
 use crate::link::sim::{camera_bytes, sensor_for};
+use crate::pipeline_memory::PipelineMemory;
+use crate::progress::Progress;
 use crate::sim::{Scene, Simulator};
 use anyhow::{Context, bail, ensure};
 use rollfuse_core::device::downsample::downsample;
-use rollfuse_core::device::{
-    Pipeline, PipelineBuffers, PipelineConfig, Precision, Schedule, Sensor,
-};
+use rollfuse_core::device::{Pipeline, PipelineConfig, Precision, Schedule, Sensor};
 use rollfuse_core::fusion::LlWeight;
 use rollfuse_core::protocol::{DeviceConfig, NormMode, WaveletId};
 use rollfuse_core::saliency::laplacian_max_u8;
@@ -195,9 +195,7 @@ pub fn run_device(acq: &Acquisition, setup: &Setup, repeats: usize) -> anyhow::R
     let mut cfg = PipelineConfig::from_wire(&wire, acq.sensor)
         .map_err(|r| anyhow::anyhow!("{}: the device refuses it ({r:?})", setup.label()))?;
     cfg.precision = setup.precision;
-    let m = cfg.memory();
-    let (mut frame, mut tiles_buf) = (vec![0u8; m.frame_bytes], vec![0u8; m.tile_bytes]);
-    let (mut work, mut profiles) = (vec![0i32; m.work_words], vec![0i32; m.profile_words]);
+    let mut memory = PipelineMemory::new(&cfg.memory());
     let tile = cfg.tile_dims();
     let mut best = f64::INFINITY;
     let mut offsets = Vec::with_capacity(acq.frames.len());
@@ -207,13 +205,7 @@ pub fn run_device(acq: &Acquisition, setup: &Setup, repeats: usize) -> anyhow::R
         tiles: BTreeMap::new(),
     };
     for _ in 0..repeats.max(1) {
-        let bufs = PipelineBuffers {
-            frame: &mut frame,
-            tiles: &mut tiles_buf,
-            work: &mut work,
-            profiles: &mut profiles,
-        };
-        let mut pipe = Pipeline::new(cfg, bufs)?;
+        let mut pipe = Pipeline::new(cfg, memory.buffers())?;
         let mut emitted = Vec::new();
         let mut keep = |t: rollfuse_core::protocol::Tile<'_>| {
             emitted.push((u64::from(t.index), t.observations, t.pixels.to_vec()))
@@ -409,18 +401,19 @@ pub struct Measured {
     pub mcu: Option<bench::McuCost>,
 }
 
-/// Runs the study on `scenes` for `setups`; `progress` is called after each configuration.
+/// Runs the study on `scenes` for `setups`; `progress` counts the configurations measured.
 pub fn study(
     scenes: &[Acquisition],
     setups: &[Setup],
     repeats: usize,
     mcu: &bench::McuTable,
-    mut progress: impl FnMut(usize),
+    progress: &dyn Progress,
 ) -> anyhow::Result<Vec<Measured>> {
     ensure!(!scenes.is_empty(), "no scenes to study");
     // References depend on wavelet, levels and downsampling only: one per scene each.
     let mut references: BTreeMap<(String, u8, u8, u8), Tiles<f64>> = BTreeMap::new();
     let mut out = Vec::with_capacity(setups.len());
+    progress.start("measuring", Some(setups.len() as u64), "configurations");
     for (k, setup) in setups.iter().enumerate() {
         let mut per_scene = Vec::new();
         let mut ns = 0.0;
@@ -467,7 +460,8 @@ pub fn study(
             host_ns_per_px: ns / m,
             mcu: mcu.get(setup),
         });
-        progress(k + 1);
+        progress.advance_to(k as u64 + 1);
     }
+    progress.finish();
     Ok(out)
 }
