@@ -1,6 +1,7 @@
 //! What the tasks count, for the status the controller reports.
 
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering::Relaxed};
+use rollfuse_core::device::Event;
 use rollfuse_core::protocol::StatusCounters;
 
 /// Counters shared by the camera, pipeline and link.
@@ -36,6 +37,20 @@ pub static COUNTERS: Counters = Counters {
 };
 
 impl Counters {
+    /// Counts one event of the stream.
+    pub fn count(&self, event: Event) {
+        let counter = match event {
+            Event::FrameCaptured => &self.frames_captured,
+            Event::CameraOverrun => &self.camera_overruns,
+            Event::CameraTimeout => &self.camera_timeouts,
+            Event::FrameFused => &self.frames_fused,
+            Event::FrameRejected => &self.frames_rejected,
+            Event::TileEmitted => &self.tiles_emitted,
+            Event::TileDropped => &self.tiles_dropped,
+        };
+        counter.fetch_add(1, Relaxed);
+    }
+
     /// Copies the tasks' counts into the controller's status (its own fields — messages
     /// sent, bad commands, streaming — it keeps itself).
     pub fn merge_into(&self, status: &mut StatusCounters) {

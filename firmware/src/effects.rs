@@ -3,10 +3,10 @@
 
 use crate::liveness;
 use crate::roller::{self, Order};
-use crate::signals::{EFFECTS, STREAM, StreamOrder};
+use crate::signals::{EFFECTS, STREAM};
 use embassy_futures::select::{Either, select};
 use embassy_time::Timer;
-use rollfuse_core::device::Effect;
+use rollfuse_core::device::{Effect, session as stream};
 use rollfuse_core::protocol::LedDuty;
 
 /// The three LEDs.
@@ -29,12 +29,11 @@ pub async fn run(leds: &mut impl Leds) {
             Effect::Configure(cfg) => {
                 let px = u16::try_from(cfg.spacing_px).unwrap_or(u16::MAX);
                 roller::ORDERS.send(Order::FrameSpacing(px)).await;
-                STREAM.send(StreamOrder::Configure(cfg)).await;
             }
-            Effect::StreamStart => STREAM.send(StreamOrder::Start).await,
-            Effect::StreamStop => STREAM.send(StreamOrder::Stop).await,
-            Effect::CaptureRaw(n) => STREAM.send(StreamOrder::CaptureRaw(n)).await,
-            Effect::None => {}
+            Effect::StreamStart | Effect::StreamStop | Effect::CaptureRaw(_) | Effect::None => {}
+        }
+        if let Some(order) = stream::Order::of(effect) {
+            STREAM.send(order).await;
         }
     }
 }

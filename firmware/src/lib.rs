@@ -30,24 +30,14 @@ pub mod signals;
 #[cfg(target_os = "none")]
 pub mod stack_guard;
 
-use rollfuse_core::device::{Controller, Sensor};
-use rollfuse_core::protocol::{DeviceConfig, PixelFormat};
+use rollfuse_core::device::{CAMERA, Controller, FIRMWARE_VERSION, MCU_CAPACITY};
+use rollfuse_core::protocol::DeviceConfig;
 
-/// The camera the firmware is built for: an OV7725-class sensor at QVGA, YUYV.
-pub const SENSOR: Sensor = Sensor {
-    width: 320,
-    height: 240,
-    format: PixelFormat::Yuyv,
-};
-
-/// Firmware version, as `Info` reports it.
-pub const FIRMWARE: [u8; 3] = [0, 1, 0];
-
-/// The controller as the firmware serves it: this sensor, the default configuration, the
-/// pipeline's memory. `None` only if the default configuration did not fit (a host test
-/// checks it does).
+/// The controller as the firmware serves it: the module's camera, the default
+/// configuration, the pipeline's memory. `None` only if the default configuration did not
+/// fit (a host test checks it does).
 pub fn controller() -> Option<Controller> {
-    Controller::new(SENSOR, FIRMWARE, DeviceConfig::default())
-        .and_then(|c| c.with_capacity(pipeline::CAPACITY))
+    Controller::new(CAMERA, FIRMWARE_VERSION, DeviceConfig::default())
+        .and_then(|c| c.with_capacity(MCU_CAPACITY))
         .ok()
 }

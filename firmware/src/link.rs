@@ -17,7 +17,7 @@ use rollfuse_core::device::{Controller, Effect};
 use rollfuse_core::protocol::{DeviceMessage, MAX_MESSAGE, RawChunk, RollerCommand, Tile};
 
 /// Full-speed bulk packet size.
-pub const PACKET: usize = 64;
+pub use rollfuse_core::protocol::usb::PACKET;
 
 /// The largest command accepted; longer transfers are dropped whole and answered with a
 /// bad-message refusal.

@@ -4,22 +4,10 @@
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
-use rollfuse_core::device::{Effect, PipelineConfig};
+use rollfuse_core::device::{Effect, Order};
 
-/// Orders for the pipeline.
-pub enum StreamOrder {
-    /// Fuse and queue tiles on every frame trigger.
-    Start,
-    /// Flush the tiles in fusion, then stop.
-    Stop,
-    /// Rebuild the pipeline for this configuration.
-    Configure(PipelineConfig),
-    /// Send this many raw frames, captured now.
-    CaptureRaw(u8),
-}
-
-/// The pipeline's orders.
-pub static STREAM: Channel<CriticalSectionRawMutex, StreamOrder, 4> = Channel::new();
+/// The pipeline's orders: the stream's part of accepted commands.
+pub static STREAM: Channel<CriticalSectionRawMutex, Order, 4> = Channel::new();
 
 /// The host is gone: streaming ends. A signal, not a queued order, so nothing can drop it.
 pub static STOP_STREAM: Signal<CriticalSectionRawMutex, ()> = Signal::new();

@@ -8,12 +8,12 @@ use common::*;
 use embassy_futures::join::join;
 use embassy_futures::select::{Either4, select, select4};
 use embassy_time::Duration;
-use rollfuse_core::device::{Effect, MCU_CAPACITY, PipelineConfig};
+use rollfuse_core::device::{CAMERA, Effect, MCU_CAPACITY, ModuleBuffers, Order, PipelineConfig};
 use rollfuse_core::protocol::{DeviceConfig, LedDuty, RollerCommand};
 use rollfuse_fw::counters::COUNTERS;
 use rollfuse_fw::effects::{self, Leds};
-use rollfuse_fw::pipeline::{self, Buffers, Camera, FRAME_WORDS};
-use rollfuse_fw::signals::{EFFECTS, STREAM, StreamOrder};
+use rollfuse_fw::pipeline::{self, Camera, FRAME_WORDS};
+use rollfuse_fw::signals::{EFFECTS, STREAM};
 use rollfuse_fw::{liveness, outbox, roller};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
@@ -45,13 +45,13 @@ impl Leds for MockLeds {
 #[test]
 fn a_silent_camera_blocks_no_order_and_is_reported() {
     outbox::init();
-    let config = PipelineConfig::from_wire(&DeviceConfig::default(), rollfuse_fw::SENSOR).unwrap();
+    let config = PipelineConfig::from_wire(&DeviceConfig::default(), CAMERA).unwrap();
     assert!(config.memory().fits(&MCU_CAPACITY));
     let frame: &'static mut _ = Box::leak(Box::new([0u32; FRAME_WORDS]));
-    let buffers: &'static mut _ = Box::leak(Box::new(Buffers::new()));
+    let buffers: &'static mut _ = Box::leak(Box::new(ModuleBuffers::new()));
     let (mut camera, mut leds, mut pins) = (Silent, MockLeds, Pins);
     let test = async {
-        STREAM.send(StreamOrder::Start).await;
+        STREAM.send(Order::Start).await;
         EFFECTS
             .send(Effect::Roller(RollerCommand::Start { speed_um_s: 20_000 }))
             .await;

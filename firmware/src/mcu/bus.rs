@@ -1,11 +1,13 @@
-//! The USB device: full speed on the OTG_FS peripheral, VID:PID `1209:0001`, one
-//! vendor-specific interface with a bulk OUT (0x01) and a bulk IN (0x81) endpoint; a
-//! suspended or unconfigured bus stops the roller and streaming.
+//! The USB device: full speed on the OTG_FS peripheral, enumerating as the core's
+//! `protocol::usb` says (VID:PID, one vendor-specific interface with a bulk OUT and a bulk
+//! IN endpoint at the addresses the host opens); a suspended or unconfigured bus stops the
+//! roller and streaming.
 
 use super::Irqs;
 use embassy_stm32::peripherals::{PA11, PA12, USB_OTG_FS};
 use embassy_stm32::{Peri, usb};
 use embassy_usb::UsbDevice;
+use rollfuse_core::protocol::usb as wire;
 use rollfuse_fw::roller;
 use rollfuse_fw::signals::STOP_STREAM;
 use static_cell::ConstStaticCell;
@@ -66,12 +68,12 @@ pub fn start(
     // at once, not only as a suspended bus.
     usb_config.vbus_detection = true;
     let driver = usb::Driver::new_fs(otg, Irqs, dp, dm, &mut m.ep_out, usb_config);
-    let mut config = embassy_usb::Config::new(0x1209, 0x0001);
-    config.manufacturer = Some("rollfuse");
-    config.product = Some("rollfuse tactile module");
+    let mut config = embassy_usb::Config::new(wire::VID, wire::PID);
+    config.manufacturer = Some(wire::MANUFACTURER);
+    config.product = Some(wire::PRODUCT);
     config.serial_number = Some("0001");
     config.max_power = 100;
-    config.max_packet_size_0 = 64;
+    config.max_packet_size_0 = wire::PACKET as u8;
     let mut builder = embassy_usb::Builder::new(
         driver,
         config,
@@ -81,11 +83,14 @@ pub fn start(
         &mut m.control,
     );
     builder.handler(&mut m.events);
-    let mut function = builder.function(0xFF, 0, 0);
+    let mut function = builder.function(wire::VENDOR_CLASS, 0, 0);
     let mut interface = function.interface();
-    let mut alt = interface.alt_setting(0xFF, 0, 0, None);
-    let read = alt.endpoint_bulk_out(None, rollfuse_fw::link::PACKET as u16);
-    let write = alt.endpoint_bulk_in(None, rollfuse_fw::link::PACKET as u16);
+    let mut alt = interface.alt_setting(wire::VENDOR_CLASS, 0, 0, None);
+    // The addresses the host opens, asked for by number rather than left to the order of
+    // allocation.
+    let packet = wire::PACKET as u16;
+    let read = alt.endpoint_bulk_out(Some(wire::EP_OUT.into()), packet);
+    let write = alt.endpoint_bulk_in(Some(wire::EP_IN.into()), packet);
     drop(function);
     (builder.build(), read, write)
 }

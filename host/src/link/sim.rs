@@ -6,17 +6,20 @@
 //! belt positions. The virtual device runs in virtual time: when the host is slow to read,
 //! it waits instead of dropping tiles, so its streams are reproducible; its send queue
 //! holds [`QUEUE`] messages.
+//!
+//! Its stream is the core's `device::Session`, the one the firmware runs, on the
+//! firmware's memory by default ([`DeviceMemory`]): it refuses what the module refuses.
 
 use super::{Received, Transport};
 use crate::image::Planes;
+use crate::pipeline_memory::PipelineMemory;
 use crate::sim::{Scene, Simulator};
 use anyhow::Context;
 use rollfuse_core::device::{
-    Controller, Effect, Pipeline, PipelineBuffers, PipelineConfig, Sensor,
+    Capture, Controller, Event, FIRMWARE_VERSION, Handed, MCU_CAPACITY, Memory, Next, Order,
+    Outlet, Sensor, Session, raw_chunks,
 };
-use rollfuse_core::protocol::{
-    DeviceConfig, DeviceMessage, MAX_CHUNK, MAX_MESSAGE, PixelFormat, RawChunk,
-};
+use rollfuse_core::protocol::{DeviceConfig, DeviceMessage, MAX_MESSAGE, PixelFormat, Tile};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, SyncSender, TryRecvError};
 use std::thread::JoinHandle;
 use std::time::Duration;
@@ -24,8 +27,17 @@ use std::time::Duration;
 /// Messages the virtual device may have in flight to the host.
 pub const QUEUE: usize = 64;
 
-/// The firmware version the virtual device reports.
-const FIRMWARE: [u8; 3] = [0, 1, 0];
+/// The pipeline memory a virtual device has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DeviceMemory {
+    /// The firmware's ([`MCU_CAPACITY`]): it refuses, as the module does, configurations
+    /// that do not fit.
+    #[default]
+    Firmware,
+    /// As much as each configuration needs: for host-only studies of configurations the
+    /// module cannot run.
+    Unbounded,
+}
 
 /// A virtual device running in a thread.
 pub struct SimDevice {
@@ -57,18 +69,32 @@ pub fn sensor_for(scene: &Scene, sim: &Simulator) -> (Sensor, DeviceConfig) {
 }
 
 impl SimDevice {
-    /// Starts a virtual device on `scene`. Fails if the product's default configuration
-    /// does not fit the scene's camera (the host may configure another once connected).
+    /// Starts a virtual device on `scene` with the firmware's memory. Fails if the
+    /// product's default configuration does not fit the scene's camera (the host may
+    /// configure another once connected).
     pub fn start(scene: &Scene) -> anyhow::Result<Self> {
+        Self::start_with(scene, DeviceMemory::Firmware)
+    }
+
+    /// [`Self::start`] with the given pipeline memory.
+    pub fn start_with(scene: &Scene, memory: DeviceMemory) -> anyhow::Result<Self> {
         let sim = Simulator::new(scene)?;
         let (sensor, config) = sensor_for(scene, &sim);
-        let mut controller = Controller::new(sensor, FIRMWARE, config).map_err(|reason| {
+        let refused = |reason| {
             anyhow::anyhow!(
                 "the virtual device's default configuration does not fit a {}×{} camera: {reason:?}",
                 sensor.width,
                 sensor.height
             )
-        })?;
+        };
+        let mut controller = Controller::new(sensor, FIRMWARE_VERSION, config).map_err(refused)?;
+        let capacity = match memory {
+            DeviceMemory::Firmware => Some(MCU_CAPACITY),
+            DeviceMemory::Unbounded => None,
+        };
+        if let Some(capacity) = capacity {
+            controller = controller.with_capacity(capacity).map_err(refused)?;
+        }
         // The simulated camera is always there.
         controller.counters_mut().camera_ready = true;
         let (to_device, commands) = mpsc::sync_channel::<Vec<u8>>(QUEUE);
@@ -78,9 +104,9 @@ impl SimDevice {
             .spawn(move || {
                 let mut dev = Device {
                     sim,
-                    controller,
+                    link: Wire { controller, out },
                     commands,
-                    out,
+                    capacity,
                     next_frame: 0,
                     origin_px: None,
                 };
@@ -94,9 +120,7 @@ impl SimDevice {
             thread: Some(thread),
         })
     }
-}
 
-impl SimDevice {
     /// The configuration the device starts with: the product defaults with the scene's
     /// frame spacing.
     pub fn default_config(&self) -> DeviceConfig {
@@ -141,116 +165,122 @@ impl Transport for SimDevice {
     }
 }
 
-/// The device thread's state.
-struct Device {
-    sim: Simulator,
+/// The device's side of the channel: messages encoded with the controller's sequence
+/// numbers, counts into its status. In virtual time a tile is never dropped: the device
+/// waits for the host to read.
+struct Wire {
     controller: Controller,
-    commands: Receiver<Vec<u8>>,
     out: SyncSender<Vec<u8>>,
-    next_frame: usize,
-    /// Commanded position of the first streamed frame's top row, camera pixels.
-    origin_px: Option<f64>,
 }
 
-/// Why the device loop on one configuration ended.
-enum Next {
-    Reconfigure,
-    Exit,
-}
-
-/// The pipeline's memory, allocated per configuration as the formula says.
-struct Storage {
-    frame: Vec<u8>,
-    tiles: Vec<u8>,
-    work: Vec<i32>,
-    profiles: Vec<i32>,
-}
-
-impl Storage {
-    fn new(cfg: &PipelineConfig) -> Self {
-        let m = cfg.memory();
-        Self {
-            frame: vec![0; m.frame_bytes],
-            tiles: vec![0; m.tile_bytes],
-            work: vec![0; m.work_words],
-            profiles: vec![0; m.profile_words],
-        }
-    }
-}
-
-impl Device {
-    fn run(&mut self) {
-        loop {
-            let cfg = self.controller.pipeline_config();
-            let mut storage = Storage::new(&cfg);
-            let bufs = PipelineBuffers {
-                frame: &mut storage.frame,
-                tiles: &mut storage.tiles,
-                work: &mut storage.work,
-                profiles: &mut storage.profiles,
-            };
-            let Ok(mut pipeline) = Pipeline::new(cfg, bufs) else {
-                return;
-            };
-            match self.run_with(&mut pipeline) {
-                Next::Reconfigure => continue,
-                Next::Exit => return,
-            }
-        }
-    }
-
+impl Wire {
     /// Sends a message; `false` if the host is gone.
-    fn send(controller: &mut Controller, out: &SyncSender<Vec<u8>>, msg: &DeviceMessage) -> bool {
+    fn send(&mut self, msg: &DeviceMessage) -> bool {
         let mut buf = vec![0u8; MAX_MESSAGE];
-        match controller.encode(msg, &mut buf) {
+        match self.controller.encode(msg, &mut buf) {
             Ok(n) => {
                 buf.truncate(n);
-                out.send(buf).is_ok()
+                self.out.send(buf).is_ok()
             }
             // Only an oversized message fails to encode; it is not sent.
             Err(_) => true,
         }
     }
 
-    fn run_with(&mut self, pipeline: &mut Pipeline) -> Next {
+    /// Sends the status, as a stream's last message.
+    fn send_status(&mut self) -> bool {
+        let status = DeviceMessage::Status(self.controller.counters());
+        self.send(&status)
+    }
+}
+
+impl Outlet for Wire {
+    fn tile(&mut self, tile: Tile<'_>) -> Handed {
+        if self.send(&DeviceMessage::Tile(tile)) {
+            Handed::Queued
+        } else {
+            Handed::LinkGone
+        }
+    }
+
+    fn count(&mut self, event: Event) {
+        self.controller.counters_mut().count(event);
+    }
+}
+
+/// The device thread's state.
+struct Device {
+    sim: Simulator,
+    link: Wire,
+    commands: Receiver<Vec<u8>>,
+    /// The pipeline memory, if bounded.
+    capacity: Option<Memory>,
+    next_frame: usize,
+    /// Commanded position of the first streamed frame's top row, camera pixels.
+    origin_px: Option<f64>,
+}
+
+/// Why the device loop on one session ended.
+enum Ended {
+    /// The configuration in force needs more memory than the session's (unbounded
+    /// memory only: the controller refuses it otherwise).
+    Grow,
+    /// The host is gone.
+    Exit,
+}
+
+impl Device {
+    fn run(&mut self) {
         loop {
-            let streaming = self.controller.counters().streaming;
-            let command = if streaming {
+            let config = self.link.controller.pipeline_config();
+            let mut memory = PipelineMemory::new(&self.capacity.unwrap_or(config.memory()));
+            let Ok(mut session) = Session::new(config, memory.buffers()) else {
+                return;
+            };
+            match self.serve(&mut session) {
+                Ended::Grow => continue,
+                Ended::Exit => return,
+            }
+        }
+    }
+
+    /// Serves commands and streams frames until the host goes or the memory must grow.
+    fn serve(&mut self, session: &mut Session) -> Ended {
+        loop {
+            let command = if session.streaming() {
                 match self.commands.try_recv() {
                     Ok(c) => Some(c),
                     Err(TryRecvError::Empty) => None,
-                    Err(TryRecvError::Disconnected) => return Next::Exit,
+                    Err(TryRecvError::Disconnected) => return Ended::Exit,
                 }
             } else {
                 match self.commands.recv() {
                     Ok(c) => Some(c),
-                    Err(_) => return Next::Exit,
+                    Err(_) => return Ended::Exit,
                 }
             };
-            if let Some(bytes) = command {
-                let (reply, effect) = self.controller.handle(&bytes);
-                if !Self::send(&mut self.controller, &self.out, &reply) {
-                    return Next::Exit;
-                }
-                match effect {
-                    Effect::Configure(_) => return Next::Reconfigure,
-                    Effect::StreamStop => {
-                        if !self.end_stream(pipeline, None) {
-                            return Next::Exit;
-                        }
-                    }
-                    Effect::CaptureRaw(n) => {
-                        if !self.capture_raw(n) {
-                            return Next::Exit;
-                        }
-                    }
-                    Effect::StreamStart | Effect::Leds(_) | Effect::Roller(_) | Effect::None => {}
-                }
-                continue;
+            let served = match command {
+                Some(bytes) => self.command(session, &bytes),
+                None => self.stream_one(session),
+            };
+            if let Err(ended) = served {
+                return ended;
             }
-            if !self.stream_one(pipeline) {
-                return Next::Exit;
-            }
+        }
+    }
+
+    /// Answers one command and carries out the session's part of it.
+    fn command(&mut self, session: &mut Session, bytes: &[u8]) -> Result<(), Ended> {
+        let (reply, effect) = self.link.controller.handle(bytes);
+        alive(self.link.send(&reply))?;
+        let Some(order) = Order::of(effect) else {
+            return Ok(());
+        };
+        match session.order(order, &mut self.link) {
+            Ok(Next::Nothing) => Ok(()),
+            Ok(Next::SendStatus) => alive(self.link.send_status()),
+            Ok(Next::CaptureRaw(n)) => alive(self.capture_raw(n)),
+            Err(_) => Err(Ended::Grow),
         }
     }
 
@@ -262,53 +292,27 @@ impl Device {
     }
 
     /// Captures, fuses and sends the next frame; at the end of the scene, ends the stream.
-    fn stream_one(&mut self, pipeline: &mut Pipeline) -> bool {
+    fn stream_one(&mut self, session: &mut Session) -> Result<(), Ended> {
         if self.next_frame >= self.sim.frames() {
-            let note = format!("scene ended after {} frames", self.next_frame);
-            return self.end_stream(pipeline, Some(&note));
+            return self.end_of_scene(session);
         }
         let (bytes, position) = self.camera_frame(self.next_frame);
         self.next_frame += 1;
         let origin = *self.origin_px.get_or_insert(position);
         let position_px = (position - origin).round().max(0.0) as u64;
-        let Device {
-            controller, out, ..
-        } = self;
-        controller.counters_mut().frames_captured += 1;
-        let mut alive = true;
-        let mut emitted = 0;
-        let result = pipeline.push_frame(&bytes, position_px, |tile| {
-            emitted += 1;
-            alive &= Self::send(controller, out, &DeviceMessage::Tile(tile));
-        });
-        let c = controller.counters_mut();
-        c.tiles_emitted += emitted;
-        match result {
-            Ok(_) => c.frames_fused += 1,
-            Err(_) => c.frames_rejected += 1,
-        }
-        alive
+        // The simulated camera always delivers.
+        Capture::Done.delivered(&mut self.link);
+        alive(session.fuse(&bytes, position_px, &mut self.link))
     }
 
-    /// Flushes the pipeline, stops streaming and sends the status (and `note`).
-    fn end_stream(&mut self, pipeline: &mut Pipeline, note: Option<&str>) -> bool {
-        let Device {
-            controller, out, ..
-        } = self;
-        let mut alive = true;
-        let mut emitted = 0;
-        pipeline.finish(|tile| {
-            emitted += 1;
-            alive &= Self::send(controller, out, &DeviceMessage::Tile(tile));
-        });
-        let c = controller.counters_mut();
-        c.tiles_emitted += emitted;
-        c.streaming = false;
-        if let Some(note) = note {
-            alive &= Self::send(controller, out, &DeviceMessage::Log(note));
-        }
-        let status = DeviceMessage::Status(controller.counters());
-        alive && Self::send(controller, out, &status)
+    /// The scene has no more frames: the device stops streaming on its own, says why,
+    /// and sends the status.
+    fn end_of_scene(&mut self, session: &mut Session) -> Result<(), Ended> {
+        let note = format!("scene ended after {} frames", self.next_frame);
+        let flushed = session.stop(&mut self.link);
+        self.link.controller.counters_mut().streaming = false;
+        let told = self.link.send(&DeviceMessage::Log(&note));
+        alive(flushed && told && self.link.send_status())
     }
 
     /// Sends the next `n` frames raw, in chunks (they are not fused).
@@ -319,24 +323,20 @@ impl Device {
             }
             let (bytes, _) = self.camera_frame(self.next_frame);
             self.next_frame += 1;
-            for (k, data) in bytes.chunks(MAX_CHUNK).enumerate() {
-                let chunk = RawChunk {
-                    frame,
-                    offset: (k * MAX_CHUNK) as u32,
-                    total: bytes.len() as u32,
-                    data,
-                };
-                if !Self::send(
-                    &mut self.controller,
-                    &self.out,
-                    &DeviceMessage::RawChunk(chunk),
-                ) {
+            Capture::Done.delivered(&mut self.link);
+            for chunk in raw_chunks(frame, &bytes) {
+                if !self.link.send(&DeviceMessage::RawChunk(chunk)) {
                     return false;
                 }
             }
         }
         true
     }
+}
+
+/// `Err(Exit)` if the host is gone.
+fn alive(host_there: bool) -> Result<(), Ended> {
+    if host_there { Ok(()) } else { Err(Ended::Exit) }
 }
 
 /// A rendered frame as the camera would deliver it: 8-bit gray, or RGB565 little-endian.

@@ -2,27 +2,17 @@
 //! endpoint, one message per transfer (the device ends each with a short packet or a
 //! zero-length packet).
 //!
-//! The firmware enumerates as [`VID`]:[`PID`] (pid.codes' open-source VID with its test
-//! PID, until the product has its own), interface [`INTERFACE`], endpoints
-//! [`EP_OUT`] and [`EP_IN`]. libusb is built in (rusb's `vendored` feature): nothing needs
+//! The firmware enumerates as [`VID`]:[`PID`] with interface [`INTERFACE`] and endpoints
+//! [`EP_OUT`] and [`EP_IN`] (the core's `protocol::usb`, which the firmware builds its
+//! descriptors from). libusb is built in (rusb's `vendored` feature): nothing needs
 //! installing, but on Linux the user needs access to the device node (a udev rule, see
 //! `firmware/README.md`).
 
 use super::{Received, Transport};
 use anyhow::{Context, bail};
+pub use rollfuse_core::protocol::usb::{EP_IN, EP_OUT, INTERFACE, PID, VID};
 use rusb::UsbContext;
 use std::time::Duration;
-
-/// USB vendor ID (pid.codes).
-pub const VID: u16 = 0x1209;
-/// USB product ID (pid.codes test PID).
-pub const PID: u16 = 0x0001;
-/// The vendor-specific interface.
-pub const INTERFACE: u8 = 0;
-/// Bulk OUT endpoint (host → device).
-pub const EP_OUT: u8 = 0x01;
-/// Bulk IN endpoint (device → host).
-pub const EP_IN: u8 = 0x81;
 
 /// One rollfuse device seen on the bus.
 #[derive(Debug, Clone)]

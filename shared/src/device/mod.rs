@@ -6,17 +6,25 @@
 //! - [`refine`]: the belt shift between frames, refined by a 1-D correlation.
 //! - [`pipeline`]: the streaming tile model — tiles fused from the frames that see them
 //!   near the roller's apex and emitted once complete, in fixed, caller-owned memory.
+//! - [`session`]: one stream — the pipeline driven by the accepted commands, tiles handed
+//!   to the link, everything counted for the status. The firmware and the virtual device
+//!   both run their streams through it.
 //! - [`controller`]: commands decoded, validated and answered.
+//! - [`module`]: the module as built — firmware version, camera, the firmware's memory.
 //! - [`leds`]: LED duties to PWM compare values.
 
 pub mod controller;
 pub mod downsample;
 pub mod leds;
+pub mod module;
 pub mod pipeline;
 pub mod refine;
+pub mod session;
 
 pub use controller::{Controller, Effect};
+pub use module::{CAMERA, FIRMWARE_VERSION, MCU_CAPACITY, ModuleBuffers};
 pub use pipeline::{
-    FrameError, FrameReport, MCU_CAPACITY, Memory, Pipeline, PipelineBuffers, PipelineConfig,
-    Precision, Schedule, Sensor,
+    FrameError, FrameReport, Memory, Pipeline, PipelineBuffers, PipelineConfig, Precision,
+    Schedule, Sensor,
 };
+pub use session::{Capture, Event, Handed, Next, Order, Outlet, Session, raw_chunks};

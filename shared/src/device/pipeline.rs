@@ -29,16 +29,6 @@ use crate::protocol::{DeviceConfig, NakReason, NormMode, PixelFormat, Tile, Wave
 use crate::saliency::laplacian_max_u8;
 use crate::{Ablation, Dims, Error, FuseConfig, LlWeighting, SaliencyNorm, Wavelet};
 
-/// The pipeline buffers the firmware has (`firmware/src/mcu/pipeline.rs` sizes its statics
-/// by this): a QVGA frame downsampled at least 2×, 48 KiB of tiles, 16 Ki words of work
-/// area. The firmware's controller refuses configurations that need more.
-pub const MCU_CAPACITY: Memory = Memory {
-    frame_bytes: 160 * 120,
-    tile_bytes: 48 * 1024,
-    work_words: 16 * 1024,
-    profile_words: 2 * 119,
-};
-
 /// Tiles in fusion at once, at most.
 pub const MAX_ACTIVE_TILES: usize = 16;
 
@@ -330,6 +320,23 @@ pub struct PipelineBuffers<'a> {
     pub profiles: &'a mut [i32],
 }
 
+impl PipelineBuffers<'_> {
+    /// Fails, naming the first buffer too small, unless each holds what `needed` says.
+    fn check(&self, needed: &Memory) -> Result<(), Error> {
+        for (which, needed, got) in [
+            ("frame", needed.frame_bytes, self.frame.len()),
+            ("tiles", needed.tile_bytes, self.tiles.len()),
+            ("work", needed.work_words, self.work.len()),
+            ("profiles", needed.profile_words, self.profiles.len()),
+        ] {
+            if got < needed {
+                return Err(Error::BufferTooSmall { which, needed, got });
+            }
+        }
+        Ok(())
+    }
+}
+
 /// A tile in fusion.
 #[derive(Debug, Clone, Copy)]
 struct Slot {
@@ -374,17 +381,7 @@ impl<'a> Pipeline<'a> {
     /// A pipeline on the caller's buffers; fails if one is smaller than
     /// [`PipelineConfig::memory`] says.
     pub fn new(cfg: PipelineConfig, bufs: PipelineBuffers<'a>) -> Result<Self, Error> {
-        let m = cfg.memory();
-        for (which, needed, got) in [
-            ("frame", m.frame_bytes, bufs.frame.len()),
-            ("tiles", m.tile_bytes, bufs.tiles.len()),
-            ("work", m.work_words, bufs.work.len()),
-            ("profiles", m.profile_words, bufs.profiles.len()),
-        ] {
-            if got < needed {
-                return Err(Error::BufferTooSmall { which, needed, got });
-            }
-        }
+        bufs.check(&cfg.memory())?;
         Ok(Self {
             cfg,
             bufs,
@@ -397,6 +394,18 @@ impl<'a> Pipeline<'a> {
     /// The configuration.
     pub fn config(&self) -> &PipelineConfig {
         &self.cfg
+    }
+
+    /// Serves `cfg` from now on, on the same memory, as a new pipeline would: tiles still
+    /// in fusion are dropped, so [`Self::finish`] first. Fails, keeping the configuration
+    /// in force, if a buffer is smaller than `cfg` needs.
+    pub fn reconfigure(&mut self, cfg: PipelineConfig) -> Result<(), Error> {
+        self.bufs.check(&cfg.memory())?;
+        self.cfg = cfg;
+        self.slots = [None; MAX_ACTIVE_TILES];
+        self.last = None;
+        self.previous_profile_first = true;
+        Ok(())
     }
 
     /// Gives the caller's memory back (e.g. to build a pipeline of another configuration

@@ -18,6 +18,7 @@
 
 mod messages;
 mod seq;
+pub mod usb;
 
 pub use messages::{
     Command, DeviceConfig, DeviceInfo, DeviceMessage, LedDuty, NakReason, NormMode, PixelFormat,
