@@ -6,8 +6,8 @@
 //! `cargo bench -p rollfuse-core --bench link`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use rollfuse_core::device::{Pipeline, PipelineBuffers, PipelineConfig, Sensor};
-use rollfuse_core::protocol::{self, DeviceConfig, DeviceMessage, MAX_MESSAGE, PixelFormat, Tile};
+use rollfuse_core::device::{CAMERA, ModuleBuffers, Pipeline, PipelineConfig};
+use rollfuse_core::protocol::{self, DeviceConfig, DeviceMessage, MAX_MESSAGE, Tile};
 use std::hint::black_box;
 
 fn messages(c: &mut Criterion) {
@@ -34,30 +34,15 @@ fn messages(c: &mut Criterion) {
 }
 
 fn pipeline(c: &mut Criterion) {
-    let sensor = Sensor {
-        width: 320,
-        height: 240,
-        format: PixelFormat::Yuyv,
-    };
-    let cfg = PipelineConfig::from_wire(&DeviceConfig::default(), sensor).unwrap();
-    let m = cfg.memory();
-    let (mut frame, mut tiles) = (vec![0u8; m.frame_bytes], vec![0u8; m.tile_bytes]);
-    let (mut work, mut profiles) = (vec![0i32; m.work_words], vec![0i32; m.profile_words]);
-    let mut p = Pipeline::new(
-        cfg,
-        PipelineBuffers {
-            frame: &mut frame,
-            tiles: &mut tiles,
-            work: &mut work,
-            profiles: &mut profiles,
-        },
-    )
-    .unwrap();
+    let cfg = PipelineConfig::from_wire(&DeviceConfig::default(), CAMERA).unwrap();
+    let mut memory = Box::new(ModuleBuffers::new());
+    let mut p = Pipeline::new(cfg, memory.buffers()).unwrap();
     // Textured YUYV frames of a belt moving 16 camera rows per frame.
     let camera = |k: usize| -> Vec<u8> {
-        (0..320 * 240)
+        let w = CAMERA.width;
+        (0..w * CAMERA.height)
             .flat_map(|i| {
-                let (x, y) = (i % 320, i / 320 + 16 * k);
+                let (x, y) = (i % w, i / w + 16 * k);
                 let luma = (60 + ((x * 7) ^ (y * 13)) % 90 + (y * 31 % 50)) as u8;
                 [luma, 128]
             })

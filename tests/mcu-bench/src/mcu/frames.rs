@@ -1,14 +1,16 @@
 //! The bench's camera frames: QVGA YUYV (the firmware's camera format) of a textured belt
 //! that moves 16 camera pixels per frame, drawn by integer code so every run is the same.
 
+use rollfuse_core::device::CAMERA;
+
 /// Camera width, pixels.
-pub const WIDTH: usize = 320;
+pub const WIDTH: usize = CAMERA.width;
 /// Camera height, pixels.
-pub const HEIGHT: usize = 240;
+pub const HEIGHT: usize = CAMERA.height;
 /// Belt travel per frame, camera pixels (the product's default).
 pub const SPACING_PX: usize = 16;
 /// Bytes of one YUYV frame.
-pub const FRAME_BYTES: usize = WIDTH * HEIGHT * 2;
+pub const FRAME_BYTES: usize = CAMERA.frame_bytes();
 
 /// Luma of belt point `(x, belt_row)`: a shading ramp, raised strokes (bars of dots, like
 /// the dot and line matrices of the standard scenes) and a fine grain.

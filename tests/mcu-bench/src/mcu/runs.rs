@@ -8,11 +8,11 @@ use core::fmt;
 use rollfuse_core::device::downsample::{downsample, downsample_rows};
 use rollfuse_core::device::refine::{refine_shift, row_profile};
 use rollfuse_core::device::{
-    MCU_CAPACITY, Pipeline, PipelineBuffers, PipelineConfig, Precision, Sensor,
+    CAMERA, MCU_CAPACITY, Pipeline, PipelineBuffers, PipelineConfig, Precision, Sensor,
 };
 use rollfuse_core::fusion::{LlWeight, U8Work, fuse_u8};
 use rollfuse_core::lifting::{forward_2d, inverse_2d};
-use rollfuse_core::protocol::{DeviceConfig, NormMode, PixelFormat, WaveletId};
+use rollfuse_core::protocol::{DeviceConfig, NormMode, WaveletId};
 use rollfuse_core::saliency::laplacian_max_u8;
 use rollfuse_core::{Ablation, Dims, FuseConfig, SaliencyNorm, Wavelet, float};
 
@@ -28,11 +28,7 @@ const MEASURED: usize = 8;
 const FUSE_CALLS: usize = 4;
 
 /// The camera the firmware has.
-const SENSOR: Sensor = Sensor {
-    width: WIDTH,
-    height: HEIGHT,
-    format: PixelFormat::Yuyv,
-};
+const SENSOR: Sensor = CAMERA;
 
 /// One configuration of the sweep.
 #[derive(Clone, Copy)]
