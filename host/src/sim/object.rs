@@ -31,7 +31,7 @@ pub struct Region {
 
 /// A laid-out object: its height at any point, and its regions.
 pub struct Layout {
-    height: Box<dyn Fn(f64, f64) -> f64 + Send + Sync>,
+    height: Height,
     /// The regions the object defines (may be empty).
     pub regions: Vec<Region>,
     /// The defects placed on a textile (empty for other objects).
@@ -78,171 +78,72 @@ fn wire(r: f64, d: f64) -> f64 {
     }
 }
 
+/// A glyph's width across the belt, font cells.
+const GLYPH_COLS: i64 = 5;
+/// A glyph's length along the belt, font cells.
+const GLYPH_ROWS: i64 = 7;
+/// Blank font cells between one glyph and the next along the belt.
+const GLYPH_GAP: i64 = 2;
+/// The share of the canvas's width the letters may take.
+const LETTERS_WIDTH_SHARE: f64 = 0.6;
+/// The share of the canvas's length the letters may take.
+const LETTERS_LENGTH_SHARE: f64 = 0.9;
+/// The largest font cell, mm.
+const LETTERS_MAX_CELL_MM: f64 = 0.8;
+
+/// Half a line's length, as a share of the grid pitch.
+const LINE_HALF_LENGTH: f64 = 0.35;
+/// A curve's radius, as a share of the grid pitch.
+const CURVE_RADIUS: f64 = 0.3;
+/// Spheres, on the canvas's diagonal.
+const SPHERES: usize = 3;
+
+/// Where the screw's head ends and its threads begin, as a share of the canvas length.
+const SCREW_SHANK_START: f64 = 0.15;
+/// Where the screw's threads end, as a share of the canvas length.
+const SCREW_TIP: f64 = 0.85;
+/// The screw head's length, as a share of the canvas length.
+const SCREW_HEAD_LENGTH: f64 = 0.25;
+/// The head's radius, as a multiple of the shank's.
+const SCREW_HEAD_RADIUS: f64 = 1.6;
+/// How far the head's top stands above the threads' crests, mm.
+const SCREW_HEAD_ABOVE_MM: f64 = 0.05;
+/// The slot's half width across the head, as a multiple of the shank's radius.
+const SCREW_SLOT_HALF_WIDTH: f64 = 0.2;
+/// The slot's depth, as a multiple of the shank's radius.
+const SCREW_SLOT_DEPTH: f64 = 0.6;
+/// The threads' root radius, as a share of their crest's.
+const THREAD_ROOT: f64 = 0.85;
+/// The threads' depth, as a share of their crest's radius (crest = root + depth).
+const THREAD_DEPTH: f64 = 0.15;
+
 /// Lays `object` out in `canvas`; `seed` places what a scene leaves to chance.
 pub fn layout(object: &Object, canvas: Canvas, seed: u64) -> Layout {
     let (w, l) = (canvas.width_mm, canvas.length_mm);
-    let no_regions = Vec::new;
     match object.clone() {
-        Object::Letters { text, height_mm } => {
-            let chars: Vec<char> = text.chars().collect();
-            let n = chars.len() as f64;
-            // Glyphs stand along the belt, one after another, each 5 cells wide and 7
-            // long with 2 cells of spacing, as large as the canvas allows (cells ≤ 0.8 mm).
-            let cell = (0.6 * w / 5.0)
-                .min(0.9 * l / (n * 9.0 - 2.0).max(1.0))
-                .min(0.8);
-            let x0 = (w - 5.0 * cell) / 2.0;
-            let y0 = (l - (n * 9.0 - 2.0) * cell) / 2.0;
-            Layout {
-                height: Box::new(move |x, y| {
-                    let (cx, cy) = ((x - x0) / cell, (y - y0) / cell);
-                    let (ci, cj) = (cx.floor() as i64, cy.floor() as i64);
-                    let mut d = f64::INFINITY;
-                    for j in cj - 1..=cj + 1 {
-                        for i in ci - 1..=ci + 1 {
-                            if i < 0 || j < 0 || i >= 5 {
-                                continue;
-                            }
-                            let (k, row) = ((j / 9) as usize, (j % 9) as usize);
-                            let raised = row < 7
-                                && chars
-                                    .get(k)
-                                    .is_some_and(|&c| font::cell(c, i as usize, row));
-                            if raised {
-                                let ox = (i as f64 - cx).max(cx - (i + 1) as f64).max(0.0);
-                                let oy = (j as f64 - cy).max(cy - (j + 1) as f64).max(0.0);
-                                d = d.min((ox * ox + oy * oy).sqrt() * cell);
-                            }
-                        }
-                    }
-                    shoulder(height_mm, d)
-                }),
-                regions: no_regions(),
-                defects: Vec::new(),
-            }
-        }
+        Object::Letters { text, height_mm } => surface(letters(&text, height_mm, w, l)),
         Object::Dots {
             height_mm,
             pitch_mm,
             size_mm,
-        } => {
-            let r = size_mm / 2.0;
-            Layout {
-                height: matrix(w, l, pitch_mm, move |u, v| {
-                    shoulder(height_mm, (u * u + v * v).sqrt() - r)
-                }),
-                regions: no_regions(),
-                defects: Vec::new(),
-            }
-        }
+        } => surface(matrix(w, l, pitch_mm, dot(height_mm, size_mm))),
         Object::Lines {
             height_mm,
             pitch_mm,
             size_mm,
-        } => {
-            let half = 0.35 * pitch_mm;
-            Layout {
-                height: matrix(w, l, pitch_mm, move |u, v| {
-                    shoulder(
-                        height_mm,
-                        segment_distance(u, v, (-half, 0.0), (half, 0.0)) - size_mm / 2.0,
-                    )
-                }),
-                regions: no_regions(),
-                defects: Vec::new(),
-            }
-        }
+        } => surface(matrix(w, l, pitch_mm, line(height_mm, pitch_mm, size_mm))),
         Object::Curves {
             height_mm,
             pitch_mm,
             size_mm,
-        } => {
-            let radius = 0.3 * pitch_mm;
-            Layout {
-                height: matrix(w, l, pitch_mm, move |u, v| {
-                    // A half ring opening toward +y.
-                    let ring = ((u * u + (v - radius / 2.0).powi(2)).sqrt() - radius).abs();
-                    let d = if v - radius / 2.0 <= 0.0 {
-                        ring
-                    } else {
-                        ((u.abs() - radius).powi(2) + (v - radius / 2.0).powi(2)).sqrt()
-                    };
-                    shoulder(height_mm, d - size_mm / 2.0)
-                }),
-                regions: no_regions(),
-                defects: Vec::new(),
-            }
-        }
-        Object::Spheres { diameter_mm } => {
-            let r = diameter_mm / 2.0;
-            // Diagonal across the canvas, so each passes the apex at a different frame.
-            let centres: Vec<(f64, f64)> = (1..=3)
-                .map(|k| (w * k as f64 / 4.0, l * k as f64 / 4.0))
-                .collect();
-            let regions = centres
-                .iter()
-                .enumerate()
-                .map(|(k, &(cx, cy))| Region {
-                    name: format!("sphere_{}", k + 1),
-                    contains: Box::new(move |x, y| (x - cx).powi(2) + (y - cy).powi(2) <= r * r),
-                })
-                .collect();
-            Layout {
-                height: Box::new(move |x, y| {
-                    centres
-                        .iter()
-                        .map(|&(cx, cy)| wire(r, ((x - cx).powi(2) + (y - cy).powi(2)).sqrt()))
-                        .fold(0.0, f64::max)
-                }),
-                regions,
-                defects: Vec::new(),
-            }
-        }
+        } => surface(matrix(w, l, pitch_mm, curve(height_mm, pitch_mm, size_mm))),
+        Object::Spheres { diameter_mm } => spheres(diameter_mm, w, l),
         Object::Fabric { yarn_mm, pitch_mm } => fabric(w, l, yarn_mm, pitch_mm),
         Object::Screw {
             diameter_mm,
             pitch_mm,
-        } => {
-            let r = diameter_mm / 2.0;
-            let cx = w / 2.0;
-            let (y_head, y_tip) = (0.15 * l, 0.85 * l);
-            Layout {
-                height: Box::new(move |x, y| {
-                    let d = (x - cx).abs();
-                    if (y_head - 0.25 * l..y_head).contains(&y) {
-                        // The head: wider than the shank; lying on its side the screw rests on
-                        // both, so the head's top is cut level with the threads'.
-                        let head = wire(1.6 * r, d).min(2.0 * r + 0.05);
-                        let slot = (y - (y_head - 0.125 * l)).abs() < 0.2 * r;
-                        return if slot { head - 0.6 * r } else { head };
-                    }
-                    if !(y_head..y_tip).contains(&y) {
-                        return 0.0;
-                    }
-                    // Threads: the radius swings by a sixth of itself along a helix.
-                    let phase = (y / pitch_mm + (x - cx) / (2.0 * PI * r)).fract();
-                    let tooth = 1.0 - 2.0 * (phase - 0.5).abs();
-                    wire(r * (0.85 + 0.15 * tooth), d)
-                }),
-                regions: no_regions(),
-                defects: Vec::new(),
-            }
-        }
-        Object::Paperclip { wire_mm } => {
-            let r = wire_mm / 2.0;
-            let path = paperclip_path(w, l);
-            Layout {
-                height: Box::new(move |x, y| {
-                    let d = path
-                        .windows(2)
-                        .map(|s| segment_distance(x, y, s[0], s[1]))
-                        .fold(f64::INFINITY, f64::min);
-                    wire(r, d)
-                }),
-                regions: no_regions(),
-                defects: Vec::new(),
-            }
-        }
+        } => surface(screw(diameter_mm, pitch_mm, w, l)),
+        Object::Paperclip { wire_mm } => surface(paperclip(wire_mm, w, l)),
         Object::Primitives { shapes } => primitives(shapes),
         Object::Textile {
             fabric,
@@ -250,6 +151,172 @@ pub fn layout(object: &Object, canvas: Canvas, seed: u64) -> Layout {
             scale,
         } => textile_layout(&fabric, defects, scale, (w, l), seed),
     }
+}
+
+/// A height map, boxed.
+type Height = Box<dyn Fn(f64, f64) -> f64 + Send + Sync>;
+
+/// An object that is only a height map: no regions, no defects.
+fn surface(height: Height) -> Layout {
+    Layout {
+        height,
+        regions: Vec::new(),
+        defects: Vec::new(),
+    }
+}
+
+/// `text` raised `height_mm`, its glyphs one after another along the belt, as large as the
+/// canvas allows, centred.
+fn letters(text: &str, height_mm: f64, w: f64, l: f64) -> Height {
+    let chars: Vec<char> = text.chars().collect();
+    let n = chars.len() as f64;
+    let (cols, rows, gap) = (GLYPH_COLS as f64, GLYPH_ROWS as f64, GLYPH_GAP as f64);
+    // Font cells along the belt: every glyph and the gaps between them.
+    let length_cells = n * (rows + gap) - gap;
+    let cell = (LETTERS_WIDTH_SHARE * w / cols)
+        .min(LETTERS_LENGTH_SHARE * l / length_cells.max(1.0))
+        .min(LETTERS_MAX_CELL_MM);
+    let x0 = (w - cols * cell) / 2.0;
+    let y0 = (l - length_cells * cell) / 2.0;
+    Box::new(move |x, y| {
+        let (cx, cy) = ((x - x0) / cell, (y - y0) / cell);
+        shoulder(height_mm, raised_cell_distance(&chars, cx, cy) * cell)
+    })
+}
+
+/// Distance, in font cells, from the point `(cx, cy)` (font cells from the text's corner)
+/// to the nearest raised cell of the 3×3 around it (infinite when none is raised).
+fn raised_cell_distance(chars: &[char], cx: f64, cy: f64) -> f64 {
+    let (ci, cj) = (cx.floor() as i64, cy.floor() as i64);
+    let mut d = f64::INFINITY;
+    for j in cj - 1..=cj + 1 {
+        for i in ci - 1..=ci + 1 {
+            if i < 0 || j < 0 || i >= GLYPH_COLS {
+                continue;
+            }
+            let pitch = GLYPH_ROWS + GLYPH_GAP;
+            let (k, row) = ((j / pitch) as usize, (j % pitch) as usize);
+            let raised = row < GLYPH_ROWS as usize
+                && chars
+                    .get(k)
+                    .is_some_and(|&c| font::cell(c, i as usize, row));
+            if raised {
+                let ox = (i as f64 - cx).max(cx - (i + 1) as f64).max(0.0);
+                let oy = (j as f64 - cy).max(cy - (j + 1) as f64).max(0.0);
+                d = d.min((ox * ox + oy * oy).sqrt());
+            }
+        }
+    }
+    d
+}
+
+/// A grid unit: a round dot `size_mm` across, raised `height_mm`.
+fn dot(height_mm: f64, size_mm: f64) -> impl Fn(f64, f64) -> f64 + Send + Sync + 'static {
+    let r = size_mm / 2.0;
+    move |u, v| shoulder(height_mm, (u * u + v * v).sqrt() - r)
+}
+
+/// A grid unit: a line across the belt, `size_mm` wide, raised `height_mm`.
+fn line(
+    height_mm: f64,
+    pitch_mm: f64,
+    size_mm: f64,
+) -> impl Fn(f64, f64) -> f64 + Send + Sync + 'static {
+    let half = LINE_HALF_LENGTH * pitch_mm;
+    move |u, v| {
+        shoulder(
+            height_mm,
+            segment_distance(u, v, (-half, 0.0), (half, 0.0)) - size_mm / 2.0,
+        )
+    }
+}
+
+/// A grid unit: a half ring opening toward +y, `size_mm` wide, raised `height_mm`.
+fn curve(
+    height_mm: f64,
+    pitch_mm: f64,
+    size_mm: f64,
+) -> impl Fn(f64, f64) -> f64 + Send + Sync + 'static {
+    let radius = CURVE_RADIUS * pitch_mm;
+    move |u, v| {
+        let ring = ((u * u + (v - radius / 2.0).powi(2)).sqrt() - radius).abs();
+        let d = if v - radius / 2.0 <= 0.0 {
+            ring
+        } else {
+            ((u.abs() - radius).powi(2) + (v - radius / 2.0).powi(2)).sqrt()
+        };
+        shoulder(height_mm, d - size_mm / 2.0)
+    }
+}
+
+/// [`SPHERES`] balls of `diameter_mm` lying on the belt, each a region.
+fn spheres(diameter_mm: f64, w: f64, l: f64) -> Layout {
+    let r = diameter_mm / 2.0;
+    // Diagonal across the canvas, so each passes the apex at a different frame.
+    let parts = (SPHERES + 1) as f64;
+    let centres: Vec<(f64, f64)> = (1..=SPHERES)
+        .map(|k| (w * k as f64 / parts, l * k as f64 / parts))
+        .collect();
+    let regions = centres
+        .iter()
+        .enumerate()
+        .map(|(k, &(cx, cy))| Region {
+            name: format!("sphere_{}", k + 1),
+            contains: Box::new(move |x, y| (x - cx).powi(2) + (y - cy).powi(2) <= r * r),
+        })
+        .collect();
+    Layout {
+        regions,
+        ..surface(Box::new(move |x, y| {
+            centres
+                .iter()
+                .map(|&(cx, cy)| wire(r, ((x - cx).powi(2) + (y - cy).powi(2)).sqrt()))
+                .fold(0.0, f64::max)
+        }))
+    }
+}
+
+/// A screw of `diameter_mm` lying along the belt in the middle of the canvas: a slotted
+/// head, then a shank threaded at `pitch_mm`.
+fn screw(diameter_mm: f64, pitch_mm: f64, w: f64, l: f64) -> Height {
+    let r = diameter_mm / 2.0;
+    let cx = w / 2.0;
+    let (y_head, y_tip) = (SCREW_SHANK_START * l, SCREW_TIP * l);
+    Box::new(move |x, y| {
+        let d = (x - cx).abs();
+        if (y_head - SCREW_HEAD_LENGTH * l..y_head).contains(&y) {
+            // The head: wider than the shank; lying on its side the screw rests on both,
+            // so the head's top is cut level with the threads'.
+            let head = wire(SCREW_HEAD_RADIUS * r, d).min(2.0 * r + SCREW_HEAD_ABOVE_MM);
+            let slot_centre = y_head - SCREW_HEAD_LENGTH / 2.0 * l;
+            let slot = (y - slot_centre).abs() < SCREW_SLOT_HALF_WIDTH * r;
+            return if slot {
+                head - SCREW_SLOT_DEPTH * r
+            } else {
+                head
+            };
+        }
+        if !(y_head..y_tip).contains(&y) {
+            return 0.0;
+        }
+        // Threads: the radius swings between root and crest along a helix.
+        let phase = (y / pitch_mm + (x - cx) / (2.0 * PI * r)).fract();
+        let tooth = 1.0 - 2.0 * (phase - 0.5).abs();
+        wire(r * (THREAD_ROOT + THREAD_DEPTH * tooth), d)
+    })
+}
+
+/// A paperclip bent from wire `wire_mm` thick.
+fn paperclip(wire_mm: f64, w: f64, l: f64) -> Height {
+    let r = wire_mm / 2.0;
+    let path = paperclip_path(w, l);
+    Box::new(move |x, y| {
+        let d = path
+            .windows(2)
+            .map(|s| segment_distance(x, y, s[0], s[1]))
+            .fold(f64::INFINITY, f64::min);
+        wire(r, d)
+    })
 }
 
 /// A textile of the fabric named `fabric` (the first fabric if the name is unknown:
@@ -272,7 +339,7 @@ fn matrix(
     l: f64,
     pitch: f64,
     unit: impl Fn(f64, f64) -> f64 + Send + Sync + 'static,
-) -> Box<dyn Fn(f64, f64) -> f64 + Send + Sync> {
+) -> Height {
     let (nx, ny) = (
         ((w / pitch) as i64 - 1).max(1),
         ((l / pitch) as i64 - 1).max(1),
