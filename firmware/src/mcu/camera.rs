@@ -1,37 +1,99 @@
 //! The camera: an OV7725-class sensor configured over SCCB (I2C1) for QVGA YUYV, its pixel
 //! clock from MCO1, frames captured by DCMI + DMA as single snapshots into a buffer in
-//! AXI SRAM (38 400 words, under the DMA's 65 535-word limit), with a timeout.
+//! AXI SRAM (`FRAME_WORDS` words, under the DMA's 65 535-word limit), with a timeout.
 //!
 //! The register values are the OV7725 datasheet's QVGA settings; they are not yet tried on
 //! hardware (firmware/README.md).
 
-use embassy_stm32::dcmi::Dcmi;
+use super::Irqs;
+use core::sync::atomic::Ordering::Relaxed;
+use defmt::error;
+use embassy_stm32::dcmi::{self, Dcmi};
 use embassy_stm32::i2c::{I2c, Master};
 use embassy_stm32::interrupt::typelevel::{self, Handler};
 use embassy_stm32::mode::Async;
 use embassy_stm32::peripherals::DCMI;
+use embassy_stm32::rcc::{Mco, Mco1Source, McoConfig, McoPrescaler};
+use embassy_stm32::{Peri, peripherals};
 use embassy_time::Timer;
+use rollfuse_core::device::CAMERA;
+use rollfuse_fw::counters::COUNTERS;
 use rollfuse_fw::frame_clock;
 use rollfuse_fw::pipeline::{Camera, FRAME_WORDS};
 
 /// SCCB address of the sensor (7-bit).
 const ADDRESS: u8 = 0x21;
 
-/// Register, value: reset first, then QVGA, YUV output, the 320×240 window.
-const SETUP: &[(u8, u8)] = &[
-    (0x12, 0x40), // COM7: QVGA, YUV
-    (0x11, 0x01), // CLKRC: internal clock = input / 2
-    (0x67, 0x00), // DSP_Ctrl4: YUV output from the DSP
-    (0x0C, 0x18), // COM3: bytes Y U Y V (bit 3; clear, the reset state, gives U Y V Y);
-    //               bit 4 as at reset
-    (0x17, 0x3F), // HSTART
-    (0x18, 0x50), // HSIZE: 320 / 4
-    (0x19, 0x03), // VSTART
-    (0x1A, 0x78), // VSIZE: 240 / 2
-    (0x32, 0x00), // HREF
-    (0x29, 0x50), // HOutSize: 320 / 4
-    (0x2C, 0x78), // VOutSize: 240 / 2
-    (0x2A, 0x00), // EXHCH
+/// The OV7725's registers this driver reads or writes, by their datasheet names.
+#[derive(Clone, Copy)]
+#[repr(u8)]
+enum Reg {
+    /// Product ID, high byte.
+    Pid = 0x0A,
+    /// Product ID, low byte.
+    Ver = 0x0B,
+    /// Common control 3: output byte order.
+    Com3 = 0x0C,
+    /// Internal clock prescaler.
+    Clkrc = 0x11,
+    /// Common control 7: reset, resolution, output format.
+    Com7 = 0x12,
+    /// Sensor window: horizontal start (high 8 bits).
+    Hstart = 0x17,
+    /// Sensor window: width / 4.
+    Hsize = 0x18,
+    /// Sensor window: vertical start (high 8 bits).
+    Vstart = 0x19,
+    /// Sensor window: height / 2.
+    Vsize = 0x1A,
+    /// Output width / 4.
+    HOutSize = 0x29,
+    /// Dummy pixels inserted per row (high bits).
+    Exhch = 0x2A,
+    /// Output height / 2.
+    VOutSize = 0x2C,
+    /// Low bits of the window and output sizes.
+    Href = 0x32,
+    /// DSP control 4: output selection.
+    DspCtrl4 = 0x67,
+}
+
+/// The high byte of every OV7725's product ID.
+const PID_OV77XX: u8 = 0x77;
+
+/// COM7: reset every register to its default.
+const COM7_RESET: u8 = 0x80;
+/// COM7: QVGA resolution (YUV output: the format bits clear).
+const COM7_QVGA_YUV: u8 = 0x40;
+/// COM3: bytes Y U Y V (bit 3; clear, the reset state, gives U Y V Y), bit 4 as at reset.
+const COM3_YUYV: u8 = 0x18;
+/// CLKRC: internal clock = input / (1 + 1).
+const CLKRC_HALF: u8 = 0x01;
+/// DSP_Ctrl4: YUV output from the DSP.
+const DSP_CTRL4_YUV: u8 = 0x00;
+
+/// Width / 4 and height / 2 as the window and output-size registers take them.
+const WIDTH_4: u8 = (CAMERA.width / 4) as u8;
+const HEIGHT_2: u8 = (CAMERA.height / 2) as u8;
+// The camera's size fits the registers without its low bits (HREF stays 0).
+const _: () = assert!(CAMERA.width.is_multiple_of(4) && CAMERA.width / 4 <= 0xFF);
+const _: () = assert!(CAMERA.height.is_multiple_of(2) && CAMERA.height / 2 <= 0xFF);
+
+/// After the reset: QVGA, YUV output, the camera's window (the datasheet's QVGA
+/// settings: window start 0x3F, 0x03).
+const SETUP: &[(Reg, u8)] = &[
+    (Reg::Com7, COM7_QVGA_YUV),
+    (Reg::Clkrc, CLKRC_HALF),
+    (Reg::DspCtrl4, DSP_CTRL4_YUV),
+    (Reg::Com3, COM3_YUYV),
+    (Reg::Hstart, 0x3F),
+    (Reg::Hsize, WIDTH_4),
+    (Reg::Vstart, 0x03),
+    (Reg::Vsize, HEIGHT_2),
+    (Reg::Href, 0x00),
+    (Reg::HOutSize, WIDTH_4),
+    (Reg::VOutSize, HEIGHT_2),
+    (Reg::Exhch, 0x00),
 ];
 
 /// Why the camera could not be used.
@@ -43,29 +105,134 @@ pub enum CameraError {
     NotOv7725(u16),
 }
 
+/// Reads one register.
+async fn read(i2c: &mut I2c<'static, Async, Master>, reg: Reg) -> Result<u8, CameraError> {
+    let mut value = [0u8];
+    i2c.write_read(ADDRESS, &[reg as u8], &mut value)
+        .await
+        .map_err(|_| CameraError::Sccb)?;
+    Ok(value[0])
+}
+
+/// Writes one register.
+async fn write(
+    i2c: &mut I2c<'static, Async, Master>,
+    reg: Reg,
+    value: u8,
+) -> Result<(), CameraError> {
+    i2c.write(ADDRESS, &[reg as u8, value])
+        .await
+        .map_err(|_| CameraError::Sccb)
+}
+
 /// Resets and configures the sensor.
 pub async fn setup(i2c: &mut I2c<'static, Async, Master>) -> Result<(), CameraError> {
-    let mut id = [0u8; 2];
-    i2c.write_read(ADDRESS, &[0x0A], &mut id[..1])
-        .await
-        .map_err(|_| CameraError::Sccb)?;
-    i2c.write_read(ADDRESS, &[0x0B], &mut id[1..])
-        .await
-        .map_err(|_| CameraError::Sccb)?;
-    let pid = u16::from_be_bytes(id);
-    if pid >> 8 != 0x77 {
-        return Err(CameraError::NotOv7725(pid));
+    let pid = read(i2c, Reg::Pid).await?;
+    let ver = read(i2c, Reg::Ver).await?;
+    if pid != PID_OV77XX {
+        return Err(CameraError::NotOv7725(u16::from_be_bytes([pid, ver])));
     }
-    i2c.write(ADDRESS, &[0x12, 0x80])
-        .await
-        .map_err(|_| CameraError::Sccb)?;
+    write(i2c, Reg::Com7, COM7_RESET).await?;
+    // The datasheet's settling time after a register reset.
     Timer::after_millis(5).await;
     for &(reg, value) in SETUP {
-        i2c.write(ADDRESS, &[reg, value])
-            .await
-            .map_err(|_| CameraError::Sccb)?;
+        write(i2c, reg, value).await?;
     }
     Ok(())
+}
+
+/// What the camera is wired to: its clock (MCO1), SCCB (I2C1 with two DMA streams), the
+/// DCMI with its DMA stream, and the DCMI's pins.
+pub struct Wiring {
+    /// The clock output that drives the sensor's XCLK.
+    pub mco: Peri<'static, peripherals::MCO1>,
+    /// XCLK.
+    pub xclk: Peri<'static, peripherals::PA8>,
+    /// SCCB.
+    pub i2c: Peri<'static, peripherals::I2C1>,
+    /// SCCB clock.
+    pub scl: Peri<'static, peripherals::PB8>,
+    /// SCCB data.
+    pub sda: Peri<'static, peripherals::PB9>,
+    /// SCCB's transmit DMA.
+    pub i2c_tx_dma: Peri<'static, peripherals::DMA1_CH1>,
+    /// SCCB's receive DMA.
+    pub i2c_rx_dma: Peri<'static, peripherals::DMA1_CH2>,
+    /// The camera interface.
+    pub dcmi: Peri<'static, peripherals::DCMI>,
+    /// Its DMA stream.
+    pub dma: Peri<'static, peripherals::DMA1_CH0>,
+    /// D0–D7.
+    pub data: DataPins,
+    /// Frame sync.
+    pub vsync: Peri<'static, peripherals::PG9>,
+    /// Line sync.
+    pub hsync: Peri<'static, peripherals::PA4>,
+    /// Pixel clock.
+    pub pixclk: Peri<'static, peripherals::PA6>,
+}
+
+/// The DCMI's eight data pins, D0 first.
+pub struct DataPins {
+    /// D0.
+    pub d0: Peri<'static, peripherals::PC6>,
+    /// D1.
+    pub d1: Peri<'static, peripherals::PC7>,
+    /// D2.
+    pub d2: Peri<'static, peripherals::PE0>,
+    /// D3.
+    pub d3: Peri<'static, peripherals::PC9>,
+    /// D4.
+    pub d4: Peri<'static, peripherals::PE4>,
+    /// D5.
+    pub d5: Peri<'static, peripherals::PD3>,
+    /// D6.
+    pub d6: Peri<'static, peripherals::PE5>,
+    /// D7.
+    pub d7: Peri<'static, peripherals::PE6>,
+}
+
+/// Starts the sensor's clock (HSI / 3 ≈ 21 MHz), configures it over SCCB and brings up
+/// the DCMI. A sensor refused at start-up is reported in every status (`camera_ready`
+/// false); its captures then time out and are counted.
+pub async fn start(w: Wiring) -> DcmiCamera {
+    let mut mco_config = McoConfig::default();
+    mco_config.prescaler = McoPrescaler::DIV3;
+    // The clock runs from here on: the handle has nothing to undo when it goes.
+    let _xclk = Mco::new(w.mco, w.xclk, Mco1Source::HSI, mco_config);
+    let mut sccb = I2c::new(
+        w.i2c,
+        w.scl,
+        w.sda,
+        w.i2c_tx_dma,
+        w.i2c_rx_dma,
+        Irqs,
+        Default::default(),
+    );
+    // The sensor needs its clock running before it answers on SCCB.
+    Timer::after_millis(10).await;
+    match setup(&mut sccb).await {
+        Ok(()) => COUNTERS.camera_ready.store(true, Relaxed),
+        Err(e) => error!("camera: {}", e),
+    }
+    let d = w.data;
+    DcmiCamera(Dcmi::new_8bit(
+        w.dcmi,
+        w.dma,
+        Irqs,
+        d.d0,
+        d.d1,
+        d.d2,
+        d.d3,
+        d.d4,
+        d.d5,
+        d.d6,
+        d.d7,
+        w.vsync,
+        w.hsync,
+        w.pixclk,
+        dcmi::Config::default(),
+    ))
 }
 
 /// The DCMI with its DMA stream, as the pipeline's camera.

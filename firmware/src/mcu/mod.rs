@@ -9,9 +9,7 @@ use defmt::{error, info, warn};
 use embassy_executor::{InterruptExecutor, Spawner};
 use embassy_futures::join::join5;
 use embassy_stm32::gpio::{Level, Output, Speed};
-use embassy_stm32::i2c::I2c;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
-use embassy_stm32::rcc::{Mco, Mco1Source, McoConfig, McoPrescaler};
 use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{Config, Peri, bind_interrupts, dcmi, dma, i2c, interrupt, peripherals, usb};
 use embassy_time::{Instant, Timer};
@@ -19,7 +17,7 @@ use rollfuse_core::protocol::DeviceConfig;
 use rollfuse_fw::buffers::{FRAME, PIPELINE, TX};
 use rollfuse_fw::pipeline;
 use rollfuse_fw::roller::{self, StepPins};
-use rollfuse_fw::{counters, effects, link, liveness, outbox, stack_guard};
+use rollfuse_fw::{effects, link, liveness, outbox, stack_guard};
 use {defmt_rtt as _, panic_probe as _};
 
 bind_interrupts!(struct Irqs {
@@ -86,27 +84,28 @@ async fn roller_task(mut pins: Stepper, spacing_px: u16) {
 fn clocks() -> Config {
     use embassy_stm32::rcc::*;
     let mut config = embassy_stm32::Config::default();
-    config.rcc.hsi = Some(HSIPrescaler::DIV1);
+    config.rcc.hsi = Some(HSIPrescaler::DIV1); // 64 MHz
     config.rcc.csi = true;
+    // USB's 48 MHz, trimmed to the host's start-of-frame packets (no crystal needed).
     config.rcc.hsi48 = Some(Hsi48Config {
         sync_from_usb: true,
     });
     config.rcc.pll1 = Some(Pll {
         source: PllSource::HSI,
-        prediv: PllPreDiv::DIV4,
-        mul: PllMul::MUL50,
+        prediv: PllPreDiv::DIV4, // 64 MHz / 4 = 16 MHz
+        mul: PllMul::MUL50,      // 16 MHz × 50 = 800 MHz VCO
         fracn: None,
-        divp: Some(PllDiv::DIV2),
-        divq: Some(PllDiv::DIV8),
+        divp: Some(PllDiv::DIV2), // 800 / 2 = 400 MHz: the core
+        divq: Some(PllDiv::DIV8), // 800 / 8 = 100 MHz
         divr: None,
     });
-    config.rcc.sys = Sysclk::PLL1_P;
-    config.rcc.ahb_pre = AHBPrescaler::DIV2;
-    config.rcc.apb1_pre = APBPrescaler::DIV2;
-    config.rcc.apb2_pre = APBPrescaler::DIV2;
-    config.rcc.apb3_pre = APBPrescaler::DIV2;
-    config.rcc.apb4_pre = APBPrescaler::DIV2;
-    config.rcc.voltage_scale = VoltageScale::Scale1;
+    config.rcc.sys = Sysclk::PLL1_P; // 400 MHz
+    config.rcc.ahb_pre = AHBPrescaler::DIV2; // 200 MHz: AXI, AHB (the DCMI, the DMA)
+    config.rcc.apb1_pre = APBPrescaler::DIV2; // 100 MHz: I2C1, TIM2 (time), TIM4 (LEDs)
+    config.rcc.apb2_pre = APBPrescaler::DIV2; // 100 MHz
+    config.rcc.apb3_pre = APBPrescaler::DIV2; // 100 MHz
+    config.rcc.apb4_pre = APBPrescaler::DIV2; // 100 MHz: IWDG's bus
+    config.rcc.voltage_scale = VoltageScale::Scale1; // enough for 400 MHz
     config.rcc.mux.usbsel = mux::Usbsel::HSI48;
     config
 }
@@ -115,13 +114,71 @@ fn clocks() -> Config {
 async fn main(_spawner: Spawner) {
     let p = embassy_stm32::init(clocks());
     info!("rollfuse-fw {}", env!("CARGO_PKG_VERSION"));
-    // The stack guard before anything deep runs. Instructions from flash through the
-    // I-cache; the D-cache stays off: the DCMI's DMA writes frames to AXI SRAM that the
-    // CPU then reads, and without cache maintenance a cached CPU would see stale lines.
+    guard_stack_and_cache_code();
+    self_test();
+    let Some(mut controller) = rollfuse_fw::controller() else {
+        // The default configuration fits the sensor (a host test checks it); if not,
+        // there is nothing to serve.
+        error!("default configuration refused");
+        return;
+    };
+    let initial = controller.pipeline_config();
+    let (mut device, mut read_ep, mut write_ep) = bus::start(p.USB_OTG_FS, p.PA12, p.PA11);
+    outbox::init();
+    let mut leds = leds::Leds::new(p.TIM4, p.PD12, p.PD13, p.PD14);
+    let mut camera = camera::start(camera::Wiring {
+        mco: p.MCO1,
+        xclk: p.PA8,
+        i2c: p.I2C1,
+        scl: p.PB8,
+        sda: p.PB9,
+        i2c_tx_dma: p.DMA1_CH1,
+        i2c_rx_dma: p.DMA1_CH2,
+        dcmi: p.DCMI,
+        dma: p.DMA1_CH0,
+        // D3 on PC9 and VSYNC on PG9: PE1 and PB7 drive user LEDs on the NUCLEO-H743ZI
+        // boards (firmware/README.md, pin map).
+        data: camera::DataPins {
+            d0: p.PC6,
+            d1: p.PC7,
+            d2: p.PE0,
+            d3: p.PC9,
+            d4: p.PE4,
+            d5: p.PD3,
+            d6: p.PE5,
+            d7: p.PE6,
+        },
+        vsync: p.PG9,
+        hsync: p.PA4,
+        pixclk: p.PA6,
+    })
+    .await;
+    start_roller(Stepper::new(p.PF12, p.PF13, p.PF14));
+
+    let tx = TX.take();
+    let serve = async {
+        loop {
+            link::serve(&mut read_ep, &mut write_ep, &mut controller, tx).await;
+        }
+    };
+    let frames = pipeline::run(&mut camera, FRAME.take(), PIPELINE.take(), initial);
+    let effects = effects::run(&mut leds);
+    let alive = feed_watchdog(p.IWDG1, p.PB0);
+    join5(device.run(), serve, effects, alive, frames).await;
+}
+
+/// The stack guard before anything deep runs; instructions from flash through the
+/// I-cache. The D-cache stays off: the DCMI's DMA writes frames to AXI SRAM that the CPU
+/// then reads, and without cache maintenance a cached CPU would see stale lines.
+fn guard_stack_and_cache_code() {
     if let Some(mut core) = cortex_m::Peripherals::take() {
         stack_guard::install(&mut core.MPU);
         core.SCB.enable_icache();
     }
+}
+
+/// Fuses a known edge once and logs what it kept and how long it took.
+fn self_test() {
     let t0 = Instant::now();
     match selftest::run() {
         Ok(step) => info!(
@@ -131,78 +188,6 @@ async fn main(_spawner: Spawner) {
         ),
         Err(_) => error!("fusion self-test failed"),
     }
-    let Some(mut controller) = rollfuse_fw::controller() else {
-        // The default configuration fits the sensor (a host test checks it); if not,
-        // there is nothing to serve.
-        error!("default configuration refused");
-        return;
-    };
-    let initial = controller.pipeline_config();
-
-    let (mut device, mut read_ep, mut write_ep) = bus::start(p.USB_OTG_FS, p.PA12, p.PA11);
-
-    outbox::init();
-    let tx = TX.take();
-    let serve = async {
-        loop {
-            link::serve(&mut read_ep, &mut write_ep, &mut controller, tx).await;
-        }
-    };
-
-    let mut leds = leds::Leds::new(p.TIM4, p.PD12, p.PD13, p.PD14);
-
-    // The camera: XCLK from MCO1 (HSI / 3 ≈ 21 MHz), SCCB on I2C1, DCMI on DMA1 stream 0.
-    let mut mco_config = McoConfig::default();
-    mco_config.prescaler = McoPrescaler::DIV3;
-    let _xclk = Mco::new(p.MCO1, p.PA8, Mco1Source::HSI, mco_config);
-    let mut sccb = I2c::new(
-        p.I2C1,
-        p.PB8,
-        p.PB9,
-        p.DMA1_CH1,
-        p.DMA1_CH2,
-        Irqs,
-        Default::default(),
-    );
-    // The sensor needs its clock running before it answers on SCCB.
-    Timer::after_millis(10).await;
-    // Refused at start-up, the camera is reported in every status (`camera_ready`); its
-    // captures then time out and are counted.
-    match camera::setup(&mut sccb).await {
-        Ok(()) => counters::COUNTERS
-            .camera_ready
-            .store(true, core::sync::atomic::Ordering::Relaxed),
-        Err(e) => error!("camera: {}", e),
-    }
-    let dcmi = dcmi::Dcmi::new_8bit(
-        p.DCMI,
-        p.DMA1_CH0,
-        Irqs,
-        p.PC6,
-        p.PC7,
-        p.PE0,
-        // D3 on PC9 and VSYNC on PG9: PE1 and PB7 drive user LEDs on the NUCLEO-H743ZI
-        // boards (firmware/README.md, pin map).
-        p.PC9,
-        p.PE4,
-        p.PD3,
-        p.PE5,
-        p.PE6,
-        p.PG9,
-        p.PA4,
-        p.PA6,
-        dcmi::Config::default(),
-    );
-    let mut camera = camera::DcmiCamera(dcmi);
-    let frames = pipeline::run(&mut camera, FRAME.take(), PIPELINE.take(), initial);
-
-    start_roller(Stepper::new(p.PF12, p.PF13, p.PF14));
-
-    // Accepted commands reach the hardware here.
-    let effects = effects::run(&mut leds);
-
-    let alive = feed_watchdog(p.IWDG1, p.PB0);
-    join5(device.run(), serve, effects, alive, frames).await;
 }
 
 /// The watchdog restarts the firmware 1 s after a task stopped coming round its loop
