@@ -544,7 +544,14 @@ impl<'a> Session<'a> {
         ));
         if let Some(what) = what {
             write_manifest(&self.manifest_path, &self.manifest)?;
-            bail!("the device refused {what}: {reason:?}");
+            let why = match reason {
+                NakReason::Memory => {
+                    " (it needs more pipeline memory than the device has: downsample more, \
+                     or use shorter tiles or fewer frames per tile)"
+                }
+                _ => "",
+            };
+            bail!("the device refused {what}: {reason:?}{why}");
         }
         Ok(())
     }

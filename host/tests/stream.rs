@@ -265,7 +265,7 @@ fn bad_stream_arguments_are_refused_clearly() {
     let junk = tmp.path().join("junk.bin");
     std::fs::write(&junk, b"not a recording").unwrap();
     let replay = format!("replay:{}", junk.display());
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 7] = [
         (&["--device", "sim", "--out", o], "--scene"),
         (&["--device", "tcp", "--out", o], "usb, sim or replay"),
         (
@@ -291,6 +291,23 @@ fn bad_stream_arguments_are_refused_clearly() {
             ],
             "FramesPerTile",
         ),
+        (
+            &[
+                "--device",
+                "sim",
+                "--scene",
+                &scene,
+                "--out",
+                o,
+                "--downsample",
+                "1",
+            ],
+            "more pipeline memory than the device has",
+        ),
+        (
+            &["--device", "usb", "--out", o, "--unbounded-memory"],
+            "--device sim",
+        ),
     ];
     for (args, says) in cases {
         let run = rollfuse(&[&["stream"], args].concat());
@@ -299,6 +316,35 @@ fn bad_stream_arguments_are_refused_clearly() {
         assert!(err.contains(says), "{args:?}: {err}");
         assert!(!err.contains("panicked"), "{err}");
     }
+}
+
+#[test]
+fn unbounded_memory_lets_the_virtual_device_stream_what_the_module_cannot_hold() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("full");
+    let scene = format!("{}/scenes/letters.toml", env!("CARGO_MANIFEST_DIR"));
+    let run = rollfuse(&[
+        "stream",
+        "--device",
+        "sim",
+        "--scene",
+        &scene,
+        "--out",
+        out.to_str().unwrap(),
+        "--downsample",
+        "1",
+        "--unbounded-memory",
+        "--tiles",
+        "4",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let strip = image::open(out.join("strip.png")).unwrap();
+    // Full resolution: the camera's 320 columns.
+    assert_eq!(strip.width(), 320);
 }
 
 /// A tile message with index `index`, `w × t` pixels of `value`, sequence `seq`.

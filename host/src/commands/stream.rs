@@ -4,7 +4,7 @@
 use super::WaveletArg;
 use crate::link::Transport;
 use crate::link::replay::Replay;
-use crate::link::sim::SimDevice;
+use crate::link::sim::{DeviceMemory, SimDevice};
 use crate::link::usb::{self, Usb};
 use crate::sim::Scene;
 use crate::stream::{self, Options, StopReason};
@@ -69,6 +69,11 @@ pub struct Args {
     /// Saliency normalization.
     #[arg(long, value_enum, default_value = "per-frame")]
     pub norm: NormArg,
+    /// With --device sim: give the virtual device as much pipeline memory as the
+    /// configuration needs, for host-only studies (by default it has the module's, and
+    /// refuses what the module refuses).
+    #[arg(long)]
+    pub unbounded_memory: bool,
 }
 
 impl Args {
@@ -148,6 +153,9 @@ fn check(args: &Args) -> anyhow::Result<Checked> {
     if args.device == "sim" && args.scene.is_none() {
         bail!("--device sim needs --scene SCENE.toml (e.g. host/scenes/letters.toml)");
     }
+    if args.unbounded_memory && args.device != "sim" {
+        bail!("--unbounded-memory is for the virtual device (--device sim) only");
+    }
     if let Some(r) = &args.record {
         let mut inputs: Vec<(&str, &std::path::Path)> = Vec::new();
         inputs.extend(replay.as_deref().map(|p| ("recording replayed", p)));
@@ -170,7 +178,12 @@ fn open_link(
         None if args.device == "usb" => (Box::new(Usb::open()?), Some(args.config(16))),
         None => {
             let path = args.scene.as_ref().context("--device sim needs --scene")?;
-            let dev = SimDevice::start(&Scene::load(path)?)?;
+            let memory = if args.unbounded_memory {
+                DeviceMemory::Unbounded
+            } else {
+                DeviceMemory::Firmware
+            };
+            let dev = SimDevice::start_with(&Scene::load(path)?, memory)?;
             let spacing = dev.default_config().frame_spacing_px;
             (Box::new(dev), Some(args.config(spacing)))
         }
