@@ -11,17 +11,43 @@ use base64::Engine;
 use std::fmt::Write;
 use std::path::Path;
 
-/// Builds the page from the demo's figures and the images it wrote to `dir`.
+/// Builds the page from the demo's figures and the images it wrote to `dir`, a section a
+/// stage.
 pub fn report(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
-    let png = |name: &str, alt: &str| image(dir, name, alt);
-    let read = |name: &str| {
-        std::fs::read_to_string(dir.join(name))
-            .with_context(|| format!("cannot read {}", dir.join(name).display()))
-    };
+    let total: f64 = demo.stages.iter().map(|s| s.secs).sum();
+    let body = [
+        lead(demo, total)?,
+        acquisition(demo, dir)?,
+        device_strip(demo, dir)?,
+        full_resolution(demo, dir)?,
+        evaluation(dir)?,
+        depth(demo, dir)?,
+        super::detection::section(
+            &demo.detection,
+            6,
+            |name, alt| image(dir, name, alt),
+            tables(&read(dir, super::detection::TABLE_MD)?),
+        )?,
+        trade_off(demo, dir)?,
+        timings(demo, total)?,
+    ]
+    .concat();
+    Ok(format!(
+        "<!DOCTYPE html>\n<html lang=en>\n<head>\n<meta charset=utf-8>\n<title>rollfuse demo \
+         report</title>\n<style>{STYLE}</style>\n</head>\n<body>\n{body}</body>\n</html>\n"
+    ))
+}
+
+/// A file the demo wrote to `dir`, as text.
+fn read(dir: &Path, name: &str) -> anyhow::Result<String> {
+    std::fs::read_to_string(dir.join(name))
+        .with_context(|| format!("cannot read {}", dir.join(name).display()))
+}
+
+/// The title and what the page shows.
+fn lead(demo: &Demo, total: f64) -> anyhow::Result<String> {
     let mut body = String::new();
     let (n, fw, fh) = demo.frames;
-    let total: f64 = demo.stages.iter().map(|s| s.secs).sum();
-
     writeln!(
         body,
         "<h1>rollfuse demo</h1>\n<p class=lead>The whole system on simulated data: a rolling \
@@ -31,17 +57,27 @@ pub fn report(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
          in {total:.1} s.</p>",
         escape(&demo.letters_name)
     )?;
+    Ok(body)
+}
 
+/// 1: a few of the camera frames.
+fn acquisition(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
+    let mut body = String::new();
     body.push_str("<h2>1. The rolling acquisition</h2>\n<div class=row>");
     for &k in &demo.shown_frames {
         write!(
             body,
             "<figure>{}<figcaption>frame {k}</figcaption></figure>",
-            png(&Files::frame(k), &format!("camera frame {k}"))?
+            image(dir, &Files::frame(k), &format!("camera frame {k}"))?
         )?;
     }
     body.push_str("</div>\n");
+    Ok(body)
+}
 
+/// 2: the strip the virtual device fused and streamed.
+fn device_strip(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
+    let mut body = String::new();
     let s = &demo.stream;
     let faults = s.faults.total();
     writeln!(
@@ -64,9 +100,14 @@ pub fn report(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
         },
         demo.strip_size.0,
         demo.strip_size.1,
-        png(Files::STRIP, "the device-fused strip")?
+        image(dir, Files::STRIP, "the device-fused strip")?
     )?;
+    Ok(body)
+}
 
+/// 3: the host's full-resolution strip, and the fusion of four frames beside one.
+fn full_resolution(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
+    let mut body = String::new();
     let a = &demo.alignment;
     writeln!(
         body,
@@ -93,21 +134,35 @@ pub fn report(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
         demo.frames_per_point,
         demo.host_strip_size.0,
         demo.host_strip_size.1,
-        png(Files::HOST_STRIP, "the host's full-resolution strip")?,
-        png(Files::STRIP, "the device-fused strip")?,
-        png(Files::SINGLE, "the middle frame")?,
-        png(Files::FUSED_MIDDLE, "the fused image over the middle frame")?
+        image(dir, Files::HOST_STRIP, "the host's full-resolution strip")?,
+        image(dir, Files::STRIP, "the device-fused strip")?,
+        image(dir, Files::SINGLE, "the middle frame")?,
+        image(
+            dir,
+            Files::FUSED_MIDDLE,
+            "the fused image over the middle frame"
+        )?
     )?;
+    Ok(body)
+}
 
+/// 4: Tables II and III.
+fn evaluation(dir: &Path) -> anyhow::Result<String> {
+    let mut body = String::new();
     writeln!(
         body,
         "<h2>4. Does fusion help? (Tables II and III)</h2>\n<p>Information entropy (IE), \
          MS-SSIM against the ideal contact image, and their spread over 10 strips, over the \
          middle frame's footprint. The same figures as <code>rollfuse eval --scene …</code> \
          for this scene.</p>\n{}",
-        tables(&read(Files::EVAL_MD)?)
+        tables(&read(dir, Files::EVAL_MD)?)
     )?;
+    Ok(body)
+}
 
+/// 5: depth maps and Table IV.
+fn depth(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
+    let mut body = String::new();
     writeln!(
         body,
         "<h2>5. Depth from single and fused frames (Table IV)</h2>\n<div class=row>"
@@ -116,7 +171,7 @@ pub fn report(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
         write!(
             body,
             "<figure>{}<figcaption>{}</figcaption></figure>",
-            png(name, &r.method)?,
+            image(dir, name, &r.method)?,
             escape(&r.method)
         )?;
     }
@@ -124,17 +179,15 @@ pub fn report(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
         body,
         "</div>\n<p>Three equal spheres: fusion should make their reconstructed areas and \
          peaks alike. The same figures as <code>rollfuse eval --depth</code>.</p>\n{}",
-        tables(&read(Files::DEPTH_MD)?)
+        tables(&read(dir, Files::DEPTH_MD)?)
     )?;
+    Ok(body)
+}
 
-    body += &super::detection::section(
-        &demo.detection,
-        6,
-        png,
-        tables(&read(super::detection::TABLE_MD)?),
-    )?;
-
-    let svg = read(Files::PARETO)?;
+/// 7: the trade-off plot and table.
+fn trade_off(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
+    let mut body = String::new();
+    let svg = read(dir, Files::PARETO)?;
     let svg = svg.find("<svg").map_or(svg.as_str(), |i| &svg[i..]);
     writeln!(
         body,
@@ -151,9 +204,14 @@ pub fn report(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
                      run.sh</code> for instruction counts)"
                 .into(),
         },
-        tables(&read(Files::TRADEOFF_MD)?)
+        tables(&read(dir, Files::TRADEOFF_MD)?)
     )?;
+    Ok(body)
+}
 
+/// 8: the stages' timings.
+fn timings(demo: &Demo, total: f64) -> anyhow::Result<String> {
+    let mut body = String::new();
     body.push_str(
         "<h2>8. How long each stage took</h2>\n<table><tr><th>stage</th><th>what</th>\
          <th>seconds</th></tr>",
@@ -171,11 +229,7 @@ pub fn report(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
         body,
         "<tr><th>total</th><td></td><td class=num>{total:.2}</td></tr></table>"
     )?;
-
-    Ok(format!(
-        "<!DOCTYPE html>\n<html lang=en>\n<head>\n<meta charset=utf-8>\n<title>rollfuse demo \
-         report</title>\n<style>{STYLE}</style>\n</head>\n<body>\n{body}</body>\n</html>\n"
-    ))
+    Ok(body)
 }
 
 const STYLE: &str = "body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;\

@@ -534,15 +534,7 @@ impl Scene {
 
     fn validate_object(&self) -> anyhow::Result<()> {
         match &self.object {
-            Object::Letters { text, height_mm } => {
-                positive("object.height_mm", *height_mm)?;
-                if text.trim().is_empty() || text.chars().count() > 64 {
-                    bail!("object.text must have 1..=64 characters");
-                }
-                if let Some(c) = text.chars().find(|c| !super::font::supports(*c)) {
-                    bail!("object.text: no glyph for {c:?} (A–Z, 0–9 and space)");
-                }
-            }
+            Object::Letters { text, height_mm } => validate_letters(text, *height_mm)?,
             Object::Dots {
                 height_mm,
                 pitch_mm,
@@ -557,16 +549,7 @@ impl Scene {
                 height_mm,
                 pitch_mm,
                 size_mm,
-            } => {
-                positive("object.height_mm", *height_mm)?;
-                at_least_a_pixel("object.pitch_mm", *pitch_mm, self.sensor.mm_per_px)?;
-                positive("object.size_mm", *size_mm)?;
-                if size_mm >= pitch_mm {
-                    bail!(
-                        "object.size_mm ({size_mm}) must be smaller than object.pitch_mm ({pitch_mm})"
-                    );
-                }
-            }
+            } => validate_grid(*height_mm, *pitch_mm, *size_mm, self.sensor.mm_per_px)?,
             Object::Spheres { diameter_mm } => positive("object.diameter_mm", *diameter_mm)?,
             Object::Fabric { yarn_mm, pitch_mm } => {
                 positive("object.yarn_mm", *yarn_mm)?;
@@ -585,75 +568,118 @@ impl Scene {
                 defects,
                 scale,
             } => validate_textile(fabric, *defects, *scale)?,
-            Object::Primitives { shapes } => {
-                if shapes.is_empty() {
-                    bail!("object.shapes must list at least one shape");
-                }
-                let mut names: Vec<&str> = Vec::new();
-                for (i, shape) in shapes.iter().enumerate() {
-                    let (Shape::Sphere {
-                        region: Some(name), ..
-                    }
-                    | Shape::Box {
-                        region: Some(name), ..
-                    }) = shape
-                    else {
-                        continue;
-                    };
-                    if name.is_empty()
-                        || !name
-                            .chars()
-                            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
-                    {
-                        bail!(
-                            "object.shapes[{i}].region must be letters, digits, '_' or '-', got {name:?}"
-                        );
-                    }
-                    if names.contains(&name.as_str()) {
-                        bail!("object.shapes[{i}].region {name:?} is used twice");
-                    }
-                    names.push(name);
-                }
-                for (i, shape) in shapes.iter().enumerate() {
-                    let at = |f: &str| format!("object.shapes[{i}].{f}");
-                    match shape {
-                        Shape::Sphere {
-                            x_mm,
-                            y_mm,
-                            radius_mm,
-                            height_mm,
-                            ..
-                        } => {
-                            finite(&at("x_mm"), *x_mm)?;
-                            finite(&at("y_mm"), *y_mm)?;
-                            positive(&at("radius_mm"), *radius_mm)?;
-                            if let Some(h) = height_mm {
-                                positive(&at("height_mm"), *h)?;
-                                if *h > 2.0 * radius_mm {
-                                    bail!("{} ({h}) must not exceed the diameter", at("height_mm"));
-                                }
-                            }
-                        }
-                        Shape::Box {
-                            x_mm,
-                            y_mm,
-                            width_mm,
-                            length_mm,
-                            height_mm,
-                            ..
-                        } => {
-                            finite(&at("x_mm"), *x_mm)?;
-                            finite(&at("y_mm"), *y_mm)?;
-                            positive(&at("width_mm"), *width_mm)?;
-                            positive(&at("length_mm"), *length_mm)?;
-                            positive(&at("height_mm"), *height_mm)?;
-                        }
-                    }
-                }
-            }
+            Object::Primitives { shapes } => validate_primitives(shapes)?,
         }
         Ok(())
     }
+}
+
+/// The letters: a short text the font can draw, raised.
+fn validate_letters(text: &str, height_mm: f64) -> anyhow::Result<()> {
+    positive("object.height_mm", height_mm)?;
+    if text.trim().is_empty() || text.chars().count() > 64 {
+        bail!("object.text must have 1..=64 characters");
+    }
+    if let Some(c) = text.chars().find(|c| !super::font::supports(*c)) {
+        bail!("object.text: no glyph for {c:?} (A–Z, 0–9 and space)");
+    }
+    Ok(())
+}
+
+/// A grid of dots, lines or curves: raised, each smaller than the grid's pitch, and the
+/// pitch at least a pixel.
+fn validate_grid(
+    height_mm: f64,
+    pitch_mm: f64,
+    size_mm: f64,
+    mm_per_px: f64,
+) -> anyhow::Result<()> {
+    positive("object.height_mm", height_mm)?;
+    at_least_a_pixel("object.pitch_mm", pitch_mm, mm_per_px)?;
+    positive("object.size_mm", size_mm)?;
+    if size_mm >= pitch_mm {
+        bail!("object.size_mm ({size_mm}) must be smaller than object.pitch_mm ({pitch_mm})");
+    }
+    Ok(())
+}
+
+/// Primitives: at least one, their region names usable and distinct, each shape sound.
+fn validate_primitives(shapes: &[Shape]) -> anyhow::Result<()> {
+    if shapes.is_empty() {
+        bail!("object.shapes must list at least one shape");
+    }
+    validate_region_names(shapes)?;
+    for (i, shape) in shapes.iter().enumerate() {
+        validate_shape(i, shape)?;
+    }
+    Ok(())
+}
+
+/// Region names: letters, digits, '_' or '-', none used twice.
+fn validate_region_names(shapes: &[Shape]) -> anyhow::Result<()> {
+    let mut names: Vec<&str> = Vec::new();
+    for (i, shape) in shapes.iter().enumerate() {
+        let (Shape::Sphere {
+            region: Some(name), ..
+        }
+        | Shape::Box {
+            region: Some(name), ..
+        }) = shape
+        else {
+            continue;
+        };
+        if name.is_empty()
+            || !name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+        {
+            bail!("object.shapes[{i}].region must be letters, digits, '_' or '-', got {name:?}");
+        }
+        if names.contains(&name.as_str()) {
+            bail!("object.shapes[{i}].region {name:?} is used twice");
+        }
+        names.push(name);
+    }
+    Ok(())
+}
+
+/// Shape `i`: finite position, positive size, a sphere's cap no higher than its diameter.
+fn validate_shape(i: usize, shape: &Shape) -> anyhow::Result<()> {
+    let at = |f: &str| format!("object.shapes[{i}].{f}");
+    match shape {
+        Shape::Sphere {
+            x_mm,
+            y_mm,
+            radius_mm,
+            height_mm,
+            ..
+        } => {
+            finite(&at("x_mm"), *x_mm)?;
+            finite(&at("y_mm"), *y_mm)?;
+            positive(&at("radius_mm"), *radius_mm)?;
+            if let Some(h) = height_mm {
+                positive(&at("height_mm"), *h)?;
+                if *h > 2.0 * radius_mm {
+                    bail!("{} ({h}) must not exceed the diameter", at("height_mm"));
+                }
+            }
+        }
+        Shape::Box {
+            x_mm,
+            y_mm,
+            width_mm,
+            length_mm,
+            height_mm,
+            ..
+        } => {
+            finite(&at("x_mm"), *x_mm)?;
+            finite(&at("y_mm"), *y_mm)?;
+            positive(&at("width_mm"), *width_mm)?;
+            positive(&at("length_mm"), *length_mm)?;
+            positive(&at("height_mm"), *height_mm)?;
+        }
+    }
+    Ok(())
 }
 
 /// The largest magnitude of any number in a scene: far beyond any real roller or belt
