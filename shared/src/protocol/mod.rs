@@ -137,7 +137,31 @@ pub fn encode<T: Serialize + Limits>(
     Ok(len + CRC_LEN)
 }
 
-/// Decodes one message; the body borrows from `bytes`.
+/// Decodes one message; the body borrows from `bytes`. Every check of the module's
+/// documentation is made; a message failing one is refused whole.
+///
+/// ```
+/// use rollfuse_core::protocol::{self, DecodeError, DeviceMessage, MAX_MESSAGE, Tile};
+///
+/// let pixels = [7u8; 8 * 2];
+/// let tile = DeviceMessage::Tile(Tile {
+///     index: 41,
+///     width: 8,
+///     height: 2,
+///     observations: 4,
+///     pixels: &pixels,
+/// });
+/// let mut buf = [0u8; MAX_MESSAGE];
+/// let n = protocol::encode(9, &tile, &mut buf).unwrap();
+///
+/// let (header, message) = protocol::decode::<DeviceMessage>(&buf[..n]).unwrap();
+/// assert_eq!(header.seq, 9);
+/// assert_eq!(message, tile);
+///
+/// // One flipped bit, and nothing of the message is used.
+/// buf[5] ^= 0x10;
+/// assert_eq!(protocol::decode::<DeviceMessage>(&buf[..n]), Err(DecodeError::BadCrc));
+/// ```
 pub fn decode<'a, T: Deserialize<'a> + Limits>(
     bytes: &'a [u8],
 ) -> Result<(Header, T), DecodeError> {
