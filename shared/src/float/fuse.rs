@@ -3,7 +3,7 @@
 //! host's working path) or `f64` (the reference the trade-off study measures against).
 
 use crate::fusion::{Arith, FuseConfig, Join, LlWeight, Sequential, fuse_pair_checked, rings_len};
-use crate::lifting::{self, Coefficients, LevelBounds, Lift};
+use crate::lifting::{self, Coefficients, LevelBounds, Lift, Saturation};
 use crate::saliency::ll_gain_q16;
 use crate::saliency::{SaliencyNorm, map_neighbourhood, row_and_neighbours};
 use crate::{Dims, Error, Wavelet, simd};
@@ -103,9 +103,11 @@ impl<T: Float> Arith for T {
     ) {
         // Floats need no saturation: the bounds are only passed along.
         let bounds = [LevelBounds::default(); crate::MAX_LEVELS as usize];
-        let inside = Coefficients::InBounds;
-        let how = (&bounds, inside);
-        lifting::inverse_levels(wavelet, buf, dims, levels, scratch, how, prepare);
+        let saturation = Saturation {
+            bounds: &bounds,
+            coefficients: Coefficients::InBounds,
+        };
+        lifting::inverse_levels(wavelet, buf, dims, levels, scratch, saturation, prepare);
     }
 
     /// `1 / max`.

@@ -5,7 +5,7 @@ use super::{
     Arith, FuseConfig, LlWeight, Sequential, TABLE_WORDS, WindowLayout, WindowMap, fuse_generic,
     fuse_pair_checked, maps_len, split_maps, split_scratch,
 };
-use crate::lifting::{self, Coefficients, bounds::level_bounds};
+use crate::lifting::{self, Coefficients, Saturation, bounds::level_bounds};
 use crate::packed::widen_shifted;
 use crate::saliency::{
     self, ByteSaliency, LaplacianTable, Normalizer, SaliencyNorm, laplacian_max_u8,
@@ -23,9 +23,11 @@ impl Arith for i32 {
         let bounds = level_bounds(wavelet, levels);
         // Fused coefficients are convex combinations of forward-transform outputs of the
         // same band (weights and the LL mix lie in 0..=1), so within its bound.
-        let inside = Coefficients::InBounds;
-        let how = (&bounds, inside);
-        lifting::inverse_levels(wavelet, buf, dims, levels, scratch, how, prepare);
+        let saturation = Saturation {
+            bounds: &bounds,
+            coefficients: Coefficients::InBounds,
+        };
+        lifting::inverse_levels(wavelet, buf, dims, levels, scratch, saturation, prepare);
     }
 
     type SaliencyScale = saliency::Normalizer;

@@ -21,6 +21,7 @@
 //! step exactly, for every length ≥ 1.
 
 use super::{ColumnBounds, Lift, RowsPrepared, RowsReady, row_pair, rows_at, segment};
+use crate::Dims;
 use crate::geometry::mirror;
 use crate::simd;
 
@@ -356,20 +357,21 @@ pub(crate) fn inverse_row_two_pass<T: Lift>(row: &mut [T], work: &mut [T], out_b
     }
 }
 
-/// Forward lifting of the columns of a region, in place, in one sweep down its rows: `buf`
-/// holds `n` rows of `w` samples, `stride` apart. On return row `2l` holds row `l` of the
+/// Forward lifting of the columns of `region` (from the start of `buf`), in place, in one
+/// sweep down its `n` rows. On return row `2l` holds row `l` of the
 /// low band and row `2l + 1` row `l` of the high band (the layout of
 /// [`crate::geometry`]). Each step works on whole rows, so the sweep reads and writes the
 /// region once, front to back; `ready` runs the row pass on each row before the sweep
 /// first reads it.
 pub(crate) fn forward_columns<T: Lift, F: FnMut(usize, &mut [T])>(
     buf: &mut [T],
-    (stride, w, n): (usize, usize, usize),
+    region: Dims,
     ready: &mut RowsReady<'_, F>,
 ) {
     let k = T::constants();
+    let n = region.height();
     let (nl, nh) = (n.div_ceil(2), n / 2);
-    ready.through(buf, (stride, w), n.min(4).saturating_sub(1));
+    ready.through(buf, region, n.min(4).saturating_sub(1));
     if nh == 0 {
         return;
     }
@@ -378,30 +380,30 @@ pub(crate) fn forward_columns<T: Lift, F: FnMut(usize, &mut [T])>(
     // sweep overwrites before it gets there.
     let early = |l: usize| l <= 1 || l >= nh;
     if nl > nh {
-        ready.early(buf, (stride, w), 2 * nh);
-        ready.early(buf, (stride, w), 2 * odd_index(nh, nh) + 1);
+        ready.early(buf, region, 2 * nh);
+        ready.early(buf, region, 2 * odd_index(nh, nh) + 1);
     }
     for l in (0..nl).filter(|&l| early(l)) {
-        if let Some([e, o]) = row_pair(buf, stride, w, 2 * l, 2 * odd_index(l, nh) + 1) {
+        if let Some([e, o]) = row_pair(buf, region, 2 * l, 2 * odd_index(l, nh) + 1) {
             for (e, &o) in e.iter_mut().zip(o.iter()) {
                 *e = lift_s1(*e, o, k);
             }
         }
     }
     // d¹₀ reads its mirrored left neighbour: s¹₁, or s¹₀ itself.
-    first_odd_row(buf, (stride, w, nl), |o, s, sp| lift_d1(o, s, sp, k));
+    first_odd_row(buf, region, |o, s, sp| lift_d1(o, s, sp, k));
     // Pair l's s¹ and d¹, and with them pair l − 1's s².
     for l in 1..nh {
-        ready.through(buf, (stride, w), 2 * l + 1);
-        let Some([s_prev, s, o]) = rows_at(buf, stride, w, [2 * l - 2, 2 * l, 2 * l + 1]) else {
+        ready.through(buf, region, 2 * l + 1);
+        let Some([s_prev, s, o]) = rows_at(buf, region, [2 * l - 2, 2 * l, 2 * l + 1]) else {
             return;
         };
         forward_rows(s_prev, s, o, !early(l), k);
     }
     // The last low rows' s² read mirrored d¹.
-    ready.through(buf, (stride, w), n - 1);
+    ready.through(buf, region, n - 1);
     for l in nh - 1..nl {
-        if let Some([s, d]) = row_pair(buf, stride, w, 2 * l, 2 * next_index(l, nh) + 1) {
+        if let Some([s, d]) = row_pair(buf, region, 2 * l, 2 * next_index(l, nh) + 1) {
             for (s, &d) in s.iter_mut().zip(d.iter()) {
                 *s -= d;
             }
@@ -411,20 +413,16 @@ pub(crate) fn forward_columns<T: Lift, F: FnMut(usize, &mut [T])>(
 
 /// Row 1 (pair 0's odd row) through `step(o, s¹₀, s¹₋₁)`, the predict step forward
 /// ([`lift_d1`]) or back ([`unlift_odd`]); `s¹₋₁` is mirrored: `s¹₁` (row 2), or `s¹₀`
-/// itself when there is one low row (`nl` is 1).
+/// itself when the region has one low row (is one or two rows high).
 #[inline(always)]
-fn first_odd_row<T: Lift>(
-    buf: &mut [T],
-    (stride, w, nl): (usize, usize, usize),
-    step: impl Fn(T, T, T) -> T,
-) {
-    if nl > 1 {
-        if let Some([s, o, sp]) = rows_at(buf, stride, w, [0, 1, 2]) {
+fn first_odd_row<T: Lift>(buf: &mut [T], region: Dims, step: impl Fn(T, T, T) -> T) {
+    if region.height() > 2 {
+        if let Some([s, o, sp]) = rows_at(buf, region, [0, 1, 2]) {
             for ((o, &s), &sp) in o.iter_mut().zip(s.iter()).zip(sp.iter()) {
                 *o = step(*o, s, sp);
             }
         }
-    } else if let Some([s, o]) = rows_at(buf, stride, w, [0, 1]) {
+    } else if let Some([s, o]) = rows_at(buf, region, [0, 1]) {
         for (o, &s) in o.iter_mut().zip(s.iter()) {
             *o = step(*o, s, s);
         }
@@ -470,19 +468,19 @@ simd::kernel! {
     /// and odd ones the unsaturated odd samples until the next row pair is known.
     pub(crate) fn inverse_columns<T: Lift, P: FnMut(usize, &mut [T]), D: FnMut(&mut [T])>(
         buf: &mut [T],
-        region: (usize, usize, usize),
+        region: Dims,
         bounds: ColumnBounds,
         prepared: &mut RowsPrepared<'_, P>,
         done: &mut D,
     ) {
         let k = T::constants();
-        let (stride, w, n) = region;
+        let n = region.height();
         let (nl, nh) = (n.div_ceil(2), n / 2);
         // The first pairs and the early steps below read rows up to 5; the mirrored last
         // pairs' rows are the tail `prepared` has done.
-        prepared.through(buf, (stride, w), 5);
+        prepared.through(buf, region, 5);
         if nh == 0 {
-            if let Some([row]) = rows_at(buf, stride, w, [0]) {
+            if let Some([row]) = rows_at(buf, region, [0]) {
                 bounds.saturate(row);
                 done(row);
             }
@@ -492,19 +490,19 @@ simd::kernel! {
         // 1) or would by then have turned the mirrored d¹ into odd samples (the last pairs).
         let early = |l: usize| l <= 1 || l + 1 >= nh;
         for l in (0..nl).filter(|&l| early(l)) {
-            if let Some([s, d]) = row_pair(buf, stride, w, 2 * l, 2 * next_index(l, nh) + 1) {
+            if let Some([s, d]) = row_pair(buf, region, 2 * l, 2 * next_index(l, nh) + 1) {
                 for (s, &d) in s.iter_mut().zip(d.iter()) {
                     *s += d;
                 }
             }
         }
-        first_odd_row(buf, (stride, w, nl), |d, s, sp| unlift_odd(d, s, sp, k));
+        first_odd_row(buf, region, |d, s, sp| unlift_odd(d, s, sp, k));
         // An odd length's last even row reads the odd sample of a mirrored pair: made while
         // that sample is not yet saturated, i.e. before its pair is finished.
         let last_even = (nl > nh).then(|| (nh, odd_index(nh, nh)));
         let finish_last_even = |buf: &mut [T], l: usize, done: &mut D| match last_even {
             Some((last, m)) if m == l => {
-                if let Some([o, s]) = rows_at(buf, stride, w, [2 * m + 1, 2 * last]) {
+                if let Some([o, s]) = rows_at(buf, region, [2 * m + 1, 2 * last]) {
                     for (cols, b) in bounds.segments() {
                         let lanes = segment(s, &cols).iter_mut().zip(segment(o, &cols).iter());
                         for (s, &o) in lanes {
@@ -518,11 +516,11 @@ simd::kernel! {
         };
         // Pair l + 1's s¹ and odd sample, and pair l's output.
         for l in 0..nh - 1 {
-            prepared.through(buf, (stride, w), 2 * l + 5);
+            prepared.through(buf, region, 2 * l + 5);
             finish_last_even(buf, l, done);
             if early(l + 1) {
                 let Some([s, o, s_next, o_next]) =
-                    rows_at(buf, stride, w, [2 * l, 2 * l + 1, 2 * l + 2, 2 * l + 3])
+                    rows_at(buf, region, [2 * l, 2 * l + 1, 2 * l + 2, 2 * l + 3])
                 else {
                     return;
                 };
@@ -543,7 +541,7 @@ simd::kernel! {
                 done(o);
             } else {
                 let at = [2 * l, 2 * l + 1, 2 * l + 2, 2 * l + 3, 2 * l + 5];
-                let Some([s, o, s_next, o_next, d_after]) = rows_at(buf, stride, w, at) else {
+                let Some([s, o, s_next, o_next, d_after]) = rows_at(buf, region, at) else {
                     return;
                 };
                 for (cols, b) in bounds.segments() {
@@ -565,9 +563,9 @@ simd::kernel! {
                 done(o);
             }
         }
-        prepared.through(buf, (stride, w), n - 1);
+        prepared.through(buf, region, n - 1);
         finish_last_even(buf, nh - 1, done);
-        if let Some([s, o]) = rows_at(buf, stride, w, [2 * nh - 2, 2 * nh - 1]) {
+        if let Some([s, o]) = rows_at(buf, region, [2 * nh - 2, 2 * nh - 1]) {
             for (cols, b) in bounds.segments() {
                 let lanes = segment(s, &cols)
                     .iter_mut()
