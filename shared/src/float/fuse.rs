@@ -2,11 +2,14 @@
 //! exact floating-point arithmetic, float saliency and float weights — in `f32` (the
 //! host's working path) or `f64` (the reference the trade-off study measures against).
 
-use crate::fusion::{Arith, FuseConfig, Join, LlWeight, Sequential, fuse_pair_checked, rings_len};
-use crate::lifting::{self, Coefficients, LevelBounds, Lift, Saturation};
+use crate::fusion::{
+    Arith, FuseConfig, ImagePair, Join, LlWeight, ScratchLayout, Sequential, fuse_pair_checked,
+    rings_len,
+};
+use crate::lifting::{self, LevelBounds, Lift};
 use crate::saliency::ll_gain_q16;
 use crate::saliency::{SaliencyNorm, map_neighbourhood, row_and_neighbours};
-use crate::{Dims, Error, Wavelet, simd};
+use crate::{Dims, Error, MAX_LEVELS, Wavelet, simd};
 
 mod sealed {
     pub trait Sealed {}
@@ -95,19 +98,9 @@ impl Float for f64 {
 }
 
 impl<T: Float> Arith for T {
-    fn inverse(
-        wavelet: Wavelet,
-        (buf, dims, levels): (&mut [T], Dims, u8),
-        scratch: &mut [T],
-        prepare: &mut impl FnMut(u8, usize, &mut [T]),
-    ) {
-        // Floats need no saturation: the bounds are only passed along.
-        let bounds = [LevelBounds::default(); crate::MAX_LEVELS as usize];
-        let saturation = Saturation {
-            bounds: &bounds,
-            coefficients: Coefficients::InBounds,
-        };
-        lifting::inverse_levels(wavelet, buf, dims, levels, scratch, saturation, prepare);
+    /// None: floats need no saturation, the bounds are only passed along.
+    fn inverse_bounds(_: Wavelet, _: u8) -> [LevelBounds; MAX_LEVELS as usize] {
+        [LevelBounds::default(); MAX_LEVELS as usize]
     }
 
     /// `1 / max`.
@@ -428,14 +421,17 @@ pub fn fuse_pair_with<T: Float>(
     ll_weight: LlWeight,
     scratch: &mut [T],
 ) -> Result<(), Error> {
+    let layout = ScratchLayout {
+        second_line: true,
+        rings: SALIENCY_IN_SWEEP,
+        table: false,
+    };
     fuse_pair_checked(
-        a,
-        b,
-        dims,
+        ImagePair { a, b, dims },
         cfg,
         ll_weight,
         scratch,
-        (2, SALIENCY_IN_SWEEP, false),
+        layout,
         join,
     )
 }

@@ -2,32 +2,21 @@
 //! [`crate::lifting`]. This is what the MCU runs.
 
 use super::{
-    Arith, FuseConfig, LlWeight, Sequential, TABLE_WORDS, WindowLayout, WindowMap, fuse_generic,
-    fuse_pair_checked, maps_len, split_maps, split_scratch,
+    Arith, FuseConfig, ImagePair, LlWeight, ScratchLayout, Sequential, TABLE_WORDS, WindowLayout,
+    WindowMap, fuse_generic, fuse_pair_checked, maps_len, split_maps, split_scratch,
 };
-use crate::lifting::{self, Coefficients, Saturation, bounds::level_bounds};
+use crate::lifting::{self, LevelBounds, bounds::level_bounds};
 use crate::packed::widen_shifted;
 use crate::saliency::{
     self, ByteSaliency, LaplacianTable, Normalizer, SaliencyNorm, laplacian_max_u8,
     row_and_neighbours, saliency_row_u8,
 };
-use crate::{Dims, Error, Wavelet};
+use crate::{Dims, Error, MAX_LEVELS, Wavelet};
 
 impl Arith for i32 {
-    fn inverse(
-        wavelet: Wavelet,
-        (buf, dims, levels): (&mut [i32], Dims, u8),
-        scratch: &mut [i32],
-        prepare: &mut impl FnMut(u8, usize, &mut [i32]),
-    ) {
-        let bounds = level_bounds(wavelet, levels);
-        // Fused coefficients are convex combinations of forward-transform outputs of the
-        // same band (weights and the LL mix lie in 0..=1), so within its bound.
-        let saturation = Saturation {
-            bounds: &bounds,
-            coefficients: Coefficients::InBounds,
-        };
-        lifting::inverse_levels(wavelet, buf, dims, levels, scratch, saturation, prepare);
+    /// The bounds the forward transform proves.
+    fn inverse_bounds(wavelet: Wavelet, levels: u8) -> [LevelBounds; MAX_LEVELS as usize] {
+        level_bounds(wavelet, levels)
     }
 
     type SaliencyScale = saliency::Normalizer;
@@ -124,8 +113,13 @@ pub fn fuse_pair(
             got: scratch.len(),
         });
     }
-    let layout = (1, false, false);
-    fuse_pair_checked(a, b, dims, cfg, ll_weight, scratch, layout, &Sequential)
+    let layout = ScratchLayout {
+        second_line: false,
+        rings: false,
+        table: false,
+    };
+    let images = ImagePair { a, b, dims };
+    fuse_pair_checked(images, cfg, ll_weight, scratch, layout, &Sequential)
 }
 
 /// Fraction bits the 8-bit fusion keeps below the pixel's integer part while it works.
@@ -180,12 +174,13 @@ pub fn fuse_u8(
     if ll_weight.0 > 1 << 15 {
         return Err(Error::InvalidParameter { name: "ll_weight" });
     }
-    let (mut parts, table) = split_scratch(
-        work.scratch,
-        lifting::scratch_len(packed),
-        (1, false, true),
-        packed,
-    )?;
+    let layout = ScratchLayout {
+        second_line: false,
+        rings: false,
+        table: true,
+    };
+    let line = lifting::scratch_len(packed);
+    let (mut parts, table) = split_scratch(work.scratch, line, layout, packed)?;
     // A reference maximum is in 8-bit units; the samples get the guard bits.
     let cfg = &FuseConfig {
         norm: match cfg.norm {
@@ -198,8 +193,8 @@ pub fn fuse_u8(
     };
     if cfg.ablation.uses_saliency() {
         let images = [(&*a, a_dims), (b, b_dims)];
-        first_level_maps(images, cfg, parts.maps, table, parts.line)?;
-        parts.first_maps_ready = true;
+        first_level_maps(images, cfg, parts.maps.space, table, parts.lines.line)?;
+        parts.maps.first_ready = true;
     }
     // Every buffer was checked to hold its region above: the zips pair all `h` rows.
     for (src, src_dims, dst) in [(&*a, a_dims, &mut *work.a), (b, b_dims, &mut *work.b)] {
@@ -207,16 +202,12 @@ pub fn fuse_u8(
             widen_shifted::<GUARD_BITS>(row, dst_row);
         }
     }
-    fuse_generic(
-        work.a,
-        work.b,
-        packed,
-        cfg,
-        ll_weight,
-        parts,
-        [None; 2],
-        &Sequential,
-    )?;
+    let images = ImagePair {
+        a: &mut *work.a,
+        b: &mut *work.b,
+        dims: packed,
+    };
+    fuse_generic(images, cfg, ll_weight, parts, [None; 2], &Sequential)?;
     let half = 1 << (GUARD_BITS - 1);
     for (row, fused) in a_dims.rows_mut(a).zip(work.a.chunks_exact(w)) {
         for (d, &v) in row.iter_mut().zip(fused) {
