@@ -9,10 +9,12 @@
 //!   eq. 2) or `w = 1/n` for an order-independent mean over `n` frames ([`LlWeighting`]);
 //! - the inverse transform of the result (eq. 7).
 //!
-//! The same driver runs the integer path ([`fuse_pair`], what the MCU runs) and the `f32`
-//! path ([`crate::float`]); the crate-private `Arith` trait is the seam between them.
+//! The same driver runs the integer path ([`integer`]: [`fuse_pair`], what the MCU runs)
+//! and the float path ([`float`]); the crate-private `Arith` trait is the seam between
+//! them.
 
 mod cyclic;
+pub mod float;
 pub(crate) mod integer;
 
 pub use cyclic::{CyclicBuffers, CyclicFuser};

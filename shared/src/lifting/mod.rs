@@ -18,6 +18,8 @@
 
 pub mod bounds;
 mod db2;
+#[cfg(any(test, feature = "pywt"))]
+pub mod filter_bank;
 mod haar;
 
 #[cfg(test)]

@@ -1,6 +1,9 @@
-//! The float fusion paths: the shared driver with the integer path's lifting steps run in
-//! exact floating-point arithmetic, float saliency and float weights — in `f32` (the
-//! host's working path) or `f64` (the reference the trade-off study measures against).
+//! The float fusion paths, for full-resolution work on the host (also at `crate::float`):
+//! the shared driver with the integer path's lifting steps — the same boundary rule,
+//! coefficient placement and weights — run in exact floating-point arithmetic, float
+//! saliency and float weights, on any size; in `f32` (the host's working path) or `f64`
+//! (the reference the trade-off study measures against). The paths differ only by the
+//! integer path's rounding.
 
 use crate::fusion::{
     Arith, FuseConfig, ImagePair, Join, LlWeight, ScratchLayout, Sequential, fuse_pair_checked,
@@ -399,6 +402,22 @@ const SALIENCY_IN_SWEEP: bool = !cfg!(target_arch = "arm");
 /// One float fuse step (`f32` or `f64`) on the `dims` region of `a` and `b`: the fused image replaces `a`,
 /// `b` is used as work space. Any size from 1 up, as on the integer path; samples must be
 /// finite with `|x| ≤` [`MAX_SAMPLE_F32`].
+///
+/// ```
+/// use rollfuse_core::{Dims, FuseConfig, float};
+/// use rollfuse_core::fusion::LlWeight;
+///
+/// let dims = Dims::new(9, 7)?; // any size
+/// let sharp: Vec<f32> = (0..63).map(|i| if i % 9 == 4 { 200.0 } else { 20.0 }).collect();
+/// let flat = vec![20.0f32; 63];
+/// let (mut a, mut b) = (flat.clone(), sharp.clone());
+/// let mut scratch = vec![0.0; float::fuse_scratch_len(dims)];
+/// float::fuse_pair(&mut a, &mut b, dims, &FuseConfig::default(), LlWeight::HALF, &mut scratch)?;
+/// // The fused image replaces `a`: the line only `b` has is kept (its detail taken from
+/// // `b`, the low bands averaged).
+/// assert!(a[4] > 60.0 && a[0] < a[4]);
+/// # Ok::<(), rollfuse_core::Error>(())
+/// ```
 pub fn fuse_pair<T: Float>(
     a: &mut [T],
     b: &mut [T],
