@@ -95,6 +95,21 @@ pub const fn fuse_scratch_words(width: usize, height: usize) -> usize {
 /// space. Both hold samples with `|x| ≤ MAX_SAMPLE` on the `dims` region; `ll_weight` is
 /// the second image's LL weight ([`LlWeight::HALF`] for the paper's mean). The result is
 /// not clamped: callers that keep 8-bit images clamp it (as [`super::CyclicFuser`] does).
+///
+/// ```
+/// use rollfuse_core::Dims;
+/// use rollfuse_core::fusion::{FuseConfig, LlWeight, fuse_pair, fuse_scratch_len};
+///
+/// let dims = Dims::new(8, 6)?;
+/// let image: Vec<i32> = (0..48).map(|i| (i % 8) * 30 + (i / 8) * 7).collect();
+/// let (mut a, mut b) = (image.clone(), image.clone());
+/// let mut scratch = vec![0; fuse_scratch_len(dims)];
+/// let cfg = FuseConfig::default(); // db2, one level, the full method
+/// fuse_pair(&mut a, &mut b, dims, &cfg, LlWeight::HALF, &mut scratch)?;
+/// // The fused image replaces `a`; an image fused with itself comes back bit for bit.
+/// assert_eq!(a, image);
+/// # Ok::<(), rollfuse_core::Error>(())
+/// ```
 pub fn fuse_pair(
     a: &mut [i32],
     b: &mut [i32],
