@@ -18,8 +18,8 @@
 //! - [`saliency`]: the integer Laplacian saliency map and the `exp(x/255) − 1` table.
 //! - [`fusion`]: the pairwise fuse step, the ablations, and [`fusion::CyclicFuser`], on
 //!   the integer path the MCU runs.
-//! - [`float`]: the same algorithm in `f32` for full-resolution work on the host; its
-//!   transforms match PyWavelets' `periodization` mode.
+//! - [`float`] (also [`fusion::float`]): the same algorithm in `f32` for full-resolution
+//!   work on the host.
 //! - [`device`]: the device pipeline (downsampling, belt offsets, the streaming tile
 //!   model) and the device's command handling.
 //! - [`protocol`]: the messages of the USB link, their framing, CRC and limits.
@@ -37,7 +37,6 @@
 
 pub mod device;
 pub mod error;
-pub mod float;
 pub mod fusion;
 pub mod geometry;
 pub mod lifting;
@@ -48,6 +47,8 @@ pub mod saliency;
 pub mod simd;
 
 pub use error::Error;
+/// The float fusion paths, where the host has always found them.
+pub use fusion::float;
 pub use fusion::{Ablation, CyclicFuser, FuseConfig, LlWeighting};
 pub use geometry::{Dims, MAX_DIMENSION, MAX_LEVELS};
 pub use lifting::Wavelet;

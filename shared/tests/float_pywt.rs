@@ -1,7 +1,7 @@
 //! The f32 transforms against PyWavelets' `dwt2`/`idwt2` in `periodization` mode, on the
 //! committed vectors of `tests/vectors/gen.py`.
 
-use rollfuse_core::float::{dwt2, idwt2, subband_dims};
+use rollfuse_core::lifting::filter_bank::{dwt2, idwt2, level_scratch_len, subband_dims};
 use rollfuse_core::{Dims, Wavelet};
 use serde_json::Value;
 
@@ -40,8 +40,7 @@ fn dwt2_and_idwt2_match_pywavelets_periodization() {
         let input: Vec<f32> = floats(&case["input"]).iter().map(|&v| v as f32).collect();
         let (bw, bh) = subband_dims(w, h);
         let mut coeffs = vec![0f32; 4 * bw * bh];
-        let mut scratch =
-            vec![0f32; rollfuse_core::float::level_scratch_len(Dims::new(2 * bw, 2 * bh).unwrap())];
+        let mut scratch = vec![0f32; level_scratch_len(Dims::new(2 * bw, 2 * bh).unwrap())];
         dwt2(wavelet, &input, dims, &mut coeffs, &mut scratch).unwrap();
 
         // Mallat grid: cA | cV over cH | cD (PyWavelets' cV is high along rows).

@@ -21,6 +21,30 @@ pub struct CyclicBuffers<'a> {
 }
 
 /// Fuses frames one at a time into a running result held in caller-owned buffers.
+///
+/// ```
+/// use rollfuse_core::fusion::{CyclicBuffers, fuse_scratch_len};
+/// use rollfuse_core::{CyclicFuser, Dims, FuseConfig};
+///
+/// let (w, h) = (16, 12);
+/// let mut fused = vec![0u8; w * h];
+/// let (mut work_a, mut work_b) = (vec![0i32; w * h], vec![0i32; w * h]);
+/// let mut scratch = vec![0i32; fuse_scratch_len(Dims::new(w, h)?)];
+/// let bufs = CyclicBuffers {
+///     fused: &mut fused,
+///     work_a: &mut work_a,
+///     work_b: &mut work_b,
+///     scratch: &mut scratch,
+/// };
+/// let mut fuser = CyclicFuser::new(FuseConfig::default(), w, h, bufs)?;
+/// for k in 1..=3u8 {
+///     let frame: Vec<u8> = (0..w * h).map(|i| (i as u8).wrapping_mul(k)).collect();
+///     fuser.push(&frame, w)?; // packed rows: `w` apart
+/// }
+/// assert_eq!(fuser.frames(), 3);
+/// assert_eq!(fuser.fused().len(), w * h);
+/// # Ok::<(), rollfuse_core::Error>(())
+/// ```
 pub struct CyclicFuser<'a> {
     cfg: FuseConfig,
     dims: Dims,

@@ -2,30 +2,21 @@
 //! [`crate::lifting`]. This is what the MCU runs.
 
 use super::{
-    Arith, FuseConfig, LlWeight, Sequential, TABLE_WORDS, WindowLayout, WindowMap, fuse_generic,
-    fuse_pair_checked, maps_len, split_maps, split_scratch,
+    Arith, FuseConfig, ImagePair, LlWeight, ScratchLayout, Sequential, TABLE_WORDS, WindowLayout,
+    WindowMap, fuse_generic, fuse_pair_checked, maps_len, split_maps, split_scratch,
 };
-use crate::lifting::{self, Coefficients, bounds::level_bounds};
+use crate::lifting::{self, LevelBounds, bounds::level_bounds};
 use crate::packed::widen_shifted;
 use crate::saliency::{
     self, ByteSaliency, LaplacianTable, Normalizer, SaliencyNorm, laplacian_max_u8,
     row_and_neighbours, saliency_row_u8,
 };
-use crate::{Dims, Error, Wavelet};
+use crate::{Dims, Error, MAX_LEVELS, Wavelet};
 
 impl Arith for i32 {
-    fn inverse(
-        wavelet: Wavelet,
-        (buf, dims, levels): (&mut [i32], Dims, u8),
-        scratch: &mut [i32],
-        prepare: &mut impl FnMut(u8, usize, &mut [i32]),
-    ) {
-        let bounds = level_bounds(wavelet, levels);
-        // Fused coefficients are convex combinations of forward-transform outputs of the
-        // same band (weights and the LL mix lie in 0..=1), so within its bound.
-        let inside = Coefficients::InBounds;
-        let how = (&bounds, inside);
-        lifting::inverse_levels(wavelet, buf, dims, levels, scratch, how, prepare);
+    /// The bounds the forward transform proves.
+    fn inverse_bounds(wavelet: Wavelet, levels: u8) -> [LevelBounds; MAX_LEVELS as usize] {
+        level_bounds(wavelet, levels)
     }
 
     type SaliencyScale = saliency::Normalizer;
@@ -104,6 +95,21 @@ pub const fn fuse_scratch_words(width: usize, height: usize) -> usize {
 /// space. Both hold samples with `|x| ≤ MAX_SAMPLE` on the `dims` region; `ll_weight` is
 /// the second image's LL weight ([`LlWeight::HALF`] for the paper's mean). The result is
 /// not clamped: callers that keep 8-bit images clamp it (as [`super::CyclicFuser`] does).
+///
+/// ```
+/// use rollfuse_core::Dims;
+/// use rollfuse_core::fusion::{FuseConfig, LlWeight, fuse_pair, fuse_scratch_len};
+///
+/// let dims = Dims::new(8, 6)?;
+/// let image: Vec<i32> = (0..48).map(|i| (i % 8) * 30 + (i / 8) * 7).collect();
+/// let (mut a, mut b) = (image.clone(), image.clone());
+/// let mut scratch = vec![0; fuse_scratch_len(dims)];
+/// let cfg = FuseConfig::default(); // db2, one level, the full method
+/// fuse_pair(&mut a, &mut b, dims, &cfg, LlWeight::HALF, &mut scratch)?;
+/// // The fused image replaces `a`; an image fused with itself comes back bit for bit.
+/// assert_eq!(a, image);
+/// # Ok::<(), rollfuse_core::Error>(())
+/// ```
 pub fn fuse_pair(
     a: &mut [i32],
     b: &mut [i32],
@@ -122,8 +128,13 @@ pub fn fuse_pair(
             got: scratch.len(),
         });
     }
-    let layout = (1, false, false);
-    fuse_pair_checked(a, b, dims, cfg, ll_weight, scratch, layout, &Sequential)
+    let layout = ScratchLayout {
+        second_line: false,
+        rings: false,
+        table: false,
+    };
+    let images = ImagePair { a, b, dims };
+    fuse_pair_checked(images, cfg, ll_weight, scratch, layout, &Sequential)
 }
 
 /// Fraction bits the 8-bit fusion keeps below the pixel's integer part while it works.
@@ -178,12 +189,13 @@ pub fn fuse_u8(
     if ll_weight.0 > 1 << 15 {
         return Err(Error::InvalidParameter { name: "ll_weight" });
     }
-    let (mut parts, table) = split_scratch(
-        work.scratch,
-        lifting::scratch_len(packed),
-        (1, false, true),
-        packed,
-    )?;
+    let layout = ScratchLayout {
+        second_line: false,
+        rings: false,
+        table: true,
+    };
+    let line = lifting::scratch_len(packed);
+    let (mut parts, table) = split_scratch(work.scratch, line, layout, packed)?;
     // A reference maximum is in 8-bit units; the samples get the guard bits.
     let cfg = &FuseConfig {
         norm: match cfg.norm {
@@ -196,8 +208,8 @@ pub fn fuse_u8(
     };
     if cfg.ablation.uses_saliency() {
         let images = [(&*a, a_dims), (b, b_dims)];
-        first_level_maps(images, cfg, parts.maps, table, parts.line)?;
-        parts.first_maps_ready = true;
+        first_level_maps(images, cfg, parts.maps.space, table, parts.lines.line)?;
+        parts.maps.first_ready = true;
     }
     // Every buffer was checked to hold its region above: the zips pair all `h` rows.
     for (src, src_dims, dst) in [(&*a, a_dims, &mut *work.a), (b, b_dims, &mut *work.b)] {
@@ -205,16 +217,12 @@ pub fn fuse_u8(
             widen_shifted::<GUARD_BITS>(row, dst_row);
         }
     }
-    fuse_generic(
-        work.a,
-        work.b,
-        packed,
-        cfg,
-        ll_weight,
-        parts,
-        [None; 2],
-        &Sequential,
-    )?;
+    let images = ImagePair {
+        a: &mut *work.a,
+        b: &mut *work.b,
+        dims: packed,
+    };
+    fuse_generic(images, cfg, ll_weight, parts, [None; 2], &Sequential)?;
     let half = 1 << (GUARD_BITS - 1);
     for (row, fused) in a_dims.rows_mut(a).zip(work.a.chunks_exact(w)) {
         for (d, &v) in row.iter_mut().zip(fused) {

@@ -9,18 +9,20 @@
 //!   eq. 2) or `w = 1/n` for an order-independent mean over `n` frames ([`LlWeighting`]);
 //! - the inverse transform of the result (eq. 7).
 //!
-//! The same driver runs the integer path ([`fuse_pair`], what the MCU runs) and the `f32`
-//! path ([`crate::float`]); the crate-private `Arith` trait is the seam between them.
+//! The same driver runs the integer path ([`integer`]: [`fuse_pair`], what the MCU runs)
+//! and the float path ([`float`]); the crate-private `Arith` trait is the seam between
+//! them.
 
 mod cyclic;
+pub mod float;
 pub(crate) mod integer;
 
 pub use cyclic::{CyclicBuffers, CyclicFuser};
 pub use integer::{GUARD_BITS, U8Work, fuse_pair, fuse_scratch_len, fuse_scratch_words, fuse_u8};
 
-use crate::lifting::{self, Lift};
+use crate::lifting::{self, Coefficients, LevelBounds, Lift, Saturation};
 use crate::saliency::{LAPLACIAN_TABLE_LEN, SaliencyNorm, row_and_neighbours};
-use crate::{Dims, Error, Wavelet, simd};
+use crate::{Dims, Error, MAX_LEVELS, Wavelet, simd};
 
 /// The ablations of the paper's Table II: each removes one part of the method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -154,18 +156,31 @@ impl WindowLayout {
 }
 
 /// The numeric operations a fusion path supplies: coefficients, saliency sums and weights
-/// all live in `Self` (i32 on the integer path, f32 on the float path). The forward
-/// transform is the lifting's own, generic over [`Lift`]; the inverse differs by path.
+/// all live in `Self` (i32 on the integer path, f32 on the float path). Both transforms
+/// are the lifting's own, generic over [`Lift`]; the inverse's saturation differs by path.
 pub(crate) trait Arith: Lift + Send + Sync + core::ops::AddAssign {
-    /// All inverse levels of `region` (image, dims, levels), deepest first;
-    /// `prepare(level, y, row y)` runs on each row of each level's region before that
-    /// level reads it.
+    /// The bounds the inverse of a `levels`-deep transform saturates each level to.
+    fn inverse_bounds(wavelet: Wavelet, levels: u8) -> [LevelBounds; MAX_LEVELS as usize];
+    /// All inverse levels of a fused `levels`-deep transform of `dims` in `buf`, deepest
+    /// first; `prepare(level, y, row y)` runs on each row of each level's region before
+    /// that level reads it.
     fn inverse(
         wavelet: Wavelet,
-        region: (&mut [Self], Dims, u8),
+        buf: &mut [Self],
+        dims: Dims,
+        levels: u8,
         scratch: &mut [Self],
         prepare: &mut impl FnMut(u8, usize, &mut [Self]),
-    );
+    ) {
+        let bounds = Self::inverse_bounds(wavelet, levels);
+        // Fused coefficients are convex combinations of forward-transform outputs of the
+        // same band (weights and the LL mix lie in 0..=1), so within its bound.
+        let saturation = Saturation {
+            bounds: &bounds,
+            coefficients: Coefficients::InBounds,
+        };
+        lifting::inverse_levels(wavelet, buf, dims, levels, scratch, saturation, prepare);
+    }
     /// What [`Arith::saliency_row`] normalizes the Laplacian by.
     type SaliencyScale: Copy + PartialEq + Send + Sync;
     /// The normalization of the saliency of the level input `buf` on `dims`, or `None` for
@@ -221,20 +236,28 @@ impl Join for Sequential {
     }
 }
 
-/// The checks and the call shared by both paths' public `fuse_pair`. `layout` is how many
-/// transform lines the scratch holds (1, or 2 to let `join` run both images at once) and
-/// whether it holds the rings ([`Work::rings`]) too.
-#[allow(clippy::too_many_arguments)]
+/// The two images of a fuse step on one region: the fused image replaces `a`, `b` is
+/// consumed.
+pub(crate) struct ImagePair<'i, T> {
+    /// The first image (in cyclic use, the running result).
+    pub a: &'i mut [T],
+    /// The second image.
+    pub b: &'i mut [T],
+    /// The region both hold.
+    pub dims: Dims,
+}
+
+/// The checks and the call shared by both paths' public `fuse_pair`, with the scratch laid
+/// out as `layout` says.
 pub(crate) fn fuse_pair_checked<T: Arith>(
-    a: &mut [T],
-    b: &mut [T],
-    dims: Dims,
+    images: ImagePair<'_, T>,
     cfg: &FuseConfig,
     ll_weight: LlWeight,
     scratch: &mut [T],
-    layout: (usize, bool, bool),
+    layout: ScratchLayout,
     join: &impl Join,
 ) -> Result<(), Error> {
+    let ImagePair { a, b, dims } = images;
     dims.check_buffer("first image", a.len())?;
     dims.check_buffer("second image", b.len())?;
     dims.check_levels(cfg.levels)?;
@@ -246,7 +269,8 @@ pub(crate) fn fuse_pair_checked<T: Arith>(
     let local_max = cfg.norm == SaliencyNorm::Local && cfg.ablation.uses_saliency();
     let max_a = T::check_and_max(a, dims, local_max)?;
     let max_b = T::check_and_max(b, dims, local_max)?;
-    fuse_generic(a, b, dims, cfg, ll_weight, work, [max_a, max_b], join)
+    let images = ImagePair { a, b, dims };
+    fuse_generic(images, cfg, ll_weight, work, [max_a, max_b], join)
 }
 
 /// Scratch a fuse step needs besides its transform line: one window map per image, each
@@ -255,42 +279,67 @@ pub(crate) const fn maps_len(width: usize, height: usize) -> usize {
     2 * (width.div_ceil(2) + 1) * (height.div_ceil(2) + 1)
 }
 
+/// How a fuse step's scratch is laid out ([`split_scratch`]): after the transform line,
+/// which it always holds, and the window maps, which it holds after the lines.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct ScratchLayout {
+    /// A second transform line, so `join` can work on both images at once.
+    pub second_line: bool,
+    /// The saliency rings ([`Lines::rings`]).
+    pub rings: bool,
+    /// Space for [`fuse_u8`]'s saliency table ([`TABLE_WORDS`]), after the rest.
+    pub table: bool,
+}
+
 /// Work areas of one fuse step, split from the caller's scratch.
 pub(crate) struct Work<'s, T> {
+    /// The transforms' rows.
+    pub lines: Lines<'s, T>,
+    /// The window maps.
+    pub maps: Maps<'s, T>,
+}
+
+/// The rows of scratch a fuse step's transforms work in.
+pub(crate) struct Lines<'s, T> {
     /// The transform line (image A's, and B's too when there is no second).
     pub line: &'s mut [T],
     /// A second line, so both images can be worked on at once.
     pub line_b: Option<&'s mut [T]>,
-    /// Two window maps: image A's, then image B's.
-    pub maps: &'s mut [T],
     /// Two rows per image (A's, then B's), where the step has them: each image's
     /// saliency is then taken in its forward transform's sweep ([`saliency_and_forward`]).
     pub rings: Option<&'s mut [T]>,
-    /// Whether level 1's two window maps are already in `maps` (taken from the images'
+}
+
+/// The scratch of a fuse step's window maps.
+pub(crate) struct Maps<'s, T> {
+    /// Two window maps: image A's, then image B's.
+    pub space: &'s mut [T],
+    /// Whether level 1's two window maps are already in `space` (taken from the images'
     /// 8-bit samples by [`fuse_u8`]): level 1 then runs its transforms alone.
-    pub first_maps_ready: bool,
+    pub first_ready: bool,
 }
 
 /// Scratch for [`fuse_u8`]'s saliency table ([`crate::saliency::LaplacianTable`]).
 pub(crate) const TABLE_WORDS: usize = LAPLACIAN_TABLE_LEN;
 
-/// Scratch for the saliency rings of [`Work::rings`]: two rows per image.
+/// Scratch for the saliency rings of [`Lines::rings`]: two rows per image.
 pub(crate) fn rings_len(dims: Dims) -> usize {
     4 * dims.width()
 }
 
-/// Splits the caller's scratch into `lines` (1 or 2) transform lines of `line` elements,
-/// the maps and, with `rings`, the saliency rings; and with `table` the space of
-/// [`TABLE_WORDS`] for a saliency table, returned beside (empty without).
+/// Splits the caller's scratch as `layout` says: transform lines of `line` elements, the
+/// maps and the saliency rings; and the space for a saliency table, returned beside (empty
+/// without).
 pub(crate) fn split_scratch<T>(
     scratch: &mut [T],
     line: usize,
-    (lines, rings, tables): (usize, bool, bool),
+    layout: ScratchLayout,
     dims: Dims,
 ) -> Result<(Work<'_, T>, &mut [T]), Error> {
+    let lines = 1 + usize::from(layout.second_line);
     let maps = maps_len(dims.width(), dims.height());
-    let ring = if rings { rings_len(dims) } else { 0 };
-    let table = if tables { TABLE_WORDS } else { 0 };
+    let ring = if layout.rings { rings_len(dims) } else { 0 };
+    let table = if layout.table { TABLE_WORDS } else { 0 };
     let needed = lines * line + maps + ring + table;
     let too_small = Error::BufferTooSmall {
         which: "scratch",
@@ -301,7 +350,7 @@ pub(crate) fn split_scratch<T>(
         return Err(too_small);
     }
     let (first, rest) = scratch.split_at_mut_checked(line).ok_or(too_small)?;
-    let (line_b, rest) = if lines > 1 {
+    let (line_b, rest) = if layout.second_line {
         let (b, rest) = rest.split_at_mut_checked(line).ok_or(too_small)?;
         (Some(b), rest)
     } else {
@@ -311,11 +360,15 @@ pub(crate) fn split_scratch<T>(
     let (ring_part, rest) = rest.split_at_mut_checked(ring).ok_or(too_small)?;
     let table_part = rest.get_mut(..table).ok_or(too_small)?;
     let work = Work {
-        line: first,
-        line_b,
-        maps,
-        rings: rings.then_some(ring_part),
-        first_maps_ready: false,
+        lines: Lines {
+            line: first,
+            line_b,
+            rings: layout.rings.then_some(ring_part),
+        },
+        maps: Maps {
+            space: maps,
+            first_ready: false,
+        },
     };
     Ok((work, table_part))
 }
@@ -595,31 +648,25 @@ simd::kernel! {
     }
 }
 
-/// The fuse step, generic over the path. `a` and `b` hold the two images on `dims`
-/// (already validated, with their level-1 `|∇²I|` maxima where the check found them);
-/// the fused image replaces `a`, `b` is consumed. The shallower levels' bands are fused
-/// as soon as both images are transformed (the deeper levels' maps reuse their maps'
+/// The fuse step, generic over the path, on two images already validated (with their
+/// level-1 `|∇²I|` `maxima` where the check found them). The shallower levels' bands are
+/// fused as soon as both images are transformed (the deeper levels' maps reuse their maps'
 /// memory); the deepest level's bands are fused in the inverse's sweep, as it first reads
 /// each row, which saves a pass over the image (for one level, a read and a write of all
 /// of it). The errors cannot happen after the callers' checks: they stand in for the
 /// panics of slicing past a buffer's end.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn fuse_generic<T: Arith>(
-    a: &mut [T],
-    b: &mut [T],
-    dims: Dims,
+    images: ImagePair<'_, T>,
     cfg: &FuseConfig,
     ll_weight: LlWeight,
     work: Work<'_, T>,
     maxima: [Option<T>; 2],
     join: &impl Join,
 ) -> Result<(), Error> {
+    let ImagePair { a, b, dims } = images;
     let Work {
-        line,
-        mut line_b,
-        maps,
-        mut rings,
-        first_maps_ready,
+        mut lines,
+        mut maps,
     } = work;
     let image_error = dims.too_small("image", a.len().min(b.len()));
     if cfg.ablation == Ablation::NoWavelet {
@@ -627,10 +674,20 @@ pub(crate) fn fuse_generic<T: Arith>(
     }
     let mut d = dims;
     for level in 1..cfg.levels {
-        let lines = (&mut *line, line_b.as_deref_mut(), rings.as_deref_mut());
-        let maps_ready = level == 1 && first_maps_ready;
-        let space = (&mut *maps, maps_ready);
-        let fusion = transform_level(a, b, (d, level), cfg, space, lines, maxima, join)?;
+        let level_images = ImagePair {
+            a: &mut *a,
+            b: &mut *b,
+            dims: d,
+        };
+        let fusion = transform_level(
+            level_images,
+            level,
+            cfg,
+            &mut maps,
+            &mut lines,
+            maxima,
+            join,
+        )?;
         for y in 0..d.height() {
             let (Some(ra), Some(rb)) = (d.row_mut(a, y), d.row(b, y)) else {
                 return Err(image_error);
@@ -639,9 +696,20 @@ pub(crate) fn fuse_generic<T: Arith>(
         }
         d = d.low_band();
     }
-    let lines = (&mut *line, line_b, rings);
-    let space = (maps, cfg.levels == 1 && first_maps_ready);
-    let deepest = transform_level(a, b, (d, cfg.levels), cfg, space, lines, maxima, join)?;
+    let level_images = ImagePair {
+        a: &mut *a,
+        b: &mut *b,
+        dims: d,
+    };
+    let deepest = transform_level(
+        level_images,
+        cfg.levels,
+        cfg,
+        &mut maps,
+        &mut lines,
+        maxima,
+        join,
+    )?;
     let b = &*b;
     let mut outcome = Ok(());
     let mut fuse_deepest = |level: u8, y: usize, ra: &mut [T]| {
@@ -653,31 +721,37 @@ pub(crate) fn fuse_generic<T: Arith>(
             outcome = outcome.and(fused);
         }
     };
-    T::inverse(cfg.wavelet, (a, dims, cfg.levels), line, &mut fuse_deepest);
+    T::inverse(
+        cfg.wavelet,
+        a,
+        dims,
+        cfg.levels,
+        lines.line,
+        &mut fuse_deepest,
+    );
     outcome
 }
 
 /// One level of a fuse step up to its fusion: each image's saliency map (read before its
 /// transform overwrites it) and its transform, then `W₁` per window. Returns how to fuse
-/// the level's rows. `space` is [`Work`]'s maps and whether they already hold this
-/// level's saliency sums (then only the transforms run), `lines` its line, second line
-/// and rings.
-#[allow(clippy::too_many_arguments)]
+/// the level's rows. `images` are the level's inputs (the images, then their LL bands);
+/// the maps take this level's saliency sums unless they hold them already.
 fn transform_level<'m, T: Arith>(
-    a: &mut [T],
-    b: &mut [T],
-    (d, level): (Dims, u8),
+    images: ImagePair<'_, T>,
+    level: u8,
     cfg: &FuseConfig,
-    (maps, maps_ready): (&'m mut [T], bool),
-    (line, line_b, rings): (&mut [T], Option<&mut [T]>, Option<&mut [T]>),
+    maps: &'m mut Maps<'_, T>,
+    lines: &mut Lines<'_, T>,
     [max_a, max_b]: [Option<T>; 2],
     join: &impl Join,
 ) -> Result<LevelFusion<'m, T>, Error> {
+    let ImagePair { a, b, dims: d } = images;
+    let maps_ready = level == 1 && maps.first_ready;
     let with_weights = cfg.ablation.uses_saliency();
     let (wl, layout) = (cfg.wavelet, WindowLayout::of(cfg.wavelet));
     let mw = layout.map_dims(d).0;
-    let maps_error = maps_too_small(layout, d, maps.len());
-    let [map_a, map_b] = split_maps(maps, layout, d)?;
+    let maps_error = maps_too_small(layout, d, maps.space.len());
+    let [map_a, map_b] = split_maps(&mut *maps.space, layout, d)?;
     let scale_of = |img: &[T], max| {
         let known_max = if level == 1 { max } else { None };
         T::saliency_scale(img, d, cfg.norm, cfg.wavelet, level, known_max)
@@ -690,14 +764,15 @@ fn transform_level<'m, T: Arith>(
     };
     // The two images are independent until the weights.
     let with_map = |map, scale| take_maps.then_some((map, layout, scale));
-    let (ring_a, ring_b) = match rings {
+    let (ring_a, ring_b) = match lines.rings.as_deref_mut() {
         Some(r) => {
             let (ra, rb) = r.split_at_mut(r.len() / 2);
             (Some(ra), Some(rb))
         }
         None => (None, None),
     };
-    match line_b {
+    let line = &mut *lines.line;
+    match lines.line_b.as_deref_mut() {
         Some(lb) => join.join(
             || saliency_and_forward(a, d, wl, with_map(&mut *map_a, scale_a), line, ring_a),
             || saliency_and_forward(b, d, wl, with_map(&mut *map_b, scale_b), lb, ring_b),
@@ -835,19 +910,18 @@ mod tests {
                         let (mut a, mut b) = (scene(w, h, 0), scene(w, h, 5));
                         let mut scratch = vec![0f32; crate::float::fuse_scratch_len(dims)];
                         let half = LlWeight::HALF;
-                        let layout = (2, rings, false);
+                        let layout = ScratchLayout {
+                            second_line: true,
+                            rings,
+                            table: false,
+                        };
                         let seq = &Sequential;
-                        fuse_pair_checked(
-                            &mut a,
-                            &mut b,
+                        let images = ImagePair {
+                            a: &mut a,
+                            b: &mut b,
                             dims,
-                            &cfg,
-                            half,
-                            &mut scratch,
-                            layout,
-                            seq,
-                        )
-                        .unwrap();
+                        };
+                        fuse_pair_checked(images, &cfg, half, &mut scratch, layout, seq).unwrap();
                         a
                     };
                     let (swept, apart) = (fused(true), fused(false));

@@ -21,6 +21,7 @@
 //! step exactly, for every length ≥ 1.
 
 use super::{ColumnBounds, Lift, RowsPrepared, RowsReady, row_pair, rows_at, segment};
+use crate::Dims;
 use crate::geometry::mirror;
 use crate::simd;
 
@@ -356,20 +357,21 @@ pub(crate) fn inverse_row_two_pass<T: Lift>(row: &mut [T], work: &mut [T], out_b
     }
 }
 
-/// Forward lifting of the columns of a region, in place, in one sweep down its rows: `buf`
-/// holds `n` rows of `w` samples, `stride` apart. On return row `2l` holds row `l` of the
+/// Forward lifting of the columns of `region` (from the start of `buf`), in place, in one
+/// sweep down its `n` rows. On return row `2l` holds row `l` of the
 /// low band and row `2l + 1` row `l` of the high band (the layout of
 /// [`crate::geometry`]). Each step works on whole rows, so the sweep reads and writes the
 /// region once, front to back; `ready` runs the row pass on each row before the sweep
 /// first reads it.
 pub(crate) fn forward_columns<T: Lift, F: FnMut(usize, &mut [T])>(
     buf: &mut [T],
-    (stride, w, n): (usize, usize, usize),
+    region: Dims,
     ready: &mut RowsReady<'_, F>,
 ) {
     let k = T::constants();
+    let n = region.height();
     let (nl, nh) = (n.div_ceil(2), n / 2);
-    ready.through(buf, (stride, w), n.min(4).saturating_sub(1));
+    ready.through(buf, region, n.min(4).saturating_sub(1));
     if nh == 0 {
         return;
     }
@@ -378,30 +380,30 @@ pub(crate) fn forward_columns<T: Lift, F: FnMut(usize, &mut [T])>(
     // sweep overwrites before it gets there.
     let early = |l: usize| l <= 1 || l >= nh;
     if nl > nh {
-        ready.early(buf, (stride, w), 2 * nh);
-        ready.early(buf, (stride, w), 2 * odd_index(nh, nh) + 1);
+        ready.early(buf, region, 2 * nh);
+        ready.early(buf, region, 2 * odd_index(nh, nh) + 1);
     }
     for l in (0..nl).filter(|&l| early(l)) {
-        if let Some([e, o]) = row_pair(buf, stride, w, 2 * l, 2 * odd_index(l, nh) + 1) {
+        if let Some([e, o]) = row_pair(buf, region, 2 * l, 2 * odd_index(l, nh) + 1) {
             for (e, &o) in e.iter_mut().zip(o.iter()) {
                 *e = lift_s1(*e, o, k);
             }
         }
     }
     // d¹₀ reads its mirrored left neighbour: s¹₁, or s¹₀ itself.
-    first_odd_row(buf, (stride, w, nl), |o, s, sp| lift_d1(o, s, sp, k));
+    first_odd_row(buf, region, |o, s, sp| lift_d1(o, s, sp, k));
     // Pair l's s¹ and d¹, and with them pair l − 1's s².
     for l in 1..nh {
-        ready.through(buf, (stride, w), 2 * l + 1);
-        let Some([s_prev, s, o]) = rows_at(buf, stride, w, [2 * l - 2, 2 * l, 2 * l + 1]) else {
+        ready.through(buf, region, 2 * l + 1);
+        let Some([s_prev, s, o]) = rows_at(buf, region, [2 * l - 2, 2 * l, 2 * l + 1]) else {
             return;
         };
         forward_rows(s_prev, s, o, !early(l), k);
     }
     // The last low rows' s² read mirrored d¹.
-    ready.through(buf, (stride, w), n - 1);
+    ready.through(buf, region, n - 1);
     for l in nh - 1..nl {
-        if let Some([s, d]) = row_pair(buf, stride, w, 2 * l, 2 * next_index(l, nh) + 1) {
+        if let Some([s, d]) = row_pair(buf, region, 2 * l, 2 * next_index(l, nh) + 1) {
             for (s, &d) in s.iter_mut().zip(d.iter()) {
                 *s -= d;
             }
@@ -411,20 +413,16 @@ pub(crate) fn forward_columns<T: Lift, F: FnMut(usize, &mut [T])>(
 
 /// Row 1 (pair 0's odd row) through `step(o, s¹₀, s¹₋₁)`, the predict step forward
 /// ([`lift_d1`]) or back ([`unlift_odd`]); `s¹₋₁` is mirrored: `s¹₁` (row 2), or `s¹₀`
-/// itself when there is one low row (`nl` is 1).
+/// itself when the region has one low row (is one or two rows high).
 #[inline(always)]
-fn first_odd_row<T: Lift>(
-    buf: &mut [T],
-    (stride, w, nl): (usize, usize, usize),
-    step: impl Fn(T, T, T) -> T,
-) {
-    if nl > 1 {
-        if let Some([s, o, sp]) = rows_at(buf, stride, w, [0, 1, 2]) {
+fn first_odd_row<T: Lift>(buf: &mut [T], region: Dims, step: impl Fn(T, T, T) -> T) {
+    if region.height() > 2 {
+        if let Some([s, o, sp]) = rows_at(buf, region, [0, 1, 2]) {
             for ((o, &s), &sp) in o.iter_mut().zip(s.iter()).zip(sp.iter()) {
                 *o = step(*o, s, sp);
             }
         }
-    } else if let Some([s, o]) = rows_at(buf, stride, w, [0, 1]) {
+    } else if let Some([s, o]) = rows_at(buf, region, [0, 1]) {
         for (o, &s) in o.iter_mut().zip(s.iter()) {
             *o = step(*o, s, s);
         }
@@ -467,22 +465,24 @@ simd::kernel! {
 simd::kernel! {
     /// Inverse of [`forward_columns`], in place: each output sample is saturated to its
     /// column's bound, and `done` runs on each row as soon as it is final. Even rows hold `s¹`
-    /// and odd ones the unsaturated odd samples until the next row pair is known.
+    /// and odd ones the unsaturated odd samples until the next row pair is known. The
+    /// stages below are inlined: this is the Cortex-M7's hot loop, and the wider copies of
+    /// [`simd::kernel!`] reach only inlined code.
     pub(crate) fn inverse_columns<T: Lift, P: FnMut(usize, &mut [T]), D: FnMut(&mut [T])>(
         buf: &mut [T],
-        region: (usize, usize, usize),
+        region: Dims,
         bounds: ColumnBounds,
         prepared: &mut RowsPrepared<'_, P>,
         done: &mut D,
     ) {
         let k = T::constants();
-        let (stride, w, n) = region;
+        let n = region.height();
         let (nl, nh) = (n.div_ceil(2), n / 2);
         // The first pairs and the early steps below read rows up to 5; the mirrored last
         // pairs' rows are the tail `prepared` has done.
-        prepared.through(buf, (stride, w), 5);
+        prepared.through(buf, region, 5);
         if nh == 0 {
-            if let Some([row]) = rows_at(buf, stride, w, [0]) {
+            if let Some([row]) = rows_at(buf, region, [0]) {
                 bounds.saturate(row);
                 done(row);
             }
@@ -491,94 +491,145 @@ simd::kernel! {
         // s¹ = s² + d¹[l + 1] first where the sweep needs it before reaching it (pairs 0 and
         // 1) or would by then have turned the mirrored d¹ into odd samples (the last pairs).
         let early = |l: usize| l <= 1 || l + 1 >= nh;
-        for l in (0..nl).filter(|&l| early(l)) {
-            if let Some([s, d]) = row_pair(buf, stride, w, 2 * l, 2 * next_index(l, nh) + 1) {
-                for (s, &d) in s.iter_mut().zip(d.iter()) {
-                    *s += d;
-                }
-            }
-        }
-        first_odd_row(buf, (stride, w, nl), |d, s, sp| unlift_odd(d, s, sp, k));
+        unlift_s2_rows(buf, region, early);
+        first_odd_row(buf, region, |d, s, sp| unlift_odd(d, s, sp, k));
         // An odd length's last even row reads the odd sample of a mirrored pair: made while
         // that sample is not yet saturated, i.e. before its pair is finished.
         let last_even = (nl > nh).then(|| (nh, odd_index(nh, nh)));
-        let finish_last_even = |buf: &mut [T], l: usize, done: &mut D| match last_even {
-            Some((last, m)) if m == l => {
-                if let Some([o, s]) = rows_at(buf, stride, w, [2 * m + 1, 2 * last]) {
-                    for (cols, b) in bounds.segments() {
-                        let lanes = segment(s, &cols).iter_mut().zip(segment(o, &cols).iter());
-                        for (s, &o) in lanes {
-                            *s = unlift_even(*s, o, k).saturate(b);
-                        }
-                    }
-                    done(s);
-                }
+        let finish_last_even = |buf: &mut [T], l: usize, done: &mut D| {
+            if let Some((last, m)) = last_even
+                && m == l
+                && let Some([o, s]) = rows_at(buf, region, [2 * m + 1, 2 * last])
+            {
+                unlift_even_row(s, o, bounds, k);
+                done(s);
             }
-            _ => {}
         };
         // Pair l + 1's s¹ and odd sample, and pair l's output.
         for l in 0..nh - 1 {
-            prepared.through(buf, (stride, w), 2 * l + 5);
+            prepared.through(buf, region, 2 * l + 5);
             finish_last_even(buf, l, done);
             if early(l + 1) {
                 let Some([s, o, s_next, o_next]) =
-                    rows_at(buf, stride, w, [2 * l, 2 * l + 1, 2 * l + 2, 2 * l + 3])
+                    rows_at(buf, region, [2 * l, 2 * l + 1, 2 * l + 2, 2 * l + 3])
                 else {
                     return;
                 };
-                for (cols, b) in bounds.segments() {
-                    let lanes = segment(s, &cols)
-                        .iter_mut()
-                        .zip(segment(o, &cols).iter_mut());
-                    let next = segment(s_next, &cols)
-                        .iter()
-                        .zip(segment(o_next, &cols).iter_mut());
-                    for ((s, o), (&s_next, o_next)) in lanes.zip(next) {
-                        *o_next = unlift_odd(*o_next, s_next, *s, k);
-                        *s = unlift_even(*s, *o, k).saturate(b);
-                        *o = o.saturate(b);
-                    }
-                }
+                finish_pair_before_early(s, o, s_next, o_next, bounds, k);
                 done(s);
                 done(o);
             } else {
                 let at = [2 * l, 2 * l + 1, 2 * l + 2, 2 * l + 3, 2 * l + 5];
-                let Some([s, o, s_next, o_next, d_after]) = rows_at(buf, stride, w, at) else {
+                let Some([s, o, s_next, o_next, d_after]) = rows_at(buf, region, at) else {
                     return;
                 };
-                for (cols, b) in bounds.segments() {
-                    let lanes = segment(s, &cols)
-                        .iter_mut()
-                        .zip(segment(o, &cols).iter_mut());
-                    let next = segment(s_next, &cols)
-                        .iter_mut()
-                        .zip(segment(o_next, &cols).iter_mut());
-                    let ahead = segment(d_after, &cols).iter();
-                    for (((s, o), (s_next, o_next)), &d_after) in lanes.zip(next).zip(ahead) {
-                        *s_next += d_after;
-                        *o_next = unlift_odd(*o_next, *s_next, *s, k);
-                        *s = unlift_even(*s, *o, k).saturate(b);
-                        *o = o.saturate(b);
-                    }
-                }
+                finish_pair(s, o, s_next, o_next, d_after, bounds, k);
                 done(s);
                 done(o);
             }
         }
-        prepared.through(buf, (stride, w), n - 1);
+        prepared.through(buf, region, n - 1);
         finish_last_even(buf, nh - 1, done);
-        if let Some([s, o]) = rows_at(buf, stride, w, [2 * nh - 2, 2 * nh - 1]) {
-            for (cols, b) in bounds.segments() {
-                let lanes = segment(s, &cols)
-                    .iter_mut()
-                    .zip(segment(o, &cols).iter_mut());
-                for (s, o) in lanes {
-                    *s = unlift_even(*s, *o, k).saturate(b);
-                    *o = o.saturate(b);
-                }
-            }
+        if let Some([s, o]) = rows_at(buf, region, [2 * nh - 2, 2 * nh - 1]) {
+            finish_last_pair(s, o, bounds, k);
             done(s);
             done(o);
+        }
+    }
+}
+
+/// The inverse sweep's first step on the low rows `early` picks: `s¹ = s² + d¹[l + 1]`.
+#[inline(always)]
+fn unlift_s2_rows<T: Lift>(buf: &mut [T], region: Dims, early: impl Fn(usize) -> bool) {
+    let n = region.height();
+    let (nl, nh) = (n.div_ceil(2), n / 2);
+    for l in (0..nl).filter(|&l| early(l)) {
+        if let Some([s, d]) = row_pair(buf, region, 2 * l, 2 * next_index(l, nh) + 1) {
+            for (s, &d) in s.iter_mut().zip(d.iter()) {
+                *s += d;
+            }
+        }
+    }
+}
+
+/// An odd length's last even row back from `s¹` (row `s`) and its mirrored odd partner
+/// (row `o`, not yet saturated), saturated to `bounds`.
+#[inline(always)]
+fn unlift_even_row<T: Lift>(s: &mut [T], o: &mut [T], bounds: ColumnBounds, k: T::Constants) {
+    for (cols, b) in bounds.segments() {
+        let lanes = segment(s, &cols).iter_mut().zip(segment(o, &cols).iter());
+        for (s, &o) in lanes {
+            *s = unlift_even(*s, o, k).saturate(b);
+        }
+    }
+}
+
+/// Pair `l`'s output (rows `s`, `o`, saturated to `bounds`) and pair `l + 1`'s odd sample
+/// (row `o_next`), where pair `l + 1`'s `s¹` (row `s_next`) was made early.
+#[inline(always)]
+fn finish_pair_before_early<T: Lift>(
+    s: &mut [T],
+    o: &mut [T],
+    s_next: &mut [T],
+    o_next: &mut [T],
+    bounds: ColumnBounds,
+    k: T::Constants,
+) {
+    for (cols, b) in bounds.segments() {
+        let lanes = segment(s, &cols)
+            .iter_mut()
+            .zip(segment(o, &cols).iter_mut());
+        let next = segment(s_next, &cols)
+            .iter()
+            .zip(segment(o_next, &cols).iter_mut());
+        for ((s, o), (&s_next, o_next)) in lanes.zip(next) {
+            *o_next = unlift_odd(*o_next, s_next, *s, k);
+            *s = unlift_even(*s, *o, k).saturate(b);
+            *o = o.saturate(b);
+        }
+    }
+}
+
+/// Pair `l`'s output (rows `s`, `o`, saturated to `bounds`) and pair `l + 1`'s `s¹` and odd
+/// sample (rows `s_next`, `o_next`), `s¹` from `d¹[l + 2]` (row `d_after`).
+#[inline(always)]
+fn finish_pair<T: Lift>(
+    s: &mut [T],
+    o: &mut [T],
+    s_next: &mut [T],
+    o_next: &mut [T],
+    d_after: &mut [T],
+    bounds: ColumnBounds,
+    k: T::Constants,
+) {
+    for (cols, b) in bounds.segments() {
+        let lanes = segment(s, &cols)
+            .iter_mut()
+            .zip(segment(o, &cols).iter_mut());
+        let next = segment(s_next, &cols)
+            .iter_mut()
+            .zip(segment(o_next, &cols).iter_mut());
+        let ahead = segment(d_after, &cols).iter();
+        for (((s, o), (s_next, o_next)), &d_after) in lanes.zip(next).zip(ahead) {
+            *s_next += d_after;
+            *o_next = unlift_odd(*o_next, *s_next, *s, k);
+            *s = unlift_even(*s, *o, k).saturate(b);
+            *o = o.saturate(b);
+        }
+    }
+}
+
+/// The last pair's output (rows `s`, `o`), saturated to `bounds`: its neighbours are all
+/// done.
+#[inline(always)]
+fn finish_last_pair<T: Lift>(s: &mut [T], o: &mut [T], bounds: ColumnBounds, k: T::Constants) {
+    for (cols, b) in bounds.segments() {
+        let lanes = segment(s, &cols)
+            .iter_mut()
+            .zip(segment(o, &cols).iter_mut());
+        for (s, o) in lanes {
+            *s = unlift_even(*s, *o, k).saturate(b);
+            *o = o.saturate(b);
         }
     }
 }
@@ -613,11 +664,22 @@ fn rows_mut<T>(c: &mut [T], r0: usize, r1: usize, w: usize) -> &mut [T] {
     c.get_mut(r0 * w..r1 * w).unwrap_or_default()
 }
 
+/// How many rows of `w` samples the split channels hold: `low` = `high` or `high + 1`.
+#[derive(Debug, Clone, Copy)]
+#[cfg(test)]
+struct ChannelRows {
+    /// Rows of the low channel (`nl`).
+    low: usize,
+    /// Rows of the high channel (`nh`).
+    high: usize,
+}
+
 /// Step 1, `s¹[l] = e[l] ± R(√3·o[l])`: rows below `nh` read their own odd row, the last
 /// even row of an odd length reads a mirrored one.
 #[inline(always)]
 #[cfg(test)]
-fn update1<T: Lift>(low: &mut [T], high: &[T], w: usize, (nl, nh): (usize, usize), add: bool) {
+fn update1<T: Lift>(low: &mut [T], high: &[T], w: usize, channels: ChannelRows, add: bool) {
+    let (nl, nh) = (channels.low, channels.high);
     let o = rows(high, 0, nh, w);
     apply(rows_mut(low, 0, nh, w), o, o, add, |v, _| {
         v.sqrt3(T::constants())
@@ -635,7 +697,8 @@ fn update1<T: Lift>(low: &mut [T], high: &[T], w: usize, (nl, nh): (usize, usize
 /// `s¹[−1]`.
 #[inline(always)]
 #[cfg(test)]
-fn predict<T: Lift>(high: &mut [T], low: &[T], w: usize, (nl, nh): (usize, usize), add: bool) {
+fn predict<T: Lift>(high: &mut [T], low: &[T], w: usize, channels: ChannelRows, add: bool) {
+    let (nl, nh) = (channels.low, channels.high);
     let p = prev_index(0, nl);
     apply(
         rows_mut(high, 0, 1, w),
@@ -658,7 +721,8 @@ fn predict<T: Lift>(high: &mut [T], low: &[T], w: usize, (nl, nh): (usize, usize
 /// Step 3, `s²[l] = s¹[l] ∓ d¹[l + 1]`: the last rows read mirrored `d¹` rows.
 #[inline(always)]
 #[cfg(test)]
-fn update2<T: Lift>(low: &mut [T], high: &[T], w: usize, (nl, nh): (usize, usize), add: bool) {
+fn update2<T: Lift>(low: &mut [T], high: &[T], w: usize, channels: ChannelRows, add: bool) {
+    let (nl, nh) = (channels.low, channels.high);
     let inner = nh - 1;
     let d = rows(high, 1, nh, w);
     apply(rows_mut(low, 0, inner, w), d, d, add, |v, _| v);
@@ -677,8 +741,11 @@ fn update2<T: Lift>(low: &mut [T], high: &[T], w: usize, (nl, nh): (usize, usize
 #[cfg(test)]
 pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T], width: usize) {
     let w = width.max(1);
-    let n = (low.len() / w, high.len() / w);
-    if n.1 == 0 {
+    let n = ChannelRows {
+        low: low.len() / w,
+        high: high.len() / w,
+    };
+    if n.high == 0 {
         return;
     }
     update1(low, high, w, n, true);
@@ -691,8 +758,11 @@ pub(crate) fn forward<T: Lift>(low: &mut [T], high: &mut [T], width: usize) {
 #[cfg(test)]
 pub(crate) fn inverse<T: Lift>(low: &mut [T], high: &mut [T], width: usize) {
     let w = width.max(1);
-    let n = (low.len() / w, high.len() / w);
-    if n.1 == 0 {
+    let n = ChannelRows {
+        low: low.len() / w,
+        high: high.len() / w,
+    };
+    if n.high == 0 {
         return;
     }
     update2(low, high, w, n, true);

@@ -6,7 +6,7 @@
 //! `high`; the unpaired last sample passes to the low band unchanged.
 
 use super::{ColumnBounds, Lift, RowsPrepared, RowsReady, rows_at, segment};
-use crate::simd;
+use crate::{Dims, simd};
 
 /// Forward S-transform of one line: `src` holds the samples, `dst` (as long) gets the low
 /// band then the high band.
@@ -44,23 +44,24 @@ pub(crate) fn inverse_line<T: Lift>(src: &[T], dst: &mut [T], out_bound: i32) {
     }
 }
 
-/// Forward S-transform of the columns of a region, in place: `buf` holds `n` rows of `w`
-/// samples, `stride` apart; row pair `(2l, 2l + 1)` becomes low-band row `l` and
+/// Forward S-transform of the columns of `region` (from the start of `buf`), in place: row
+/// pair `(2l, 2l + 1)` becomes low-band row `l` and
 /// high-band row `l` in its place (an odd length's last row is low already).
 /// `ready` runs the row pass on each row before it is read.
 pub(crate) fn forward_columns<T: Lift, F: FnMut(usize, &mut [T])>(
     buf: &mut [T],
-    (stride, w, n): (usize, usize, usize),
+    region: Dims,
     ready: &mut RowsReady<'_, F>,
 ) {
+    let n = region.height();
     for l in 0..n / 2 {
-        ready.through(buf, (stride, w), 2 * l + 1);
-        if let Some([e_row, o_row]) = rows_at(buf, stride, w, [2 * l, 2 * l + 1]) {
+        ready.through(buf, region, 2 * l + 1);
+        if let Some([e_row, o_row]) = rows_at(buf, region, [2 * l, 2 * l + 1]) {
             forward_rows(e_row, o_row);
         }
     }
     // An odd length's last row.
-    ready.through(buf, (stride, w), n.saturating_sub(1));
+    ready.through(buf, region, n.saturating_sub(1));
 }
 
 simd::kernel! {
@@ -68,15 +69,15 @@ simd::kernel! {
     /// bound; `done` runs on each row once it is final.
     pub(crate) fn inverse_columns<T: Lift, P: FnMut(usize, &mut [T]), D: FnMut(&mut [T])>(
         buf: &mut [T],
-        region: (usize, usize, usize),
+        region: Dims,
         bounds: ColumnBounds,
         prepared: &mut RowsPrepared<'_, P>,
         done: &mut D,
     ) {
-        let (stride, w, n) = region;
+        let n = region.height();
         for l in 0..n / 2 {
-            prepared.through(buf, (stride, w), 2 * l + 1);
-            let Some([s_row, d_row]) = rows_at(buf, stride, w, [2 * l, 2 * l + 1]) else {
+            prepared.through(buf, region, 2 * l + 1);
+            let Some([s_row, d_row]) = rows_at(buf, region, [2 * l, 2 * l + 1]) else {
                 return;
             };
             for (cols, b) in bounds.segments() {
@@ -85,9 +86,9 @@ simd::kernel! {
             done(s_row);
             done(d_row);
         }
-        prepared.through(buf, (stride, w), n.saturating_sub(1));
+        prepared.through(buf, region, n.saturating_sub(1));
         if n % 2 == 1
-            && let Some([last]) = rows_at(buf, stride, w, [n - 1])
+            && let Some([last]) = rows_at(buf, region, [n - 1])
         {
             bounds.saturate(last);
             done(last);

@@ -18,6 +18,8 @@
 
 pub mod bounds;
 mod db2;
+#[cfg(any(test, feature = "pywt"))]
+pub mod filter_bank;
 mod haar;
 
 #[cfg(test)]
@@ -149,18 +151,18 @@ impl Wavelet {
         }
     }
 
-    /// Forward lifting of the columns of a region in place: `n` rows of `w` samples,
-    /// `stride` apart, from the start of `buf` (layout in [`crate::geometry`]). `ready`
-    /// runs the row pass on each row before the sweep first reads it.
+    /// Forward lifting of the columns of `region` in place, from the start of `buf` (layout
+    /// in [`crate::geometry`]). `ready` runs the row pass on each row before the sweep first
+    /// reads it.
     fn forward_columns<T: Lift, F: FnMut(usize, &mut [T])>(
         self,
         buf: &mut [T],
-        (stride, w, n): (usize, usize, usize),
+        region: Dims,
         ready: &mut RowsReady<'_, F>,
     ) {
         match self {
-            Wavelet::Haar => haar::forward_columns(buf, (stride, w, n), ready),
-            Wavelet::Db2 => db2::forward_columns(buf, (stride, w, n), ready),
+            Wavelet::Haar => haar::forward_columns(buf, region, ready),
+            Wavelet::Db2 => db2::forward_columns(buf, region, ready),
         }
     }
 
@@ -170,14 +172,14 @@ impl Wavelet {
     fn inverse_columns<T: Lift, P: FnMut(usize, &mut [T])>(
         self,
         buf: &mut [T],
-        (stride, w, n): (usize, usize, usize),
+        region: Dims,
         bounds: ColumnBounds,
         prepared: &mut RowsPrepared<'_, P>,
         done: &mut impl FnMut(&mut [T]),
     ) {
         match self {
-            Wavelet::Haar => haar::inverse_columns(buf, (stride, w, n), bounds, prepared, done),
-            Wavelet::Db2 => db2::inverse_columns(buf, (stride, w, n), bounds, prepared, done),
+            Wavelet::Haar => haar::inverse_columns(buf, region, bounds, prepared, done),
+            Wavelet::Db2 => db2::inverse_columns(buf, region, bounds, prepared, done),
         }
     }
 
@@ -203,16 +205,15 @@ impl Wavelet {
     }
 }
 
-/// Rows `at` (increasing) of a region whose rows are `w` samples, `stride` apart, from the
-/// start of `buf`, all mutable at once; `None` if they are not increasing or `buf` ends
-/// first (callers stay inside).
+/// Rows `at` (increasing) of `region`, from the start of `buf`, all mutable at once; `None`
+/// if they are not increasing or `buf` ends first (callers stay inside).
 #[inline(always)]
 fn rows_at<T, const N: usize>(
     buf: &mut [T],
-    stride: usize,
-    w: usize,
+    region: Dims,
     at: [usize; N],
 ) -> Option<[&mut [T]; N]> {
+    let (stride, w) = (region.stride(), region.width());
     let mut rows: [Option<&mut [T]>; N] = [const { None }; N];
     let mut rest = buf;
     let mut consumed = 0;
@@ -234,17 +235,11 @@ fn rows_at<T, const N: usize>(
 /// Rows `a` and `b` (different, in either order) of a region, as [`rows_at`], returned in
 /// the order asked for.
 #[inline(always)]
-fn row_pair<T>(
-    buf: &mut [T],
-    stride: usize,
-    w: usize,
-    a: usize,
-    b: usize,
-) -> Option<[&mut [T]; 2]> {
+fn row_pair<T>(buf: &mut [T], region: Dims, a: usize, b: usize) -> Option<[&mut [T]; 2]> {
     if a < b {
-        rows_at(buf, stride, w, [a, b])
+        rows_at(buf, region, [a, b])
     } else {
-        rows_at(buf, stride, w, [b, a]).map(|[x, y]| [y, x])
+        rows_at(buf, region, [b, a]).map(|[x, y]| [y, x])
     }
 }
 
@@ -498,10 +493,9 @@ fn sweep_level<T: Lift>(
     dims: Dims,
     mut row_pass: impl FnMut(usize, &mut [T]),
 ) {
-    let (w, h) = (dims.width(), dims.height());
-    if h > 1 {
+    if dims.height() > 1 {
         let mut ready = RowsReady::new(&mut row_pass);
-        wavelet.forward_columns(buf, (dims.stride(), w, h), &mut ready);
+        wavelet.forward_columns(buf, dims, &mut ready);
     } else if let Some(row) = dims.row_mut(buf, 0) {
         row_pass(0, row);
     }
@@ -528,10 +522,10 @@ impl<'f, F> RowsReady<'f, F> {
         }
     }
 
-    /// Runs the pass on every row up to `last` not done yet (rows of `w` samples,
-    /// `stride` apart, from the start of `buf`).
+    /// Runs the pass on every row of `region` (from the start of `buf`) up to `last` not
+    /// done yet.
     #[inline(always)]
-    pub fn through<T>(&mut self, buf: &mut [T], (stride, w): (usize, usize), last: usize)
+    pub fn through<T>(&mut self, buf: &mut [T], region: Dims, last: usize)
     where
         F: FnMut(usize, &mut [T]),
     {
@@ -539,7 +533,7 @@ impl<'f, F> RowsReady<'f, F> {
             let k = self.next;
             self.next += 1;
             if !self.early.contains(&Some(k))
-                && let Some([row]) = rows_at(buf, stride, w, [k])
+                && let Some([row]) = rows_at(buf, region, [k])
             {
                 (self.row_pass)(k, row);
             }
@@ -548,7 +542,7 @@ impl<'f, F> RowsReady<'f, F> {
 
     /// Runs the pass on row `k` now, out of order, unless it is done. A sweep has at most
     /// two such rows (an odd length's last row and its mirrored odd partner).
-    pub fn early<T>(&mut self, buf: &mut [T], (stride, w): (usize, usize), k: usize)
+    pub fn early<T>(&mut self, buf: &mut [T], region: Dims, k: usize)
     where
         F: FnMut(usize, &mut [T]),
     {
@@ -556,7 +550,7 @@ impl<'f, F> RowsReady<'f, F> {
             return;
         }
         let free = self.early.iter_mut().find(|slot| slot.is_none());
-        if let (Some(slot), Some([row])) = (free, rows_at(buf, stride, w, [k])) {
+        if let (Some(slot), Some([row])) = (free, rows_at(buf, region, [k])) {
             *slot = Some(k);
             (self.row_pass)(k, row);
         }
@@ -580,15 +574,15 @@ impl<'f, F> RowsPrepared<'f, F> {
     /// mirrored last pairs reach back at most four rows).
     const TAIL: usize = 6;
 
-    /// Prepares the tail of a region of `n` rows of `w` samples, `stride` apart, from
-    /// the start of `buf`.
-    pub fn new<T>(prepare: &'f mut F, buf: &mut [T], (stride, w, n): (usize, usize, usize)) -> Self
+    /// Prepares the tail of `region`, from the start of `buf`.
+    pub fn new<T>(prepare: &'f mut F, buf: &mut [T], region: Dims) -> Self
     where
         F: FnMut(usize, &mut [T]),
     {
+        let n = region.height();
         let tail = n.saturating_sub(Self::TAIL);
         for k in tail..n {
-            if let Some([row]) = rows_at(buf, stride, w, [k]) {
+            if let Some([row]) = rows_at(buf, region, [k]) {
                 prepare(k, row);
             }
         }
@@ -601,7 +595,7 @@ impl<'f, F> RowsPrepared<'f, F> {
 
     /// Prepares every row up to `last` not prepared yet.
     #[inline(always)]
-    pub fn through<T>(&mut self, buf: &mut [T], (stride, w): (usize, usize), last: usize)
+    pub fn through<T>(&mut self, buf: &mut [T], region: Dims, last: usize)
     where
         F: FnMut(usize, &mut [T]),
     {
@@ -609,57 +603,55 @@ impl<'f, F> RowsPrepared<'f, F> {
         while self.next < end {
             let k = self.next;
             self.next += 1;
-            if let Some([row]) = rows_at(buf, stride, w, [k]) {
+            if let Some([row]) = rows_at(buf, region, [k]) {
                 (self.prepare)(k, row);
             }
         }
     }
 }
 
-/// The inverse column pass: loads saturated to each band's bound (unless the
-/// coefficients are [`Coefficients::InBounds`]) and the columns lifted back in place,
-/// saturated on the way out; `prepare(y, row y)` runs on each row before anything else
-/// reads it, `done` on each row as soon as it is final. `left` and
-/// `right` are the (low band, high band, output) bounds of the columns left of `split`
-/// and of the others: left of the row pass's split the columns hold its low band.
+/// What an inverse column pass saturates to, each in two parts of the row
+/// ([`ColumnBounds`]): left of the row pass's split the columns hold its low band.
+#[derive(Debug, Clone, Copy)]
+struct ColumnPassBounds {
+    /// The coefficients of the even rows (the column-low band), as they are loaded.
+    low: ColumnBounds,
+    /// The coefficients of the odd rows (the column-high band), as they are loaded.
+    high: ColumnBounds,
+    /// The output (the row pass's bands).
+    out: ColumnBounds,
+}
+
+/// The inverse column pass: loads saturated to `bounds.low` and `bounds.high` (unless the
+/// `coefficients` are [`Coefficients::InBounds`]) and the columns lifted back in place,
+/// saturated to `bounds.out`; `prepare(y, row y)` runs on each row before anything else
+/// reads it, `done` on each row as soon as it is final.
 fn inverse_columns<T: Lift>(
     wavelet: Wavelet,
     buf: &mut [T],
     dims: Dims,
-    (coefficients, split): (Coefficients, usize),
-    [left, right]: [(i32, i32, i32); 2],
+    bounds: ColumnPassBounds,
+    coefficients: Coefficients,
     prepare: &mut impl FnMut(usize, &mut [T]),
     done: &mut impl FnMut(&mut [T]),
 ) {
-    let (w, h) = (dims.width(), dims.height());
-    let region = (dims.stride(), w, h);
-    let mut prepared = RowsPrepared::new(prepare, buf, region);
-    let band = |low: bool| {
-        let pick = |b: (i32, i32, i32)| if low { b.0 } else { b.1 };
-        ColumnBounds {
-            split,
-            width: w,
-            left: pick(left),
-            right: pick(right),
-        }
-    };
+    let h = dims.height();
+    let mut prepared = RowsPrepared::new(prepare, buf, dims);
     if coefficients == Coefficients::Any {
         // The saturation reads every row first.
-        prepared.through(buf, (dims.stride(), w), h);
+        prepared.through(buf, dims, h);
         // Even rows hold the low band, odd rows the high band.
         for y in 0..h {
             if let Some(row) = dims.row_mut(buf, y) {
-                band(y % 2 == 0).saturate(row);
+                if y % 2 == 0 {
+                    bounds.low.saturate(row);
+                } else {
+                    bounds.high.saturate(row);
+                }
             }
         }
     }
-    let out = ColumnBounds {
-        split,
-        width: w,
-        left: left.2,
-        right: right.2,
-    };
-    wavelet.inverse_columns(buf, region, out, &mut prepared, done);
+    wavelet.inverse_columns(buf, dims, bounds.out, &mut prepared, done);
 }
 
 /// What an inverse transform may assume about the coefficients it is given.
@@ -676,27 +668,44 @@ pub(crate) enum Coefficients {
     InBounds,
 }
 
-/// One inverse 2-D level (columns, then rows), saturating to `bounds` of that level;
-/// `prepare(y, row y)` runs on each row of the region before the level reads it.
+/// How an inverse transform saturates: to the bounds the forward transform proves for each
+/// band, loads included unless the coefficients are known to lie within them.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Saturation<B> {
+    /// The bounds: one level's ([`LevelBounds`]), or each level's.
+    pub bounds: B,
+    /// What the inverse may assume about the coefficients it loads.
+    pub coefficients: Coefficients,
+}
+
+/// One inverse 2-D level (columns, then rows), saturating as `saturation` says for that
+/// level; `prepare(y, row y)` runs on each row of the region before the level reads it.
 pub(crate) fn inverse_level<T: Lift>(
     wavelet: Wavelet,
     buf: &mut [T],
     dims: Dims,
     scratch: &mut [T],
-    (bounds, coefficients): (&LevelBounds, Coefficients),
+    saturation: Saturation<&LevelBounds>,
     prepare: &mut impl FnMut(usize, &mut [T]),
 ) {
+    let bounds = saturation.bounds;
     let (w, h) = (dims.width(), dims.height());
     let nlx = w.div_ceil(2);
     if h > 1 {
         // Columns left of nlx came from the rows' low band, the rest from the high band;
         // a one-column region had no row pass, so its columns are the level's input.
-        let left = if w == 1 {
-            (bounds.ll, bounds.lh, bounds.input)
-        } else {
-            (bounds.ll, bounds.lh, bounds.row_low)
+        let parts = |left, right| ColumnBounds {
+            split: nlx,
+            width: w,
+            left,
+            right,
         };
-        let right = (bounds.hl, bounds.hh, bounds.row_high);
+        let left_out = if w == 1 { bounds.input } else { bounds.row_low };
+        let column_bounds = ColumnPassBounds {
+            low: parts(bounds.ll, bounds.hl),
+            high: parts(bounds.lh, bounds.hh),
+            out: parts(left_out, bounds.row_high),
+        };
         // Each row is lifted back as soon as the column sweep has finished it, while it
         // is in cache. The column pass's output is already saturated to the row bands'
         // bounds: loading it saturates nothing more.
@@ -705,13 +714,12 @@ pub(crate) fn inverse_level<T: Lift>(
                 inverse_row(wavelet, row, scratch, None, bounds.input);
             }
         };
-        let how = (coefficients, nlx);
         inverse_columns(
             wavelet,
             buf,
             dims,
-            how,
-            [left, right],
+            column_bounds,
+            saturation.coefficients,
             prepare,
             &mut row_pass,
         );
@@ -744,14 +752,11 @@ pub fn inverse_1d(wavelet: Wavelet, line: &mut [i32], scratch: &mut [i32]) -> Re
     check_args(line, dims, None, scratch)?;
     // A single row has no column pass: its row bands are its final bands.
     let bounds = &level_bounds(wavelet, 1)[0];
-    inverse_level(
-        wavelet,
-        line,
-        dims,
-        scratch,
-        (bounds, Coefficients::Any),
-        &mut |_, _| {},
-    );
+    let saturation = Saturation {
+        bounds,
+        coefficients: Coefficients::Any,
+    };
+    inverse_level(wavelet, line, dims, scratch, saturation, &mut |_, _| {});
     Ok(())
 }
 
@@ -787,20 +792,24 @@ pub fn inverse_2d(
 ) -> Result<(), Error> {
     check_args(buf, dims, Some(levels), scratch)?;
     let bounds = level_bounds(wavelet, levels);
+    let saturation = Saturation {
+        bounds: &bounds,
+        coefficients: Coefficients::Any,
+    };
     inverse_levels(
         wavelet,
         buf,
         dims,
         levels,
         scratch,
-        (&bounds, Coefficients::Any),
+        saturation,
         &mut |_, _, _| {},
     );
     Ok(())
 }
 
 /// All inverse levels of a `levels`-deep transform of `dims`, deepest first, each
-/// saturating to its entry of `bounds` (floats ignore them); `prepare(level, y, row y)`
+/// saturating to its entry of the bounds (floats ignore them); `prepare(level, y, row y)`
 /// runs on each row of each level's region (level 1 the full region) before that level
 /// reads it.
 pub(crate) fn inverse_levels<T: Lift>(
@@ -809,19 +818,23 @@ pub(crate) fn inverse_levels<T: Lift>(
     dims: Dims,
     levels: u8,
     scratch: &mut [T],
-    (bounds, coefficients): (&[LevelBounds; MAX_LEVELS as usize], Coefficients),
+    saturation: Saturation<&[LevelBounds; MAX_LEVELS as usize]>,
     prepare: &mut impl FnMut(u8, usize, &mut [T]),
 ) {
     let sizes = level_sizes(dims);
-    let levels = sizes.iter().zip(bounds).zip(1..=levels);
-    for ((&d, b), level) in levels.rev() {
+    let levels = sizes.iter().zip(saturation.bounds).zip(1..=levels);
+    for ((&d, bounds), level) in levels.rev() {
         let mut prepare_level = |y: usize, row: &mut [T]| prepare(level, y, row);
+        let level_saturation = Saturation {
+            bounds,
+            coefficients: saturation.coefficients,
+        };
         inverse_level(
             wavelet,
             buf,
             d,
             scratch,
-            (b, coefficients),
+            level_saturation,
             &mut prepare_level,
         );
     }
@@ -960,14 +973,14 @@ mod tests {
     /// The line and column transforms against the step-by-step reference on one set of
     /// lines: `values` holds `n` rows of `w` lanes, each column one line. The inverse gets
     /// them as coefficients of any size, so its saturation on store is exercised too, with
-    /// `bounds` left of column `w / 2` and right of it.
+    /// `bounds` on the columns of `region`.
     fn check_against_steps<T: Lift + PartialEq + core::fmt::Debug>(
         wavelet: Wavelet,
         values: &[T],
-        (w, n, pad): (usize, usize, usize),
-        (left, right): (i32, i32),
+        region: Dims,
+        bounds: ColumnBounds,
     ) {
-        let stride = w + pad;
+        let (w, n, stride) = (region.width(), region.height(), region.stride());
         let nl = n.div_ceil(2);
         let column = |j: usize| -> Vec<T> { (0..n).map(|k| values[k * w + j]).collect() };
         // Row k of the column layout holds sample k / 2 of the low band (k even) or of the
@@ -994,7 +1007,7 @@ mod tests {
         let mut order = Vec::new();
         let mut record = |k: usize, _: &mut [T]| order.push(k);
         let mut ready = RowsReady::new(&mut record);
-        wavelet.forward_columns(&mut fwd, (stride, w, n), &mut ready);
+        wavelet.forward_columns(&mut fwd, region, &mut ready);
         let mut sorted = order.clone();
         sorted.sort_unstable();
         assert_eq!(
@@ -1007,12 +1020,6 @@ mod tests {
         }
         // The inverse reads each column's values as low band then high band.
         let mut inv = strided(&interleaved);
-        let bounds = ColumnBounds {
-            split: w / 2,
-            width: w,
-            left,
-            right,
-        };
         // The inverse starts from zeros: each row's coefficients arrive by its
         // preparation, so a row the sweep touched before preparing it spoils the result.
         let coefficients = inv.clone();
@@ -1022,10 +1029,10 @@ mod tests {
             prepared_rows.push(k);
             row.copy_from_slice(&coefficients[k * stride..k * stride + w]);
         };
-        let mut prepared = RowsPrepared::new(&mut fill, &mut inv, (stride, w, n));
+        let mut prepared = RowsPrepared::new(&mut fill, &mut inv, region);
         let mut rows_seen = 0;
         let mut count = |_: &mut [T]| rows_seen += 1;
-        wavelet.inverse_columns(&mut inv, (stride, w, n), bounds, &mut prepared, &mut count);
+        wavelet.inverse_columns(&mut inv, region, bounds, &mut prepared, &mut count);
         assert_eq!(rows_seen, n, "inverse row hook calls, {wavelet:?}, n {n}");
         prepared_rows.sort_unstable();
         assert_eq!(
@@ -1035,7 +1042,11 @@ mod tests {
         );
         for j in 0..w {
             let x = column(j);
-            let bound = if j < w / 2 { left } else { right };
+            let bound = if j < bounds.split {
+                bounds.left
+            } else {
+                bounds.right
+            };
             // Forward: deinterleave, lift step by step.
             let mut split: Vec<T> = x
                 .iter()
@@ -1095,12 +1106,18 @@ mod tests {
             let wavelet = if db2 { Wavelet::Db2 } else { Wavelet::Haar };
             let m = 1 << 20;
             let ints: Vec<i32> = render(Content::Random(seed), n * w, 1, 2 * m).iter().map(|v| v - m).collect();
-            let bounds = ((1 << 18) + 1000, (1 << 18) - 5000);
-            check_against_steps(wavelet, &ints, (w, n, pad), bounds);
+            let region = Dims::with_stride(w, n, w + pad).unwrap();
+            let bounds = ColumnBounds {
+                split: w / 2,
+                width: w,
+                left: (1 << 18) + 1000,
+                right: (1 << 18) - 5000,
+            };
+            check_against_steps(wavelet, &ints, region, bounds);
             let floats: Vec<f32> = ints.iter().map(|&v| v as f32 / 64.0).collect();
-            check_against_steps(wavelet, &floats, (w, n, pad), bounds);
+            check_against_steps(wavelet, &floats, region, bounds);
             let doubles: Vec<f64> = ints.iter().map(|&v| f64::from(v) / 64.0).collect();
-            check_against_steps(wavelet, &doubles, (w, n, pad), bounds);
+            check_against_steps(wavelet, &doubles, region, bounds);
         }
 
         #[test]
@@ -1176,9 +1193,9 @@ mod tests {
             }
             let bounds = level_bounds(wavelet, levels);
             let mut trusted = a.clone();
-            let any = (&bounds, Coefficients::Any);
+            let any = Saturation { bounds: &bounds, coefficients: Coefficients::Any };
             inverse_levels(wavelet, &mut a, dims, levels, &mut scratch, any, &mut |_, _, _| {});
-            let inside = (&bounds, Coefficients::InBounds);
+            let inside = Saturation { bounds: &bounds, coefficients: Coefficients::InBounds };
             let none = &mut |_, _, _: &mut [i32]| {};
             inverse_levels(wavelet, &mut trusted, dims, levels, &mut scratch, inside, none);
             prop_assert_eq!(trusted, a);

@@ -1,4 +1,10 @@
-//! Orthonormal periodic filter-bank transforms (PyWavelets' `periodization` mode).
+//! The orthonormal Haar and db2 filter banks with periodic extension, reproducing
+//! PyWavelets' `dwt2(x, w, mode='periodization')` and `idwt2` (checked against committed
+//! vectors in `shared/tests/vectors/`). As in PyWavelets, a line of odd length is first
+//! extended by repeating its last sample. In the interior the lifting's coefficients are
+//! these, up to scale and a one-pixel shift of placement (test
+//! `lifting_interior_matches_the_pywavelets_filter_bank`). A reference for tests, not part
+//! of the fusion: built for the crate's tests and with the `pywt` feature.
 
 use crate::{Dims, Error, Wavelet};
 
@@ -301,6 +307,7 @@ mod tests {
     extern crate std;
     use super::*;
     use crate::lifting::forward_level;
+
     use std::{vec, vec::Vec};
 
     #[test]

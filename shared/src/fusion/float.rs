@@ -1,12 +1,18 @@
-//! The float fusion paths: the shared driver with the integer path's lifting steps run in
-//! exact floating-point arithmetic, float saliency and float weights — in `f32` (the
-//! host's working path) or `f64` (the reference the trade-off study measures against).
+//! The float fusion paths, for full-resolution work on the host (also at `crate::float`):
+//! the shared driver with the integer path's lifting steps — the same boundary rule,
+//! coefficient placement and weights — run in exact floating-point arithmetic, float
+//! saliency and float weights, on any size; in `f32` (the host's working path) or `f64`
+//! (the reference the trade-off study measures against). The paths differ only by the
+//! integer path's rounding.
 
-use crate::fusion::{Arith, FuseConfig, Join, LlWeight, Sequential, fuse_pair_checked, rings_len};
-use crate::lifting::{self, Coefficients, LevelBounds, Lift};
+use crate::fusion::{
+    Arith, FuseConfig, ImagePair, Join, LlWeight, ScratchLayout, Sequential, fuse_pair_checked,
+    rings_len,
+};
+use crate::lifting::{self, LevelBounds, Lift};
 use crate::saliency::ll_gain_q16;
 use crate::saliency::{SaliencyNorm, map_neighbourhood, row_and_neighbours};
-use crate::{Dims, Error, Wavelet, simd};
+use crate::{Dims, Error, MAX_LEVELS, Wavelet, simd};
 
 mod sealed {
     pub trait Sealed {}
@@ -95,17 +101,9 @@ impl Float for f64 {
 }
 
 impl<T: Float> Arith for T {
-    fn inverse(
-        wavelet: Wavelet,
-        (buf, dims, levels): (&mut [T], Dims, u8),
-        scratch: &mut [T],
-        prepare: &mut impl FnMut(u8, usize, &mut [T]),
-    ) {
-        // Floats need no saturation: the bounds are only passed along.
-        let bounds = [LevelBounds::default(); crate::MAX_LEVELS as usize];
-        let inside = Coefficients::InBounds;
-        let how = (&bounds, inside);
-        lifting::inverse_levels(wavelet, buf, dims, levels, scratch, how, prepare);
+    /// None: floats need no saturation, the bounds are only passed along.
+    fn inverse_bounds(_: Wavelet, _: u8) -> [LevelBounds; MAX_LEVELS as usize] {
+        [LevelBounds::default(); MAX_LEVELS as usize]
     }
 
     /// `1 / max`.
@@ -404,6 +402,22 @@ const SALIENCY_IN_SWEEP: bool = !cfg!(target_arch = "arm");
 /// One float fuse step (`f32` or `f64`) on the `dims` region of `a` and `b`: the fused image replaces `a`,
 /// `b` is used as work space. Any size from 1 up, as on the integer path; samples must be
 /// finite with `|x| ≤` [`MAX_SAMPLE_F32`].
+///
+/// ```
+/// use rollfuse_core::{Dims, FuseConfig, float};
+/// use rollfuse_core::fusion::LlWeight;
+///
+/// let dims = Dims::new(9, 7)?; // any size
+/// let sharp: Vec<f32> = (0..63).map(|i| if i % 9 == 4 { 200.0 } else { 20.0 }).collect();
+/// let flat = vec![20.0f32; 63];
+/// let (mut a, mut b) = (flat.clone(), sharp.clone());
+/// let mut scratch = vec![0.0; float::fuse_scratch_len(dims)];
+/// float::fuse_pair(&mut a, &mut b, dims, &FuseConfig::default(), LlWeight::HALF, &mut scratch)?;
+/// // The fused image replaces `a`: the line only `b` has is kept (its detail taken from
+/// // `b`, the low bands averaged).
+/// assert!(a[4] > 60.0 && a[0] < a[4]);
+/// # Ok::<(), rollfuse_core::Error>(())
+/// ```
 pub fn fuse_pair<T: Float>(
     a: &mut [T],
     b: &mut [T],
@@ -426,14 +440,17 @@ pub fn fuse_pair_with<T: Float>(
     ll_weight: LlWeight,
     scratch: &mut [T],
 ) -> Result<(), Error> {
+    let layout = ScratchLayout {
+        second_line: true,
+        rings: SALIENCY_IN_SWEEP,
+        table: false,
+    };
     fuse_pair_checked(
-        a,
-        b,
-        dims,
+        ImagePair { a, b, dims },
         cfg,
         ll_weight,
         scratch,
-        (2, SALIENCY_IN_SWEEP, false),
+        layout,
         join,
     )
 }
