@@ -109,17 +109,6 @@ pub fn fuse_strip<S: StripSink>(
     };
     let first = first?;
     let (w, h, channels) = (first.width, first.height, first.planes.len());
-    let (window, mut window_source) = match opts.window {
-        WindowChoice::Rows(rows) => (
-            Some(ContactWindow::centred(h as f64 / 2.0, rows, h)),
-            WindowSource::Option,
-        ),
-        WindowChoice::Geometry(g) => match ContactWindow::from_geometry(&g, h) {
-            Some(win) => (Some(win), WindowSource::Geometry),
-            None => (None, WindowSource::Measured),
-        },
-        WindowChoice::Measure => (None, WindowSource::Measured),
-    };
     let mut tracker = match &opts.placing {
         Placing::Track { params, .. } => Some(Tracker::new(
             w,
@@ -128,77 +117,20 @@ pub fn fuse_strip<S: StripSink>(
         )),
         Placing::Commanded(_) => None,
     };
-    let mut sink = Some(make_sink(w, channels)?);
-    let start = |window: ContactWindow, sink: S| {
-        RollFuser::new(
-            sink,
-            (w, h, channels),
-            window,
-            opts.bands,
-            &opts.cfg,
-            opts.precision,
-        )
-    };
-    let mut stage = match window {
-        Some(win) => Stage::Fusing(Box::new(start(win, sink.take().context("sink")?)?)),
-        None => Stage::Measuring(Vec::new()),
-    };
+    let mut fusion = Fusion::new(opts, (w, h, channels), make_sink(w, channels)?)?;
     let (mut matched, mut predicted) = (0, 0);
     for (k, frame) in std::iter::once((0, Ok(first))).chain(frames) {
         let frame = frame?;
-        let commanded = |rows: &Vec<f64>| {
-            rows.get(k)
-                .copied()
-                .with_context(|| format!("frame {k} has no commanded row"))
-        };
-        let placement = match (&opts.placing, tracker.as_mut()) {
-            (Placing::Track { commanded: c, .. }, Some(t)) => {
-                let c = c.as_ref().map(commanded).transpose()?;
-                t.place(&frame, c)
-            }
-            (Placing::Commanded(rows), _) => Placement {
-                row: commanded(rows)?,
-                source: Source::Manifest,
-                score: None,
-                col: 0,
-            },
-            (Placing::Track { .. }, None) => bail!("no aligner"),
-        };
+        let placement = place(&opts.placing, tracker.as_mut(), k, &frame)?;
         match placement.source {
             Source::Matched => matched += 1,
             Source::Predicted => predicted += 1,
             Source::First | Source::Manifest => {}
         }
         on_frame(k, &placement)?;
-        let at = (placement.row.round() as i64, placement.col);
-        stage = match stage {
-            Stage::Fusing(mut fuser) => {
-                fuser.push(k, at, frame)?;
-                Stage::Fusing(fuser)
-            }
-            Stage::Measuring(mut held) => {
-                held.push((k, at, frame));
-                if held.len() < MEASURE_FRAMES {
-                    Stage::Measuring(held)
-                } else {
-                    let win = measured(&held, &mut window_source, h);
-                    Stage::Fusing(Box::new(feed(
-                        start(win, sink.take().context("sink")?)?,
-                        held,
-                    )?))
-                }
-            }
-        };
+        fusion.push(k, (placement.row.round() as i64, placement.col), frame)?;
     }
-    let fuser = match stage {
-        Stage::Fusing(f) => *f,
-        Stage::Measuring(held) => {
-            let win = measured(&held, &mut window_source, h);
-            feed(start(win, sink.take().context("sink")?)?, held)?
-        }
-    };
-    let window = fuser.window();
-    let (sink, summary) = fuser.finish()?;
+    let (sink, window, window_source, summary) = fusion.finish()?;
     Ok((
         sink,
         StripReport {
@@ -209,6 +141,116 @@ pub fn fuse_strip<S: StripSink>(
             predicted,
         },
     ))
+}
+
+/// Where frame `k` goes: tracked (its commanded row, if any, as the prediction) or where
+/// it was commanded.
+fn place(
+    placing: &Placing,
+    tracker: Option<&mut Tracker>,
+    k: usize,
+    frame: &Planes,
+) -> anyhow::Result<Placement> {
+    let commanded = |rows: &Vec<f64>| {
+        rows.get(k)
+            .copied()
+            .with_context(|| format!("frame {k} has no commanded row"))
+    };
+    Ok(match (placing, tracker) {
+        (Placing::Track { commanded: c, .. }, Some(t)) => {
+            let c = c.as_ref().map(commanded).transpose()?;
+            t.place(frame, c)
+        }
+        (Placing::Commanded(rows), _) => Placement {
+            row: commanded(rows)?,
+            source: Source::Manifest,
+            score: None,
+            col: 0,
+        },
+        (Placing::Track { .. }, None) => bail!("no aligner"),
+    })
+}
+
+/// The fusion as placed frames arrive; the window measured on the first frames when
+/// neither the options nor the roller's geometry give it.
+struct Fusion<'o, S: StripSink> {
+    opts: &'o StripOptions,
+    /// Width, height and channels of the frames.
+    shape: (usize, usize, usize),
+    /// The output, until the fuser takes it.
+    sink: Option<S>,
+    window_source: WindowSource,
+    stage: Stage<S>,
+}
+
+impl<'o, S: StripSink> Fusion<'o, S> {
+    fn new(opts: &'o StripOptions, shape: (usize, usize, usize), sink: S) -> anyhow::Result<Self> {
+        let h = shape.1;
+        let (window, window_source) = match opts.window {
+            WindowChoice::Rows(rows) => (
+                Some(ContactWindow::centred(h as f64 / 2.0, rows, h)),
+                WindowSource::Option,
+            ),
+            WindowChoice::Geometry(g) => match ContactWindow::from_geometry(&g, h) {
+                Some(win) => (Some(win), WindowSource::Geometry),
+                None => (None, WindowSource::Measured),
+            },
+            WindowChoice::Measure => (None, WindowSource::Measured),
+        };
+        let mut fusion = Self {
+            opts,
+            shape,
+            sink: Some(sink),
+            window_source,
+            stage: Stage::Measuring(Vec::new()),
+        };
+        if let Some(win) = window {
+            fusion.stage = Stage::Fusing(Box::new(fusion.start(win)?));
+        }
+        Ok(fusion)
+    }
+
+    /// The fuser over `window`, writing to the sink.
+    fn start(&mut self, window: ContactWindow) -> anyhow::Result<RollFuser<S>> {
+        let o = self.opts;
+        let sink = self.sink.take().context("sink")?;
+        RollFuser::new(sink, self.shape, window, o.bands, &o.cfg, o.precision)
+    }
+
+    /// The fuser over the window measured on `held`, fed them.
+    fn start_measured(
+        &mut self,
+        held: Vec<(usize, (i64, i64), Planes)>,
+    ) -> anyhow::Result<RollFuser<S>> {
+        let win = measured(&held, &mut self.window_source, self.shape.1);
+        feed(self.start(win)?, held)
+    }
+
+    /// Frame `k` placed at `at`: fused, or held until enough frames measure the window.
+    fn push(&mut self, k: usize, at: (i64, i64), frame: Planes) -> anyhow::Result<()> {
+        match &mut self.stage {
+            Stage::Fusing(fuser) => fuser.push(k, at, frame),
+            Stage::Measuring(held) => {
+                held.push((k, at, frame));
+                if held.len() >= MEASURE_FRAMES {
+                    let held = std::mem::take(held);
+                    self.stage = Stage::Fusing(Box::new(self.start_measured(held)?));
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// The sink, the window used and where it came from, and the fusion's summary.
+    fn finish(mut self) -> anyhow::Result<(S, ContactWindow, WindowSource, RollSummary)> {
+        let fuser = match std::mem::replace(&mut self.stage, Stage::Measuring(Vec::new())) {
+            Stage::Fusing(f) => *f,
+            Stage::Measuring(held) => self.start_measured(held)?,
+        };
+        let window = fuser.window();
+        let (sink, summary) = fuser.finish()?;
+        Ok((sink, window, self.window_source, summary))
+    }
 }
 
 /// The window measured on `held`, or the default (and the source says which).
