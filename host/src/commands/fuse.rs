@@ -46,6 +46,16 @@ pub enum OutBits {
     Sixteen,
 }
 
+impl OutBits {
+    /// Bits a sample.
+    pub fn bits(self) -> u8 {
+        match self {
+            OutBits::Eight => 8,
+            OutBits::Sixteen => 16,
+        }
+    }
+}
+
 /// Arguments of `rollfuse fuse`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -393,80 +403,11 @@ fn run_mosaic(args: &Args, frames: Vec<Planes>, cfg: &FuseConfig) -> anyhow::Res
         &args.frames,
         args.manifest.as_deref(),
     )?;
-    let (t0, t1) = (args.template_rows[0], args.template_rows[1]);
-    let mut placed = Vec::new();
-    let mut record = OffsetsFile {
-        align: "",
-        frames: Vec::new(),
-        skipped: Vec::new(),
+    let (placed, record) = match args.align {
+        AlignArg::None => unaligned(&args.frames),
+        AlignArg::Motion => by_motion(args)?,
+        AlignArg::Template => by_template(args, &frames)?,
     };
-    match args.align {
-        AlignArg::None => {
-            record.align = "none";
-            for (k, p) in args.frames.iter().enumerate() {
-                placed.push((k, Offset { dy: 0, dx: 0 }));
-                record.frames.push(FrameOffset {
-                    file: p,
-                    at: Offset { dy: 0, dx: 0 },
-                    matched: None,
-                });
-            }
-        }
-        AlignArg::Motion => {
-            record.align = "motion";
-            let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
-            let offsets = motion_offsets(&manifest, &args.frames)?;
-            for ((k, p), at) in args.frames.iter().enumerate().zip(offsets) {
-                placed.push((k, at));
-                record.frames.push(FrameOffset {
-                    file: p,
-                    at,
-                    matched: None,
-                });
-            }
-        }
-        AlignArg::Template => {
-            record.align = "template";
-            let params = TemplateParams {
-                rows: (t0, t1),
-                max_dy: args.max_shift.unwrap_or(200),
-                max_dx: 8,
-                min_score: args.min_score.unwrap_or(0.5),
-            };
-            let chain = align_chain(&frames, &params, &Bars::new());
-            for ((k, file), aligned) in args.frames.iter().enumerate().zip(chain) {
-                match aligned {
-                    Aligned::Placed { at, matched } => {
-                        if let Some(m) = matched.filter(Match::is_ambiguous) {
-                            eprintln!(
-                                "warning: {} matches ambiguously (score {:.3}, runner-up {:.3}): periodic texture?",
-                                file.display(),
-                                m.score,
-                                m.runner_up
-                            );
-                        }
-                        if let Some(m) = matched.filter(|m| m.at_search_edge) {
-                            eprintln!(
-                                "warning: {} matched at {} rows, the edge of the search (--max-shift {}): it may have moved farther",
-                                file.display(),
-                                m.shift.dy,
-                                params.max_dy
-                            );
-                        }
-                        placed.push((k, at));
-                        record.frames.push(FrameOffset { file, at, matched });
-                    }
-                    Aligned::Skipped(reason) => {
-                        eprintln!("skipped {}: {reason}", file.display());
-                        record.skipped.push(Skipped { file, reason });
-                    }
-                }
-            }
-            if placed.len() < 2 {
-                bail!("only one frame could be aligned; nothing to fuse (see the messages above)");
-            }
-        }
-    }
 
     // Fusion may work in the frames (they are not needed afterwards): no copies.
     let mut frames: Vec<Option<Planes>> = frames.into_iter().map(Some).collect();
@@ -477,11 +418,7 @@ fn run_mosaic(args: &Args, frames: Vec<Planes>, cfg: &FuseConfig) -> anyhow::Res
     let started = std::time::Instant::now();
     let fused = fuse_mosaic_mut(&mut placed, cfg, args.precision)?;
     let took = started.elapsed().as_secs_f64();
-    let bits = match args.out_bits {
-        OutBits::Eight => 8,
-        OutBits::Sixteen => 16,
-    };
-    fused.save_png_bits(&args.out, bits)?;
+    fused.save_png_bits(&args.out, args.out_bits.bits())?;
     let json = serde_json::to_string_pretty(&record)? + "\n";
     crate::files::write_bytes_atomic(&offsets_path, json.as_bytes())?;
     println!("offsets (rows, columns) on the canvas:");
@@ -498,4 +435,103 @@ fn run_mosaic(args: &Args, frames: Vec<Planes>, cfg: &FuseConfig) -> anyhow::Res
         offsets_path.display()
     );
     Ok(())
+}
+
+/// Frames placed by index, and the record of their offsets.
+type Alignment<'a> = (Vec<(usize, Offset)>, OffsetsFile<'a>);
+
+/// Every frame at the origin (`--align none`).
+fn unaligned(files: &[PathBuf]) -> Alignment<'_> {
+    let at = Offset { dy: 0, dx: 0 };
+    let record = OffsetsFile {
+        align: "none",
+        frames: files
+            .iter()
+            .map(|file| FrameOffset {
+                file,
+                at,
+                matched: None,
+            })
+            .collect(),
+        skipped: Vec::new(),
+    };
+    ((0..files.len()).map(|k| (k, at)).collect(), record)
+}
+
+/// Every frame where the manifest's belt motion puts it (`--align motion`).
+fn by_motion(args: &Args) -> anyhow::Result<Alignment<'_>> {
+    let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
+    let offsets = motion_offsets(&manifest, &args.frames)?;
+    let placed: Vec<(usize, Offset)> = offsets.into_iter().enumerate().collect();
+    let record = OffsetsFile {
+        align: "motion",
+        frames: args
+            .frames
+            .iter()
+            .zip(&placed)
+            .map(|(file, &(_, at))| FrameOffset {
+                file,
+                at,
+                matched: None,
+            })
+            .collect(),
+        skipped: Vec::new(),
+    };
+    Ok((placed, record))
+}
+
+/// Every frame matched against the last one kept (`--align template`); a frame that does
+/// not match is skipped, with a message.
+fn by_template<'a>(args: &'a Args, frames: &[Planes]) -> anyhow::Result<Alignment<'a>> {
+    let params = TemplateParams {
+        rows: (args.template_rows[0], args.template_rows[1]),
+        max_dy: args.max_shift.unwrap_or(200),
+        max_dx: 8,
+        min_score: args.min_score.unwrap_or(0.5),
+    };
+    let mut placed = Vec::new();
+    let mut record = OffsetsFile {
+        align: "template",
+        frames: Vec::new(),
+        skipped: Vec::new(),
+    };
+    let chain = align_chain(frames, &params, &Bars::new());
+    for ((k, file), aligned) in args.frames.iter().enumerate().zip(chain) {
+        match aligned {
+            Aligned::Placed { at, matched } => {
+                warn_of_doubtful_match(file, matched, params.max_dy);
+                placed.push((k, at));
+                record.frames.push(FrameOffset { file, at, matched });
+            }
+            Aligned::Skipped(reason) => {
+                eprintln!("skipped {}: {reason}", file.display());
+                record.skipped.push(Skipped { file, reason });
+            }
+        }
+    }
+    if placed.len() < 2 {
+        bail!("only one frame could be aligned; nothing to fuse (see the messages above)");
+    }
+    Ok((placed, record))
+}
+
+/// Warns of a match that may be wrong: ambiguous (periodic texture), or at the edge of
+/// the search (`max_dy` rows).
+fn warn_of_doubtful_match(file: &Path, matched: Option<Match>, max_dy: usize) {
+    if let Some(m) = matched.filter(Match::is_ambiguous) {
+        eprintln!(
+            "warning: {} matches ambiguously (score {:.3}, runner-up {:.3}): periodic texture?",
+            file.display(),
+            m.score,
+            m.runner_up
+        );
+    }
+    if let Some(m) = matched.filter(|m| m.at_search_edge) {
+        eprintln!(
+            "warning: {} matched at {} rows, the edge of the search (--max-shift {}): it may have moved farther",
+            file.display(),
+            m.shift.dy,
+            max_dy
+        );
+    }
 }

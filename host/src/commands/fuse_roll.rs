@@ -6,9 +6,9 @@ use super::fuse::{
 };
 use super::{bars::progress, check_writable};
 use crate::files::PendingFile;
-use crate::fullres::roll::Bands;
+use crate::fullres::roll::{Bands, StripSink};
 use crate::fullres::strip::{Placing, StripOptions, StripReport, WindowChoice, fuse_strip};
-use crate::fullres::track::TrackParams;
+use crate::fullres::track::{Placement, TrackParams};
 use crate::fullres::window::Geometry;
 use crate::image::Planes;
 use crate::strip_file::{Segment, StripWriter};
@@ -109,11 +109,66 @@ pub fn run(args: &Args, loaded: Option<Vec<Planes>>, cfg: &FuseConfig) -> anyhow
     let out = &args.out;
     let csv_path = out.with_extension("frames.csv");
     let index_path = StripWriter::index_path(out);
-    for p in [out, &csv_path, &index_path] {
+    check_outputs(args, &csv_path, &index_path)?;
+    let opts = strip_options(args, cfg)?;
+    let mut csv = PendingFile::create(&csv_path)?;
+    csv.write_all(b"frame,file,row,col,source,score\n")?;
+    let bar = progress(args.frames.len(), "frames", "fusing the roll".into());
+    let started = std::time::Instant::now();
+    let files = &args.frames;
+    let on_frame = |k: usize, p: &Placement| {
+        bar.set_position(k as u64 + 1);
+        let score = p.score.map(|s| format!("{s:.4}")).unwrap_or_default();
+        csv.write_all(
+            format!(
+                "{k},{},{:.3},{},{score}\n",
+                files[k].display(),
+                p.row,
+                p.source.name()
+            )
+            .as_bytes(),
+        )
+    };
+    let make_sink = |width: usize, channels: usize| {
+        StripWriter::new(
+            out,
+            width,
+            channels,
+            args.out_bits.bits(),
+            args.segment_rows,
+        )
+    };
+    let (writer, report) = fuse_files(files, loaded, &opts, make_sink, on_frame)?;
+    bar.finish_and_clear();
+    let took = started.elapsed().as_secs_f64();
+    let details = Details {
+        mode: "roll",
+        align: match args.align {
+            AlignArg::Template => "template",
+            AlignArg::Motion => "motion",
+            AlignArg::None => "none",
+        },
+        frames_csv: csv_path
+            .file_name()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned(),
+        report: &report,
+    };
+    csv.commit()?;
+    let segments = writer.finish(&details)?;
+    print_summary(args, &report, &segments, took, &index_path);
+    Ok(())
+}
+
+/// Refuses outputs that cannot be written or would overwrite an input.
+fn check_outputs(args: &Args, csv_path: &Path, index_path: &Path) -> anyhow::Result<()> {
+    let out = args.out.as_path();
+    for p in [out, csv_path, index_path] {
         check_writable(p)?;
     }
     refuse_overwriting_inputs(
-        &[out, &csv_path, &index_path],
+        &[out, csv_path, index_path],
         &args.frames,
         args.manifest.as_deref(),
     )?;
@@ -121,6 +176,12 @@ pub fn run(args: &Args, loaded: Option<Vec<Planes>>, cfg: &FuseConfig) -> anyhow
     if args.precision == crate::fullres::Precision::Fixed && args.out_bits == OutBits::Sixteen {
         eprintln!("note: --precision fixed makes 8-bit values; the 16-bit file holds them scaled");
     }
+    Ok(())
+}
+
+/// How the frames are placed (`--align`, the manifest's rows) and fused (the window from
+/// `--window-rows`, the manifest's roller, or measured; the bands).
+fn strip_options(args: &Args, cfg: &FuseConfig) -> anyhow::Result<StripOptions> {
     let (w, h) = crate::image::dimensions(&args.frames[0])?;
     let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
     let commanded = || -> anyhow::Result<Vec<f64>> {
@@ -145,7 +206,7 @@ pub fn run(args: &Args, loaded: Option<Vec<Planes>>, cfg: &FuseConfig) -> anyhow
         (None, Some(g)) => WindowChoice::Geometry(g),
         (None, None) => WindowChoice::Measure,
     };
-    let opts = StripOptions {
+    Ok(StripOptions {
         window,
         bands: Bands {
             band_rows: args.band_rows,
@@ -154,34 +215,19 @@ pub fn run(args: &Args, loaded: Option<Vec<Planes>>, cfg: &FuseConfig) -> anyhow
         cfg: *cfg,
         precision: args.precision,
         placing,
-    };
-    let bits = match args.out_bits {
-        OutBits::Eight => 8,
-        OutBits::Sixteen => 16,
-    };
-    let mut csv = PendingFile::create(&csv_path)?;
-    csv.write_all(b"frame,file,row,col,source,score\n")?;
-    let bar = progress(args.frames.len(), "frames", "fusing the roll".into());
-    let started = std::time::Instant::now();
-    let files = &args.frames;
-    let on_frame = |k: usize, p: &crate::fullres::track::Placement| {
-        bar.set_position(k as u64 + 1);
-        let score = p.score.map(|s| format!("{s:.4}")).unwrap_or_default();
-        csv.write_all(
-            format!(
-                "{k},{},{:.3},{},{score}\n",
-                files[k].display(),
-                p.row,
-                p.source.name()
-            )
-            .as_bytes(),
-        )
-    };
-    let make_sink = |width: usize, channels: usize| {
-        StripWriter::new(out, width, channels, bits, args.segment_rows)
-    };
-    let (writer, report) = match loaded {
-        Some(frames) => fuse_strip(frames.into_iter().map(Ok), &opts, make_sink, on_frame)?,
+    })
+}
+
+/// Fuses `files` (already `loaded`, or decoded on a second thread as fusion goes).
+fn fuse_files<S: StripSink>(
+    files: &[PathBuf],
+    loaded: Option<Vec<Planes>>,
+    opts: &StripOptions,
+    make_sink: impl FnOnce(usize, usize) -> anyhow::Result<S>,
+    on_frame: impl FnMut(usize, &Placement) -> anyhow::Result<()>,
+) -> anyhow::Result<(S, StripReport)> {
+    match loaded {
+        Some(frames) => fuse_strip(frames.into_iter().map(Ok), opts, make_sink, on_frame),
         None => std::thread::scope(|scope| {
             // Decoding on a second thread overlaps with fusion.
             let (tx, rx) = sync_channel(DECODE_AHEAD);
@@ -194,29 +240,9 @@ pub fn run(args: &Args, loaded: Option<Vec<Planes>>, cfg: &FuseConfig) -> anyhow
                     }
                 }
             });
-            fuse_strip(rx, &opts, make_sink, on_frame)
-        })?,
-    };
-    bar.finish_and_clear();
-    let took = started.elapsed().as_secs_f64();
-    let details = Details {
-        mode: "roll",
-        align: match args.align {
-            AlignArg::Template => "template",
-            AlignArg::Motion => "motion",
-            AlignArg::None => "none",
-        },
-        frames_csv: csv_path
-            .file_name()
-            .unwrap_or_default()
-            .to_string_lossy()
-            .into_owned(),
-        report: &report,
-    };
-    csv.commit()?;
-    let segments = writer.finish(&details)?;
-    print_summary(args, &report, &segments, took, &index_path);
-    Ok(())
+            fuse_strip(rx, opts, make_sink, on_frame)
+        }),
+    }
 }
 
 fn print_summary(args: &Args, r: &StripReport, segments: &[Segment], took: f64, index: &Path) {
