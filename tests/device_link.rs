@@ -9,7 +9,7 @@ use rollfuse::link::sim::{SimDevice, camera_bytes};
 use rollfuse::progress::Silent;
 use rollfuse::sim::{Scene, Simulator};
 use rollfuse::stream::{self, Options};
-use rollfuse_core::fusion::{LlWeight, U8Work, fuse_scratch_len, fuse_u8};
+use rollfuse_core::fusion::{LlWeight, U8Pair, U8Work, fuse_scratch_len, fuse_u8};
 use rollfuse_core::protocol::{DeviceConfig, NormMode, WaveletId};
 use rollfuse_core::{Dims, FuseConfig, LlWeighting, SaliencyNorm, Wavelet};
 use std::path::Path;
@@ -128,8 +128,7 @@ fn reference_tiles(
                     scratch: &mut scratch,
                 };
                 fuse_u8(
-                    (&mut entry.1, tile_dims),
-                    (rows, tile_dims),
+                    U8Pair::same(&mut entry.1, rows, tile_dims),
                     &fuse_cfg,
                     ll,
                     work,

@@ -5,7 +5,7 @@ use proptest::prelude::*;
 use rollfuse::fullres::align::{TemplateParams, match_frames};
 use rollfuse::fullres::{Placed, Precision, fuse_mosaic};
 use rollfuse::image::Planes;
-use rollfuse_core::fusion::{CyclicBuffers, LlWeight, U8Work, fuse_scratch_len, fuse_u8};
+use rollfuse_core::fusion::{CyclicBuffers, LlWeight, U8Pair, U8Work, fuse_scratch_len, fuse_u8};
 use rollfuse_core::{CyclicFuser, Dims, Error, FuseConfig, LlWeighting, Wavelet, float};
 
 /// Every wavelet × level count a `w × h` image allows.
@@ -34,7 +34,7 @@ fn fuse_fixed(a: &[u8], b: &[u8], w: usize, h: usize, cfg: &FuseConfig) -> Resul
         scratch: &mut scratch,
     };
     let mut fused = a.to_vec();
-    fuse_u8((&mut fused, dims), (b, dims), cfg, LlWeight::HALF, work)?;
+    fuse_u8(U8Pair::same(&mut fused, b, dims), cfg, LlWeight::HALF, work)?;
     Ok(fused)
 }
 

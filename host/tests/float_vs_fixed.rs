@@ -4,7 +4,7 @@
 //! images with texture up to the borders.
 
 use rollfuse::sim::{Scene, Simulator};
-use rollfuse_core::fusion::{LlWeight, U8Work, fuse_scratch_len, fuse_u8};
+use rollfuse_core::fusion::{LlWeight, U8Pair, U8Work, fuse_scratch_len, fuse_u8};
 use rollfuse_core::{Dims, FuseConfig, Wavelet, float};
 use std::path::Path;
 
@@ -34,7 +34,13 @@ fn float_and_fixed_agree_within_two_gray_levels_on_simulated_frames() {
                     scratch: &mut scratch,
                 };
                 let mut fused = a.clone();
-                fuse_u8((&mut fused, dims), (&b, dims), &cfg, LlWeight::HALF, work).unwrap();
+                fuse_u8(
+                    U8Pair::same(&mut fused, &b, dims),
+                    &cfg,
+                    LlWeight::HALF,
+                    work,
+                )
+                .unwrap();
                 let mut fa: Vec<f32> = a.iter().map(|&v| f32::from(v)).collect();
                 let mut fb: Vec<f32> = b.iter().map(|&v| f32::from(v)).collect();
                 let mut fscratch = vec![0f32; float::fuse_scratch_len(dims)];

@@ -6,7 +6,7 @@
 //! `cargo bench -p rollfuse-core --bench kernels`; throughput is reported in pixels/s.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use rollfuse_core::fusion::{LlWeight, U8Work, fuse_scratch_len, fuse_u8};
+use rollfuse_core::fusion::{LlWeight, U8Pair, U8Work, fuse_scratch_len, fuse_u8};
 use rollfuse_core::lifting::{forward_2d, inverse_2d, scratch_len};
 use rollfuse_core::simd::{VectorUnit, set_vector_limit};
 use rollfuse_core::{Dims, FuseConfig, Wavelet, float};
@@ -88,7 +88,13 @@ fn fuse_step(c: &mut Criterion) {
                         scratch: &mut scratch,
                     };
                     fused.copy_from_slice(&a);
-                    fuse_u8((&mut fused, dims), (&b, dims), &cfg, LlWeight::HALF, work).unwrap();
+                    fuse_u8(
+                        U8Pair::same(&mut fused, &b, dims),
+                        &cfg,
+                        LlWeight::HALF,
+                        work,
+                    )
+                    .unwrap();
                 })
             });
 

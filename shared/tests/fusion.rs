@@ -5,7 +5,7 @@ mod common;
 use common::{step_edge, tactile_scene};
 use rollfuse_core::float;
 use rollfuse_core::fusion::{
-    CyclicBuffers, LlWeight, U8Work, fuse_pair, fuse_scratch_len, fuse_u8,
+    CyclicBuffers, LlWeight, U8Pair, U8Work, fuse_pair, fuse_scratch_len, fuse_u8,
 };
 use rollfuse_core::{
     Ablation, CyclicFuser, Dims, Error, FuseConfig, LlWeighting, SaliencyNorm, Wavelet,
@@ -30,7 +30,7 @@ fn fuse_int(a: &[u8], b: &[u8], w: usize, h: usize, cfg: &FuseConfig) -> Vec<u8>
         scratch: &mut scratch,
     };
     let mut fused = a.to_vec();
-    fuse_u8((&mut fused, dims), (b, dims), cfg, LlWeight::HALF, work).unwrap();
+    fuse_u8(U8Pair::same(&mut fused, b, dims), cfg, LlWeight::HALF, work).unwrap();
     fused
 }
 

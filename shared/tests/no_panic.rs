@@ -3,7 +3,7 @@
 //! panic or an overflow (tests build with overflow checks on).
 
 use proptest::prelude::*;
-use rollfuse_core::fusion::{LlWeight, U8Work, fuse_pair, fuse_scratch_len, fuse_u8};
+use rollfuse_core::fusion::{LlWeight, U8Pair, U8Work, fuse_pair, fuse_scratch_len, fuse_u8};
 use rollfuse_core::lifting::{forward_2d, inverse_2d, scratch_len};
 use rollfuse_core::{Ablation, Dims, FuseConfig, LlWeighting, SaliencyNorm, Wavelet, float};
 
@@ -62,8 +62,7 @@ proptest! {
         let scratch_n = Dims::new(w.max(1), h.max(1)).map(fuse_scratch_len).unwrap_or(0);
         let mut scratch = vec![0i32; len_near(scratch_n, picks[3])];
         let result = match (Dims::new(w, h), Dims::new(w, h)) {
-            (Ok(da), Ok(db)) => fuse_u8(
-                (&mut a, da), (&b, db), &cfg, LlWeight::for_frame(cfg.ll_weighting, u32::from(weight)),
+            (Ok(da), Ok(db)) => fuse_u8(U8Pair { a: &mut a, a_dims: da, b: &b, b_dims: db }, &cfg, LlWeight::for_frame(cfg.ll_weighting, u32::from(weight)),
                 U8Work { a: &mut wa, b: &mut wb, scratch: &mut scratch },
             ),
             (Err(e), _) | (_, Err(e)) => Err(e),

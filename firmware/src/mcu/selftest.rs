@@ -1,6 +1,6 @@
 //! A fusion self-test at boot: a wrong build of the core shows here, on the MCU.
 
-use rollfuse_core::fusion::{LlWeight, U8Work, fuse_scratch_words, fuse_u8};
+use rollfuse_core::fusion::{LlWeight, U8Pair, U8Work, fuse_scratch_words, fuse_u8};
 use rollfuse_core::{Dims, FuseConfig};
 
 /// Side of the self-test tiles.
@@ -20,8 +20,7 @@ pub fn run() -> Result<u32, rollfuse_core::Error> {
         scratch: &mut scratch,
     };
     fuse_u8(
-        (&mut edge, dims),
-        (&flat, dims),
+        U8Pair::same(&mut edge, &flat, dims),
         &FuseConfig::default(),
         LlWeight::HALF,
         work,

@@ -17,7 +17,9 @@ use crate::image::Planes;
 use align::Offset;
 use anyhow::{bail, ensure};
 use rayon::prelude::*;
-use rollfuse_core::fusion::{Join, LlWeight, Sequential, U8Work, fuse_scratch_len, fuse_u8};
+use rollfuse_core::fusion::{
+    Join, LlWeight, Sequential, U8Pair, U8Work, fuse_scratch_len, fuse_u8,
+};
 use rollfuse_core::{Dims, FuseConfig, float};
 
 /// Which arithmetic fuses.
@@ -347,8 +349,7 @@ impl Fuser {
                     scratch: &mut self.iscratch,
                 };
                 fuse_u8(
-                    (&mut self.a8, packed),
-                    (&self.b8, packed),
+                    U8Pair::same(&mut self.a8, &self.b8, packed),
                     &self.cfg,
                     ll,
                     work,

@@ -24,7 +24,7 @@
 use super::downsample::{downsample_rows, downsampled_dims};
 use super::refine::{refine_shift, row_profile};
 use crate::float;
-use crate::fusion::{LlWeight, U8Work, fuse_scratch_words, fuse_u8};
+use crate::fusion::{LlWeight, U8Pair, U8Work, fuse_scratch_words, fuse_u8};
 use crate::protocol::{DeviceConfig, NakReason, NormMode, PixelFormat, Tile, WaveletId};
 use crate::saliency::laplacian_max_u8;
 use crate::{Ablation, Dims, Error, FuseConfig, LlWeighting, SaliencyNorm, Wavelet};
@@ -617,7 +617,7 @@ fn fuse_tile_fixed(
         b: wb,
         scratch,
     };
-    fuse_u8((tile, dims), (src, dims), cfg, ll, work)
+    fuse_u8(U8Pair::same(tile, src, dims), cfg, ll, work)
 }
 
 /// [`fuse_tile_fixed`] on the `f32` path: the tiles stay 8-bit, the step runs in `f32`

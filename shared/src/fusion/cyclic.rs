@@ -2,7 +2,7 @@
 //! running result kept as an 8-bit image between cycles (clamped to 0..=255, as the camera's
 //! own range).
 
-use super::integer::{U8Work, fuse_scratch_len, fuse_u8};
+use super::integer::{U8Pair, U8Work, fuse_scratch_len, fuse_u8};
 use super::{FuseConfig, LlWeight};
 use crate::{Dims, Error};
 
@@ -116,9 +116,14 @@ impl<'a> CyclicFuser<'a> {
         let frame_no = self.frames.saturating_add(1);
         let ll_weight = LlWeight::for_frame(self.cfg.ll_weighting, frame_no);
         let bufs = &mut self.bufs;
+        let images = U8Pair {
+            a: bufs.fused.get_mut(..n).ok_or(fused_error)?,
+            a_dims: self.dims,
+            b: frame,
+            b_dims: src,
+        };
         fuse_u8(
-            (bufs.fused.get_mut(..n).ok_or(fused_error)?, self.dims),
-            (frame, src),
+            images,
             &self.cfg,
             ll_weight,
             U8Work {

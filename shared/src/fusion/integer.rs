@@ -156,6 +156,31 @@ pub struct U8Work<'w> {
     pub scratch: &'w mut [i32],
 }
 
+/// The two 8-bit images [`fuse_u8`] fuses, each laid out in its buffer as its [`Dims`] say
+/// (rows may be strided).
+pub struct U8Pair<'i> {
+    /// The first image (in cyclic use, the running result); the result replaces it.
+    pub a: &'i mut [u8],
+    /// Where `a`'s pixels lie in its buffer.
+    pub a_dims: Dims,
+    /// The second image.
+    pub b: &'i [u8],
+    /// Where `b`'s pixels lie in its buffer.
+    pub b_dims: Dims,
+}
+
+impl<'i> U8Pair<'i> {
+    /// Two images laid out alike.
+    pub fn same(a: &'i mut [u8], b: &'i [u8], dims: Dims) -> Self {
+        Self {
+            a,
+            a_dims: dims,
+            b,
+            b_dims: dims,
+        }
+    }
+}
+
 /// A level-1 region smaller than this takes its saliency without a table: filling one
 /// costs about as much as looking this many pixels up saves.
 const TABLE_MIN_PIXELS: usize = 1024;
@@ -170,12 +195,17 @@ const TABLE_MIN_PIXELS: usize = 1024;
 /// same bits as the generic step on the samples with the guard bits
 /// (test `fuse_u8_matches_the_step_on_samples_with_guard_bits`).
 pub fn fuse_u8(
-    (a, a_dims): (&mut [u8], Dims),
-    (b, b_dims): (&[u8], Dims),
+    images: U8Pair<'_>,
     cfg: &FuseConfig,
     ll_weight: LlWeight,
     work: U8Work<'_>,
 ) -> Result<(), Error> {
+    let U8Pair {
+        a,
+        a_dims,
+        b,
+        b_dims,
+    } = images;
     let (w, h) = (a_dims.width(), a_dims.height());
     if (w, h) != (b_dims.width(), b_dims.height()) {
         return Err(Error::SizeMismatch);

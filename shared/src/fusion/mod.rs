@@ -18,7 +18,9 @@ pub mod float;
 pub(crate) mod integer;
 
 pub use cyclic::{CyclicBuffers, CyclicFuser};
-pub use integer::{GUARD_BITS, U8Work, fuse_pair, fuse_scratch_len, fuse_scratch_words, fuse_u8};
+pub use integer::{
+    GUARD_BITS, U8Pair, U8Work, fuse_pair, fuse_scratch_len, fuse_scratch_words, fuse_u8,
+};
 
 use crate::lifting::{self, Coefficients, LevelBounds, Lift, Saturation};
 use crate::saliency::{LAPLACIAN_TABLE_LEN, SaliencyNorm, row_and_neighbours};
@@ -1027,8 +1029,18 @@ mod tests {
                             b: &mut ub,
                             scratch: &mut scratch,
                         };
-                        fuse_u8((&mut got, strided), (&b, dims), &cfg, LlWeight::HALF, work)
-                            .unwrap();
+                        fuse_u8(
+                            U8Pair {
+                                a: &mut got,
+                                a_dims: strided,
+                                b: &b,
+                                b_dims: dims,
+                            },
+                            &cfg,
+                            LlWeight::HALF,
+                            work,
+                        )
+                        .unwrap();
                         let what = std::format!("{w}×{h} {wavelet:?} L{levels} {norm:?}");
                         for (row, want_row) in got.chunks(stride).zip(want.chunks(w)) {
                             assert_eq!(&row[..w], want_row, "{what}");

@@ -10,7 +10,7 @@ use rollfuse_core::device::refine::{refine_shift, row_profile};
 use rollfuse_core::device::{
     CAMERA, MCU_CAPACITY, Pipeline, PipelineBuffers, PipelineConfig, Precision, Sensor,
 };
-use rollfuse_core::fusion::{LlWeight, U8Work, fuse_u8};
+use rollfuse_core::fusion::{LlWeight, U8Pair, U8Work, fuse_u8};
 use rollfuse_core::lifting::{forward_2d, inverse_2d};
 use rollfuse_core::protocol::{DeviceConfig, NormMode, WaveletId};
 use rollfuse_core::saliency::laplacian_max_u8;
@@ -239,8 +239,8 @@ fn tile_fuse(clock: &Clock, b: &mut Buffers, setup: Setup, out: &mut impl FnMut(
         // The result replaces the first tile: each call starts from a copy of it.
         let fused = &mut b.tiles[..n];
         fused.copy_from_slice(ta);
-        let (r, i) =
-            clock.instructions(|| fuse_u8((fused, tile), (tb, tile), &fuse, LlWeight::HALF, work));
+        let (r, i) = clock
+            .instructions(|| fuse_u8(U8Pair::same(fused, tb, tile), &fuse, LlWeight::HALF, work));
         if r.is_err() {
             return false;
         }
@@ -364,7 +364,7 @@ fn kernels(clock: &Clock, b: &mut Buffers, out: &mut impl FnMut(&Row)) -> bool {
     let fused = &mut b.tiles[..n];
     fused.copy_from_slice(ta);
     let (r, i) =
-        clock.instructions(|| fuse_u8((fused, tile), (tb, tile), &fuse, LlWeight::HALF, work));
+        clock.instructions(|| fuse_u8(U8Pair::same(fused, tb, tile), &fuse, LlWeight::HALF, work));
     if r.is_err() {
         return false;
     }
