@@ -140,6 +140,36 @@ pub fn calibrate(
         Some(c) => c,
         None => find_disc(image, background)?,
     };
+    check_disc(&circle, radius_mm, mm_per_px)?;
+    let ball = Ball {
+        circle,
+        radius_mm,
+        mm_per_px,
+    };
+    let (ata, atb, disc_pixels) = normal_equations(image, background, &ball);
+    ensure!(disc_pixels >= 20, "the contact disc covers too few pixels");
+    let inv = ata
+        .try_inverse()
+        .ok_or_else(|| anyhow::anyhow!("the disc's normals do not determine the lights"))?;
+    let m: [Vector3<f64>; 3] = std::array::from_fn(|c| inv * atb[c]);
+    let dir = |v: &Vector3<f64>| {
+        let u = v / v.norm();
+        [u[0], u[1], u[2]]
+    };
+    let lights = Lights {
+        mm_per_px,
+        red: dir(&m[0]),
+        green: dir(&m[1]),
+        blue: dir(&m[2]),
+        gains: [m[0][2], m[1][2], m[2][2]],
+    };
+    lights.check()?;
+    Ok((lights, circle))
+}
+
+/// Refuses a contact disc too small, or one whose normals tilt too little to tell the
+/// LEDs apart, for a ball of `radius_mm` seen at `mm_per_px`.
+fn check_disc(circle: &Circle, radius_mm: f64, mm_per_px: f64) -> anyhow::Result<()> {
     ensure!(
         circle.r > 2.0 && circle.r.is_finite(),
         "the contact disc (radius {:.1} px) is too small to calibrate from",
@@ -160,8 +190,27 @@ pub fn calibrate(
          its surface tilts {tilt_deg:.2}° at most, under {MIN_TILT_DEG}°; check --radius-mm and \
          --mm-per-px, or press a smaller ball"
     );
+    Ok(())
+}
+
+/// The calibration ball as the image shows it.
+struct Ball {
+    /// Its contact disc, pixels.
+    circle: Circle,
+    radius_mm: f64,
+    mm_per_px: f64,
+}
+
+/// Normal equations of t_c = n · m_c, for the three channels at once: the disc's inner
+/// 90 % with the ball's normals, and flat belt well outside it (every fourth pixel). Also
+/// the disc pixels counted.
+fn normal_equations(
+    image: &Planes,
+    background: &Planes,
+    ball: &Ball,
+) -> (Matrix3<f64>, [Vector3<f64>; 3], usize) {
     let (w, h) = (image.width, image.height);
-    // Normal equations of t_c = n · m_c, for the three channels at once.
+    let (circle, radius_mm, mm_per_px) = (&ball.circle, ball.radius_mm, ball.mm_per_px);
     let mut ata = Matrix3::<f64>::zeros();
     let mut atb = [Vector3::<f64>::zeros(); 3];
     let mut add = |n: Vector3<f64>, i: usize| {
@@ -187,22 +236,5 @@ pub fn calibrate(
             }
         }
     }
-    ensure!(disc_pixels >= 20, "the contact disc covers too few pixels");
-    let inv = ata
-        .try_inverse()
-        .ok_or_else(|| anyhow::anyhow!("the disc's normals do not determine the lights"))?;
-    let m: [Vector3<f64>; 3] = std::array::from_fn(|c| inv * atb[c]);
-    let dir = |v: &Vector3<f64>| {
-        let u = v / v.norm();
-        [u[0], u[1], u[2]]
-    };
-    let lights = Lights {
-        mm_per_px,
-        red: dir(&m[0]),
-        green: dir(&m[1]),
-        blue: dir(&m[2]),
-        gains: [m[0][2], m[1][2], m[2][2]],
-    };
-    lights.check()?;
-    Ok((lights, circle))
+    (ata, atb, disc_pixels)
 }

@@ -18,7 +18,7 @@
 //! The table gives each one's standard deviation over the three spheres (population std):
 //! the spread the curved gel puts between objects that are in fact the same.
 
-use super::tables::{acquire, crop_rows};
+use super::tables::{Acquisition, acquire, crop_rows};
 use crate::depth::lights::Lights;
 use crate::depth::{DepthMap, reconstruct};
 use crate::fullres::align::Offset;
@@ -71,31 +71,14 @@ pub fn evaluate_depth(scene: &Scene) -> anyhow::Result<Vec<DepthRow>> {
         acq.regions.len()
     );
     let (w, h) = (acq.frames[0].width, acq.frames[0].height);
-    // Each sphere's centre row on the strip, and the frame that has it nearest the apex.
-    let mut spheres: Vec<(f64, &Vec<u8>)> = acq
-        .regions
+    let spheres = spheres_along_the_belt(&acq, w);
+    let apex: Vec<usize> = spheres
         .iter()
-        .map(|(_, mask)| {
-            let (sum, n) = mask
-                .iter()
-                .enumerate()
-                .filter(|(_, m)| **m > 0)
-                .fold((0.0, 0usize), |(s, n), (i, _)| (s + (i / w) as f64, n + 1));
-            (sum / n.max(1) as f64, mask)
-        })
+        .map(|s| frame_nearest_apex(&acq, s.0, h))
         .collect();
-    spheres.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let apex_frame = |row: f64| {
-        (0..acq.frames.len())
-            .min_by(|&a, &b| {
-                let d = |k: usize| (acq.rows[k] as f64 + h as f64 / 2.0 - row).abs();
-                d(a).total_cmp(&d(b))
-            })
-            .unwrap_or(0)
-    };
-    let apex: Vec<usize> = spheres.iter().map(|s| apex_frame(s.0)).collect();
     let m = apex[1];
     let top = usize::try_from(acq.rows[m]).context("the middle frame lies above the strip")?;
+    // The spheres' masks over the middle frame's footprint.
     let masks: Vec<&[u8]> = spheres
         .iter()
         .map(|(_, mask)| {
@@ -110,21 +93,6 @@ pub fn evaluate_depth(scene: &Scene) -> anyhow::Result<Vec<DepthRow>> {
         blue: scene.lights.blue,
         gains: [1.0; 3],
     };
-    let fused = |frames: &[usize]| -> anyhow::Result<Planes> {
-        let placed: Vec<Placed> = frames
-            .iter()
-            .map(|&k| Placed {
-                image: &acq.frames[k],
-                at: Offset {
-                    dy: acq.rows[k],
-                    dx: 0,
-                },
-            })
-            .collect();
-        let out = fuse_mosaic(&placed, &FuseConfig::default(), Precision::F32)?;
-        let first = frames.iter().map(|&k| acq.rows[k]).min().unwrap_or(0);
-        crop_rows(&out, (acq.rows[m] - first) as usize, h)
-    };
     let cases: [(&str, Vec<usize>); 3] = [
         ("single middle frame", vec![m]),
         ("fusion of 3", apex.clone()),
@@ -136,22 +104,12 @@ pub fn evaluate_depth(scene: &Scene) -> anyhow::Result<Vec<DepthRow>> {
             let image = if frames.len() == 1 {
                 acq.frames[m].clone()
             } else {
-                fused(&frames)?
+                fused_over(&acq, &frames, m, h)?
             };
             let depth = reconstruct(&image, None, &lights)?;
             let (overlap, peak_mm): (Vec<f64>, Vec<f64>) = masks
                 .iter()
-                .map(|mask| {
-                    let inside = mask.iter().filter(|&&v| v > 0).count().max(1);
-                    let (mut hit, mut peak) = (0usize, 0f32);
-                    for (&v, &z) in mask.iter().zip(&depth.height_mm) {
-                        if v > 0 {
-                            hit += usize::from(z > AREA_HEIGHT_MM);
-                            peak = peak.max(z);
-                        }
-                    }
-                    (hit as f64 / inside as f64, f64::from(peak))
-                })
+                .map(|mask| sphere_figures(mask, &depth))
                 .unzip();
             Ok(DepthRow {
                 method: method.to_string(),
@@ -164,6 +122,64 @@ pub fn evaluate_depth(scene: &Scene) -> anyhow::Result<Vec<DepthRow>> {
             })
         })
         .collect()
+}
+
+/// Each sphere's centre row on the strip (strip `w` wide) with its mask, in belt order.
+fn spheres_along_the_belt(acq: &Acquisition, w: usize) -> Vec<(f64, &Vec<u8>)> {
+    let mut spheres: Vec<(f64, &Vec<u8>)> = acq
+        .regions
+        .iter()
+        .map(|(_, mask)| {
+            let (sum, n) = mask
+                .iter()
+                .enumerate()
+                .filter(|(_, m)| **m > 0)
+                .fold((0.0, 0usize), |(s, n), (i, _)| (s + (i / w) as f64, n + 1));
+            (sum / n.max(1) as f64, mask)
+        })
+        .collect();
+    spheres.sort_by(|a, b| a.0.total_cmp(&b.0));
+    spheres
+}
+
+/// The frame (`h` rows) whose middle row is nearest strip row `row`.
+fn frame_nearest_apex(acq: &Acquisition, row: f64, h: usize) -> usize {
+    (0..acq.frames.len())
+        .min_by(|&a, &b| {
+            let d = |k: usize| (acq.rows[k] as f64 + h as f64 / 2.0 - row).abs();
+            d(a).total_cmp(&d(b))
+        })
+        .unwrap_or(0)
+}
+
+/// The fusion of `frames` at their belt rows, over frame `m`'s footprint (`h` rows).
+fn fused_over(acq: &Acquisition, frames: &[usize], m: usize, h: usize) -> anyhow::Result<Planes> {
+    let placed: Vec<Placed> = frames
+        .iter()
+        .map(|&k| Placed {
+            image: &acq.frames[k],
+            at: Offset {
+                dy: acq.rows[k],
+                dx: 0,
+            },
+        })
+        .collect();
+    let out = fuse_mosaic(&placed, &FuseConfig::default(), Precision::F32)?;
+    let first = frames.iter().map(|&k| acq.rows[k]).min().unwrap_or(0);
+    crop_rows(&out, (acq.rows[m] - first) as usize, h)
+}
+
+/// A sphere's share of its mask reconstructed above [`AREA_HEIGHT_MM`], and its peak, mm.
+fn sphere_figures(mask: &[u8], depth: &DepthMap) -> (f64, f64) {
+    let inside = mask.iter().filter(|&&v| v > 0).count().max(1);
+    let (mut hit, mut peak) = (0usize, 0f32);
+    for (&v, &z) in mask.iter().zip(&depth.height_mm) {
+        if v > 0 {
+            hit += usize::from(z > AREA_HEIGHT_MM);
+            peak = peak.max(z);
+        }
+    }
+    (hit as f64 / inside as f64, f64::from(peak))
 }
 
 /// The table in Markdown, with each std's change against the first row (the single frame).
