@@ -58,6 +58,28 @@ pub struct Options {
     pub record: Option<PathBuf>,
 }
 
+/// Follows a session as it goes, for live views (the served page) and for programs that
+/// take the tiles as they come (the Python package). Every method has a default that does
+/// nothing. Called on the session's thread: a watcher that blocks holds up the session,
+/// so it should hand work elsewhere and return.
+pub trait Watch {
+    /// A tile was taken into the strip (the manifest already counts it).
+    fn tile(&mut self, _tile: &protocol::Tile<'_>, _manifest: &Manifest) {}
+    /// A message was taken: the manifest's figures (faults, device status) may have moved.
+    fn message(&mut self, _manifest: &Manifest) {}
+    /// A command to send to a live device now, if any (e.g. a control on a served page);
+    /// asked about once per turn of the session's loop.
+    fn command(&mut self) -> Option<Command> {
+        None
+    }
+}
+
+/// A watcher that does nothing.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Unwatched;
+
+impl Watch for Unwatched {}
+
 /// Messages refused, by reason.
 #[derive(Debug, Default, Clone, Serialize, PartialEq, Eq)]
 pub struct Faults {
@@ -392,6 +414,7 @@ enum Flow {
 struct Session<'a> {
     opts: &'a Options,
     progress: &'a dyn Progress,
+    watch: &'a mut dyn Watch,
     live: bool,
     started: Instant,
     recorder: Option<Recorder>,
@@ -415,6 +438,7 @@ impl<'a> Session<'a> {
         link: &mut dyn Transport,
         opts: &'a Options,
         progress: &'a dyn Progress,
+        watch: &'a mut dyn Watch,
     ) -> anyhow::Result<Self> {
         std::fs::create_dir_all(&opts.out)
             .with_context(|| format!("cannot create {}", opts.out.display()))?;
@@ -431,6 +455,7 @@ impl<'a> Session<'a> {
         Ok(Self {
             opts,
             progress,
+            watch,
             live,
             started,
             recorder,
@@ -453,6 +478,9 @@ impl<'a> Session<'a> {
         // Only until stop is sent: the final status must not be mistaken for a reply.
         if !self.live || self.stop_sent {
             return Ok(());
+        }
+        if let Some(command) = self.watch.command() {
+            send(link, &mut self.cmd_seq, &command)?;
         }
         if self.last_heartbeat.elapsed() >= HEARTBEAT {
             send(link, &mut self.cmd_seq, &Command::Status)?;
@@ -509,7 +537,9 @@ impl<'a> Session<'a> {
         if !in_sequence(&mut self.seqs, header.seq, faults, self.progress) {
             return Ok(Flow::Continue);
         }
-        self.on_message(msg)
+        let flow = self.on_message(msg)?;
+        self.watch.message(&self.manifest);
+        Ok(flow)
     }
 
     /// Acts on a sound message.
@@ -580,6 +610,7 @@ impl<'a> Session<'a> {
         if !take_tile(&mut self.strip, tile, &mut self.manifest)? {
             return Ok(());
         }
+        self.watch.tile(tile, &self.manifest);
         let m = &self.manifest;
         let secs = self.started.elapsed().as_secs_f64().max(1e-9);
         self.progress.message(&format!(
@@ -617,7 +648,18 @@ pub fn run(
     opts: &Options,
     progress: &dyn Progress,
 ) -> anyhow::Result<Outcome> {
-    let mut session = Session::open(link, opts, progress)?;
+    run_watched(link, opts, progress, &mut Unwatched)
+}
+
+/// [`run`], telling `watch` of every tile and message as it is taken, and sending the
+/// commands it gives to a live device.
+pub fn run_watched(
+    link: &mut dyn Transport,
+    opts: &Options,
+    progress: &dyn Progress,
+    watch: &mut dyn Watch,
+) -> anyhow::Result<Outcome> {
+    let mut session = Session::open(link, opts, progress, watch)?;
     // Room beyond the largest message, so an oversized transfer arrives whole enough to
     // be counted as too long rather than failing the read.
     let mut buf = vec![0u8; 2 * MAX_MESSAGE];

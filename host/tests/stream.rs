@@ -520,3 +520,95 @@ fn a_reversed_recording_is_read_to_its_end_and_its_faults_counted() {
     let out = stream::run(&mut link, &options(tmp.path(), None), &Silent).unwrap();
     assert_eq!(out.manifest.faults.after_final_status, 0);
 }
+
+/// Keeps the tiles it is shown and, once it has seen `ask_after` of them, asks for LED
+/// duties the device must refuse.
+struct Watcher {
+    tiles: Vec<(u32, Vec<u8>)>,
+    messages: u64,
+    ask_after: usize,
+    asked: bool,
+}
+
+/// The command the watcher gives: a duty beyond full, which the device refuses.
+const BAD_LEDS: protocol::Command = protocol::Command::Leds(protocol::LedDuty {
+    red: protocol::LedDuty::FULL + 1,
+    green: 0,
+    blue: 0,
+});
+
+impl stream::Watch for Watcher {
+    fn tile(&mut self, tile: &protocol::Tile<'_>, manifest: &stream::Manifest) {
+        assert_eq!(manifest.tiles_received, self.tiles.len() as u64 + 1);
+        self.tiles.push((tile.index, tile.pixels.to_vec()));
+    }
+
+    fn message(&mut self, manifest: &stream::Manifest) {
+        self.messages += 1;
+        assert!(manifest.messages >= self.messages);
+    }
+
+    fn command(&mut self) -> Option<protocol::Command> {
+        if self.asked || self.tiles.len() < self.ask_after {
+            return None;
+        }
+        self.asked = true;
+        Some(BAD_LEDS)
+    }
+}
+
+/// A link that keeps a copy of every message sent through it.
+struct Tapped<T> {
+    link: T,
+    sent: Vec<Vec<u8>>,
+}
+
+impl<T: Transport> Transport for Tapped<T> {
+    fn send(&mut self, message: &[u8]) -> anyhow::Result<()> {
+        self.sent.push(message.to_vec());
+        self.link.send(message)
+    }
+
+    fn receive(&mut self, buf: &mut [u8], timeout: Duration) -> anyhow::Result<Received> {
+        self.link.receive(buf, timeout)
+    }
+}
+
+#[test]
+fn a_watcher_sees_every_tile_as_it_comes_and_its_commands_reach_the_device() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/letters.toml");
+    let mut scene = Scene::load(&path).unwrap();
+    scene.sensor.frames = 12;
+    let tmp = tempfile::tempdir().unwrap();
+    let mut watcher = Watcher {
+        tiles: Vec::new(),
+        messages: 0,
+        ask_after: 1,
+        asked: false,
+    };
+    let mut link = Tapped {
+        link: SimDevice::start(&scene).unwrap(),
+        sent: Vec::new(),
+    };
+    let out =
+        stream::run_watched(&mut link, &options(tmp.path(), None), &Silent, &mut watcher).unwrap();
+    assert!(out.manifest.device_stopped);
+    // The watcher's command went out on the link, once.
+    let commands: Vec<protocol::Command> = link
+        .sent
+        .iter()
+        .map(|m| protocol::decode::<protocol::Command>(m).unwrap().1)
+        .collect();
+    assert_eq!(commands.iter().filter(|&&c| c == BAD_LEDS).count(), 1);
+    // Every tile placed was shown, with the pixels the strip holds.
+    assert!(!watcher.tiles.is_empty());
+    assert_eq!(watcher.tiles.len() as u64, out.manifest.tiles_received);
+    let strip = image::open(tmp.path().join("strip.png"))
+        .unwrap()
+        .to_luma8();
+    let first = watcher.tiles[0].0;
+    for (index, pixels) in &watcher.tiles {
+        let at = (index - first) as usize * pixels.len();
+        assert_eq!(&strip.as_raw()[at..at + pixels.len()], &pixels[..]);
+    }
+}
