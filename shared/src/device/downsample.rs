@@ -15,8 +15,8 @@ fn rgb565_luma([lo, hi]: [u8; 2]) -> u32 {
 }
 
 /// Adds to each of `sums` the luma of one row of its box: `F` pixels of `BPP` bytes from
-/// `seg`. Monomorphized per format and factor so the inner loop has no branches; a
-/// per-pixel format match cost 90 instructions per output pixel on the Cortex-M7.
+/// `seg`. Monomorphized per format and factor so the inner loop has no branches: a
+/// per-pixel format match would cost several times the arithmetic on the Cortex-M7.
 #[inline(always)]
 fn add_boxes<const F: usize, const BPP: usize>(
     sums: &mut [u32],
@@ -53,9 +53,9 @@ fn add_row(sums: &mut [u32], seg: &[u8], format: PixelFormat, factor: usize) {
 }
 
 /// One output row of a 2× downsampling (the product's default) straight from its two
-/// camera rows. The general path keeps per-box sums between rows; storing and reloading
-/// them was half its cost: 26 instructions per output pixel on the Cortex-M7 bench, 13
-/// here; gray and YUYV rows then went four bytes per word read ([`crate::packed`]).
+/// camera rows. The general path keeps per-box sums between rows, and storing and
+/// reloading them is about half its cost on the Cortex-M7; here there are none, and gray
+/// and YUYV rows are read four bytes per word ([`crate::packed`]).
 #[inline(always)]
 fn halve_row(out: &mut [u8], r0: &[u8], r1: &[u8], format: PixelFormat) {
     let mean = |s: u32| ((s + 2) >> 2) as u8;

@@ -396,7 +396,7 @@ pub fn fuse_scratch_len(dims: Dims) -> usize {
 /// row copies) rather than in a pass of its own. The sweep saves a read of each image where
 /// memory is slow next to the arithmetic (the hosts' caches); the Cortex-M7 reads its
 /// tightly coupled RAM in a cycle and would only pay for the ring's copies (the `f32` fuse
-/// step 185 → 198 instructions per tile pixel, `bash tests/mcu-bench/run.sh`).
+/// step costs more instructions per tile pixel with it: `bash tests/mcu-bench/run.sh`).
 const SALIENCY_IN_SWEEP: bool = !cfg!(target_arch = "arm");
 
 /// One float fuse step (`f32` or `f64`) on the `dims` region of `a` and `b`: the fused image replaces `a`,

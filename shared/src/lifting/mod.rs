@@ -283,9 +283,9 @@ impl ColumnBounds {
 }
 
 /// `dst.copy_from_slice(src)` over their common length, for the row copies of the
-/// transforms. On the Cortex-M7 `copy_from_slice` calls the compiler's `memcpy`, which moves
-/// a word in 3.25 instructions plus some 30 per call; this loop, unrolled by the compiler,
-/// takes about 2 (`bash tests/mcu-bench/run.sh`). Elsewhere `memcpy` is the fast one.
+/// transforms. On the Cortex-M7 `copy_from_slice` calls the compiler's `memcpy`, which
+/// costs more per word than this loop, unrolled by the compiler, and a fixed price per call
+/// besides (`bash tests/mcu-bench/run.sh`). Elsewhere `memcpy` is the fast one.
 #[inline(always)]
 pub(crate) fn copy_row<T: Copy>(dst: &mut [T], src: &[T]) {
     let n = dst.len().min(src.len());
