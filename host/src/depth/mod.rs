@@ -42,6 +42,20 @@ pub struct DepthMap {
 
 /// The height map of an RGB tactile image. `background` is the no-contact frame (else a
 /// smooth estimate from the image itself).
+///
+/// ```
+/// use rollfuse::depth::{lights::Lights, reconstruct, synthetic};
+///
+/// // A 2 mm ball pressed 0.4 mm deep, seen by the product's LEDs at 0.02 mm a pixel.
+/// let lights = Lights::product(0.02);
+/// let ball = |press| synthetic::ball((160, 160), (80.0, 80.0), 2.0, press, &lights, 180.0);
+/// let ((truth, image), (_, flat)) = (ball(0.4), ball(0.0));
+/// let depth = reconstruct(&image, Some(&flat), &lights)?;
+/// let peak = depth.height_mm.iter().copied().fold(f32::MIN, f32::max);
+/// let true_peak = truth.iter().copied().fold(f64::MIN, f64::max);
+/// assert!((f64::from(peak) - true_peak).abs() < 0.02, "{peak} mm against {true_peak} mm");
+/// # anyhow::Ok(())
+/// ```
 pub fn reconstruct(
     image: &Planes,
     background: Option<&Planes>,

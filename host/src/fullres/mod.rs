@@ -70,6 +70,29 @@ fn canvas(offsets: &[Offset], w: usize, h: usize) -> anyhow::Result<(i64, i64, u
 /// Fuses `frames`, in order, into one mosaic covering all of them. All frames must have
 /// the same size and the same number of channels. The frames are left as they are; see
 /// [`fuse_mosaic_mut`] to let fusion work in them and save a copy of each.
+///
+/// ```
+/// use rollfuse::fullres::{Placed, Precision, align::Offset, fuse_mosaic};
+/// use rollfuse::image::Planes;
+/// use rollfuse_core::FuseConfig;
+///
+/// // Two 64×48 gray frames of a ramp, the second 16 rows further along.
+/// let frame = |top: usize| Planes {
+///     width: 64,
+///     height: 48,
+///     planes: vec![(0..64 * 48).map(|i| ((top + i / 64) * 2) as f32).collect()],
+/// };
+/// let (a, b) = (frame(0), frame(16));
+/// let frames = [
+///     Placed { image: &a, at: Offset { dy: 0, dx: 0 } },
+///     Placed { image: &b, at: Offset { dy: 16, dx: 0 } },
+/// ];
+/// let mosaic = fuse_mosaic(&frames, &FuseConfig::default(), Precision::F32)?;
+/// assert_eq!((mosaic.width, mosaic.height), (64, 64));
+/// // Where only one frame lies, the mosaic is that frame.
+/// assert_eq!(mosaic.planes[0][..64], a.planes[0][..64]);
+/// # anyhow::Ok(())
+/// ```
 pub fn fuse_mosaic(
     frames: &[Placed],
     cfg: &FuseConfig,
