@@ -154,14 +154,35 @@ pub fn csv(rows: &[Measured]) -> String {
 const FIXED: RGBColor = RGBColor(31, 119, 180);
 const F32: RGBColor = RGBColor(255, 127, 14);
 
+/// The figure: two panels side by side, pixels.
+const FIGURE: (u32, u32) = (1200, 520);
+/// Font sizes, pixels: the panel titles, the note shown in place of a panel.
+const TITLE_FONT: u32 = 20;
+const NOTE_FONT: u32 = 18;
+/// Where that note starts, pixels from the panel's top left.
+const NOTE_AT: (i32, i32) = (40, 250);
+/// Room around each panel and for its axis labels, pixels.
+const PANEL_MARGIN: u32 = 12;
+const X_LABELS: u32 = 45;
+const Y_LABELS: u32 = 55;
+/// Padding beyond the data, as a share of its span on each axis.
+const X_PAD: f64 = 0.05;
+const Y_PAD: f64 = 0.08;
+/// Marker radii, pixels: a configuration, the recommended one's ring.
+const POINT: i32 = 4;
+const RING: i32 = 9;
+/// Legend samples: a line's length and a marker's offset, pixels.
+const LEGEND_LINE: i32 = 16;
+const LEGEND_MARK: i32 = 8;
+
 /// The Pareto plot as SVG: PSNR against MCU instructions per frame (with the budget line;
 /// left out when the bench's figures are missing) and against host time.
 pub fn pareto_svg(rows: &[Measured]) -> anyhow::Result<String> {
     let mut svg = String::new();
     {
-        let root = SVGBackend::with_string(&mut svg, (1200, 520)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, FIGURE).into_drawing_area();
         root.fill(&WHITE).map_err(plot_err)?;
-        let (left, right) = root.split_horizontally(600);
+        let (left, right) = root.split_horizontally(FIGURE.0 / 2);
         let have_mcu = rows.iter().any(|m| m.mcu.is_some());
         if have_mcu {
             panel(
@@ -175,8 +196,8 @@ pub fn pareto_svg(rows: &[Measured]) -> anyhow::Result<String> {
         } else {
             left.draw(&Text::new(
                 "No MCU figures: run bash tests/mcu-bench/run.sh",
-                (40, 250),
-                ("sans-serif", 18),
+                NOTE_AT,
+                ("sans-serif", NOTE_FONT),
             ))
             .map_err(plot_err)?;
         }
@@ -197,6 +218,16 @@ fn plot_err(e: impl std::fmt::Display) -> anyhow::Error {
     anyhow::anyhow!("cannot draw the plot: {e}")
 }
 
+/// A configuration's place on a panel: cost, PSNR, and whether it is on the fixed path.
+type Point = (f64, f64, bool);
+
+/// A panel's chart, cost along x and PSNR up.
+type Chart<'a, DB> = ChartContext<
+    'a,
+    DB,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
 /// One scatter panel with its Pareto front and an optional vertical budget line.
 fn panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, plotters::coord::Shift>,
@@ -206,58 +237,22 @@ fn panel<DB: DrawingBackend>(
     cost: impl Fn(&Measured) -> Option<f64>,
     budget: Option<f64>,
 ) -> anyhow::Result<()> {
-    let points: Vec<(f64, f64, bool)> = rows
-        .iter()
-        .filter_map(|m| {
-            cost(m).map(|c| {
-                let fixed = m.setup.precision == rollfuse_core::device::Precision::Fixed;
-                (c, m.accuracy.psnr_db, fixed)
-            })
-        })
-        .filter(|p| p.0.is_finite() && p.1.is_finite())
-        .collect();
+    let points = points(rows, &cost);
     anyhow::ensure!(!points.is_empty(), "nothing to plot for {title}");
-    let span = |it: &mut dyn Iterator<Item = f64>| {
-        it.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-            (lo.min(v), hi.max(v))
-        })
-    };
-    let (x0, x1) = span(&mut points.iter().map(|p| p.0).chain(budget));
-    let (y0, y1) = span(&mut points.iter().map(|p| p.1));
-    let (xpad, ypad) = ((x1 - x0).max(1e-9) * 0.05, (y1 - y0).max(1e-9) * 0.08);
-    let mut chart = ChartBuilder::on(area)
-        .caption(title, ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(55)
-        .build_cartesian_2d((x0 - xpad)..(x1 + xpad), (y0 - ypad)..(y1 + ypad))
-        .map_err(plot_err)?;
-    chart
-        .configure_mesh()
-        .x_desc(x_desc)
-        .y_desc("PSNR vs the f64 reference (dB)")
-        .draw()
-        .map_err(plot_err)?;
+    let mut chart = chart(area, title, x_desc, &points, budget)?;
     if let Some(b) = budget {
-        chart
-            .draw_series(std::iter::once(PathElement::new(
-                vec![(b, y0 - ypad), (b, y1 + ypad)],
-                RED.stroke_width(2),
-            )))
-            .map_err(plot_err)?
-            .label("10 % of a frame")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RED.stroke_width(2)));
+        budget_line(&mut chart, b)?;
     }
     if let Some((m, c)) = recommended(rows).and_then(|m| cost(m).map(|c| (m, c))) {
         chart
             .draw_series(std::iter::once(Circle::new(
                 (c, m.accuracy.psnr_db),
-                9,
+                RING,
                 BLACK.stroke_width(2),
             )))
             .map_err(plot_err)?
             .label("recommended")
-            .legend(|(x, y)| Circle::new((x + 8, y), 6, BLACK.stroke_width(2)));
+            .legend(|(x, y)| Circle::new((x + LEGEND_MARK, y), RING - 3, BLACK.stroke_width(2)));
     }
     let front: Vec<(f64, f64)> = pareto_front(rows, &cost)
         .into_iter()
@@ -267,26 +262,90 @@ fn panel<DB: DrawingBackend>(
         .draw_series(LineSeries::new(front, BLACK.stroke_width(1)))
         .map_err(plot_err)?
         .label("Pareto front")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLACK));
-    for (fixed, color, name) in [(true, FIXED, "fixed"), (false, F32, "f32")] {
-        chart
-            .draw_series(
-                points
-                    .iter()
-                    .filter(|p| p.2 == fixed)
-                    .map(|p| Circle::new((p.0, p.1), 4, color.filled())),
-            )
-            .map_err(plot_err)?
-            .label(name)
-            .legend(move |(x, y)| Circle::new((x + 8, y), 4, color.filled()));
-    }
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + LEGEND_LINE, y)], BLACK));
+    scatter(&mut chart, &points)?;
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::LowerRight)
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .draw()
+        .map_err(plot_err)
+}
+
+/// Every configuration with a finite cost and PSNR.
+fn points(rows: &[Measured], cost: &impl Fn(&Measured) -> Option<f64>) -> Vec<Point> {
+    rows.iter()
+        .filter_map(|m| {
+            cost(m).map(|c| {
+                let fixed = m.setup.precision == rollfuse_core::device::Precision::Fixed;
+                (c, m.accuracy.psnr_db, fixed)
+            })
+        })
+        .filter(|p| p.0.is_finite() && p.1.is_finite())
+        .collect()
+}
+
+/// The panel's axes, spanning the points (and the budget) with some room.
+fn chart<'a, DB: DrawingBackend>(
+    area: &'a DrawingArea<DB, plotters::coord::Shift>,
+    title: &str,
+    x_desc: &str,
+    points: &[Point],
+    budget: Option<f64>,
+) -> anyhow::Result<Chart<'a, DB>> {
+    let span = |it: &mut dyn Iterator<Item = f64>| {
+        it.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        })
+    };
+    let (x0, x1) = span(&mut points.iter().map(|p| p.0).chain(budget));
+    let (y0, y1) = span(&mut points.iter().map(|p| p.1));
+    let (xpad, ypad) = ((x1 - x0).max(1e-9) * X_PAD, (y1 - y0).max(1e-9) * Y_PAD);
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, ("sans-serif", TITLE_FONT))
+        .margin(PANEL_MARGIN)
+        .x_label_area_size(X_LABELS)
+        .y_label_area_size(Y_LABELS)
+        .build_cartesian_2d((x0 - xpad)..(x1 + xpad), (y0 - ypad)..(y1 + ypad))
         .map_err(plot_err)?;
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc("PSNR vs the f64 reference (dB)")
+        .draw()
+        .map_err(plot_err)?;
+    Ok(chart)
+}
+
+/// The time budget as a vertical red line across the panel.
+fn budget_line<DB: DrawingBackend>(chart: &mut Chart<'_, DB>, budget: f64) -> anyhow::Result<()> {
+    let (y0, y1) = (chart.y_range().start, chart.y_range().end);
+    chart
+        .draw_series(std::iter::once(PathElement::new(
+            vec![(budget, y0), (budget, y1)],
+            RED.stroke_width(2),
+        )))
+        .map_err(plot_err)?
+        .label("10 % of a frame")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + LEGEND_LINE, y)], RED.stroke_width(2)));
+    Ok(())
+}
+
+/// The configurations as dots, one colour per arithmetic.
+fn scatter<DB: DrawingBackend>(chart: &mut Chart<'_, DB>, points: &[Point]) -> anyhow::Result<()> {
+    for (fixed, color, name) in [(true, FIXED, "fixed"), (false, F32, "f32")] {
+        chart
+            .draw_series(
+                points
+                    .iter()
+                    .filter(|p| p.2 == fixed)
+                    .map(|p| Circle::new((p.0, p.1), POINT, color.filled())),
+            )
+            .map_err(plot_err)?
+            .label(name)
+            .legend(move |(x, y)| Circle::new((x + LEGEND_MARK, y), POINT, color.filled()));
+    }
     Ok(())
 }
 
