@@ -49,6 +49,11 @@ fn open_within_limit(path: &Path) -> anyhow::Result<image::DynamicImage> {
         .with_context(|| format!("cannot read image {}", path.display()))
 }
 
+/// A 16-bit sample on the 8-bit scale of [`Planes`] (times 255/65535).
+pub fn from_u16(v: u16) -> f32 {
+    f32::from(v) * (255.0 / 65535.0)
+}
+
 /// An image as planes of `f32` values on the 8-bit scale (0..=255; 16-bit files are scaled
 /// by 255/65535): one plane (gray) or three (red, green, blue), each row-major.
 #[derive(Debug, Clone, PartialEq)]
@@ -151,7 +156,6 @@ impl Planes {
         let img = open_within_limit(path)?;
         let (w, h) = (img.width() as usize, img.height() as usize);
         let color = img.color();
-        let scale16 = 255.0 / 65535.0;
         let planes = match (
             color.has_color(),
             color.bytes_per_pixel() / color.channel_count(),
@@ -167,7 +171,7 @@ impl Planes {
                 img.to_luma16()
                     .into_raw()
                     .into_iter()
-                    .map(|v| f32::from(v) * scale16)
+                    .map(from_u16)
                     .collect(),
             ],
             (true, depth) => {
@@ -181,7 +185,7 @@ impl Planes {
                     img.to_rgb16()
                         .into_raw()
                         .into_iter()
-                        .map(|v| f32::from(v) * scale16)
+                        .map(from_u16)
                         .collect()
                 };
                 (0..3)

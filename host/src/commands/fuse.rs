@@ -483,11 +483,12 @@ fn by_motion(args: &Args) -> anyhow::Result<Alignment<'_>> {
 /// Every frame matched against the last one kept (`--align template`); a frame that does
 /// not match is skipped, with a message.
 fn by_template<'a>(args: &'a Args, frames: &[Planes]) -> anyhow::Result<Alignment<'a>> {
+    let defaults = TemplateParams::default();
     let params = TemplateParams {
         rows: (args.template_rows[0], args.template_rows[1]),
-        max_dy: args.max_shift.unwrap_or(200),
-        max_dx: 8,
-        min_score: args.min_score.unwrap_or(0.5),
+        max_dy: args.max_shift.unwrap_or(defaults.max_dy),
+        min_score: args.min_score.unwrap_or(defaults.min_score),
+        ..defaults
     };
     let mut placed = Vec::new();
     let mut record = OffsetsFile {
@@ -518,20 +519,7 @@ fn by_template<'a>(args: &'a Args, frames: &[Planes]) -> anyhow::Result<Alignmen
 /// Warns of a match that may be wrong: ambiguous (periodic texture), or at the edge of
 /// the search (`max_dy` rows).
 fn warn_of_doubtful_match(file: &Path, matched: Option<Match>, max_dy: usize) {
-    if let Some(m) = matched.filter(Match::is_ambiguous) {
-        eprintln!(
-            "warning: {} matches ambiguously (score {:.3}, runner-up {:.3}): periodic texture?",
-            file.display(),
-            m.score,
-            m.runner_up
-        );
-    }
-    if let Some(m) = matched.filter(|m| m.at_search_edge) {
-        eprintln!(
-            "warning: {} matched at {} rows, the edge of the search (--max-shift {}): it may have moved farther",
-            file.display(),
-            m.shift.dy,
-            max_dy
-        );
+    for doubt in matched.iter().flat_map(|m| m.doubts(max_dy)) {
+        eprintln!("warning: {} {doubt}", file.display());
     }
 }

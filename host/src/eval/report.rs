@@ -41,6 +41,35 @@ fn to_u8(g: &Gray) -> Vec<u8> {
         .collect()
 }
 
+/// Information entropy of the gray-normalized image, bits (the paper's IE).
+pub fn ie(image: &Planes) -> anyhow::Result<f64> {
+    Ok(ie_of(&normalized_gray(image)?))
+}
+
+/// IE of an already gray-normalized image (or strip of one).
+fn ie_of(g: &Gray) -> f64 {
+    entropy(&to_u8(g))
+}
+
+/// MS-SSIM of `image` against `reference`, both gray-normalized; they must have one size.
+pub fn ms_ssim(image: &Planes, reference: &Planes) -> anyhow::Result<f64> {
+    same_size(image, reference)?;
+    ms_ssim_raw(&normalized_gray(image)?, &normalized_gray(reference)?)
+}
+
+fn same_size(image: &Planes, reference: &Planes) -> anyhow::Result<()> {
+    if (reference.width, reference.height) != (image.width, image.height) {
+        bail!(
+            "the reference is {}×{} but the image is {}×{}",
+            reference.width,
+            reference.height,
+            image.width,
+            image.height
+        );
+    }
+    Ok(())
+}
+
 /// Measures `image` (and against `reference`), with `strips` strips along `axis`.
 pub fn measure(
     image: &Planes,
@@ -61,19 +90,11 @@ pub fn measure(
     let ranges = strip_ranges(len, strips);
     let strip_ie: Vec<f64> = ranges
         .iter()
-        .map(|r| entropy(&to_u8(&strip(&g, axis, r.clone()))))
+        .map(|r| ie_of(&strip(&g, axis, r.clone())))
         .collect();
     let (mut ms, mut strip_ms) = (None, None);
     if let Some(reference) = reference {
-        if (reference.width, reference.height) != (image.width, image.height) {
-            bail!(
-                "the reference is {}×{} but the image is {}×{}",
-                reference.width,
-                reference.height,
-                image.width,
-                image.height
-            );
-        }
+        same_size(image, reference)?;
         let r = normalized_gray(reference)?;
         ms = Some(ms_ssim_raw(&g, &r)?);
         strip_ms = Some(
@@ -84,7 +105,7 @@ pub fn measure(
         );
     }
     Ok(Report {
-        ie: entropy(&to_u8(&g)),
+        ie: ie_of(&g),
         ie_std: population_std(&strip_ie),
         ms_ssim: ms,
         ms_ssim_std: strip_ms.as_deref().map(population_std),

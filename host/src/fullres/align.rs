@@ -182,6 +182,25 @@ impl Match {
     pub fn is_ambiguous(&self) -> bool {
         self.score - self.runner_up < AMBIGUITY_MARGIN
     }
+
+    /// Why this match may be wrong, each reason a phrase that follows the frame's name:
+    /// ambiguous (periodic texture), or at the edge of a search of `max_dy` rows.
+    pub fn doubts(&self, max_dy: usize) -> Vec<String> {
+        let mut out = Vec::new();
+        if self.is_ambiguous() {
+            out.push(format!(
+                "matches ambiguously (score {:.3}, runner-up {:.3}): periodic texture?",
+                self.score, self.runner_up
+            ));
+        }
+        if self.at_search_edge {
+            out.push(format!(
+                "matched at {} rows, the edge of the search (--max-shift {max_dy}): it may have moved farther",
+                self.shift.dy
+            ));
+        }
+        out
+    }
 }
 
 /// Aligns a sequence by template matching: the first frame at the origin, every next one
