@@ -37,6 +37,7 @@ pub mod link;
 pub mod npy;
 pub mod pipeline_memory;
 pub mod progress;
+pub mod serve;
 pub mod sim;
 pub mod stream;
 pub mod strip_file;

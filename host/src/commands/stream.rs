@@ -6,6 +6,7 @@ use crate::link::Transport;
 use crate::link::replay::Replay;
 use crate::link::sim::{DeviceMemory, SimDevice};
 use crate::link::usb::{self, Usb};
+use crate::serve;
 use crate::sim::Scene;
 use crate::stream::{self, Options, StopReason};
 use anyhow::{Context, bail};
@@ -74,6 +75,19 @@ pub struct Args {
     /// refuses what the module refuses).
     #[arg(long)]
     pub unbounded_memory: bool,
+    /// With --device sim: capture at most this many frames a second in real time, as
+    /// the camera would (by default the virtual device runs in virtual time, as fast as
+    /// the host reads). For live views and demos; the tiles are the same.
+    #[arg(long)]
+    pub frame_rate: Option<f64>,
+    /// Serve a live page of the strip, its status and its events on this address while
+    /// streaming (e.g. 127.0.0.1:8080; docs/serve.md).
+    #[arg(long, value_name = "ADDR")]
+    pub serve: Option<String>,
+    /// With --serve: take commands for the device (start/stop the roller) from requests
+    /// that carry the token printed at start-up.
+    #[arg(long, requires = "serve")]
+    pub control: bool,
 }
 
 impl Args {
@@ -107,7 +121,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(r) = &args.record {
         super::check_writable(r)?;
     }
-    let (mut link, config) = open_link(&args, checked.replay.as_deref())?;
+    let (mut link, config) = open_link(&args, &checked)?;
     let opts = Options {
         out: args.out.clone(),
         config,
@@ -115,9 +129,57 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         max_duration: checked.max_duration,
         record: args.record.clone(),
     };
-    let outcome = stream::run(link.as_mut(), &opts, &super::bars::Bars::new())?;
+    let server = checked
+        .serve
+        .map(|addr| start_server(&args, addr, link.is_live()))
+        .transpose()?;
+    let bars = super::bars::Bars::new();
+    let outcome = match &server {
+        Some(server) => {
+            let outcome = stream::run_watched(link.as_mut(), &opts, &bars, &mut server.watcher())?;
+            server.finish(&outcome.manifest);
+            outcome
+        }
+        None => stream::run(link.as_mut(), &opts, &bars)?,
+    };
     print_summary(&args.out, &outcome);
     Ok(())
+}
+
+/// Starts the live page's server, saying where it is (and the control token).
+fn start_server(
+    args: &Args,
+    addr: std::net::SocketAddr,
+    live: bool,
+) -> anyhow::Result<serve::Server> {
+    if !addr.ip().is_loopback() {
+        eprintln!(
+            "warning: serving on {addr}, reachable from other machines: anyone who can reach it sees the strip{}",
+            if args.control {
+                " (commands still need the token)"
+            } else {
+                ""
+            }
+        );
+    }
+    let source = match args.device.as_str() {
+        "usb" | "sim" => args.device.clone(),
+        _ => "replay".to_string(),
+    };
+    let server = serve::Server::start(&serve::ServeOptions {
+        addr,
+        control: args.control,
+        source,
+        live,
+    })?;
+    println!("live page: http://{}/", server.addr());
+    if let Some(token) = server.token() {
+        println!(
+            "control token: {token} (open http://{}/#token={token})",
+            server.addr()
+        );
+    }
+    Ok(server)
 }
 
 /// What the options say, once checked.
@@ -126,6 +188,10 @@ struct Checked {
     replay: Option<std::path::PathBuf>,
     /// `--seconds`.
     max_duration: Option<Duration>,
+    /// `--serve`.
+    serve: Option<std::net::SocketAddr>,
+    /// `--frame-rate`, as the time between frames.
+    frame_period: Option<Duration>,
 }
 
 /// Checks the options and that the recording written is none of the inputs.
@@ -156,6 +222,11 @@ fn check(args: &Args) -> anyhow::Result<Checked> {
     if args.unbounded_memory && args.device != "sim" {
         bail!("--unbounded-memory is for the virtual device (--device sim) only");
     }
+    let frame_period = args.frame_rate.map(frame_period).transpose()?;
+    if frame_period.is_some() && args.device != "sim" {
+        bail!("--frame-rate is for the virtual device (--device sim) only");
+    }
+    let serve = args.serve.as_deref().map(serve::parse_addr).transpose()?;
     if let Some(r) = &args.record {
         let mut inputs: Vec<(&str, &std::path::Path)> = Vec::new();
         inputs.extend(replay.as_deref().map(|p| ("recording replayed", p)));
@@ -165,15 +236,25 @@ fn check(args: &Args) -> anyhow::Result<Checked> {
     Ok(Checked {
         replay,
         max_duration,
+        serve,
+        frame_period,
     })
+}
+
+/// `--frame-rate`'s period: a rate from 0.01 to 10 000 frames a second.
+fn frame_period(rate: f64) -> anyhow::Result<Duration> {
+    if !(0.01..=10_000.0).contains(&rate) {
+        bail!("--frame-rate must be from 0.01 to 10000 frames a second, got {rate}");
+    }
+    Ok(Duration::from_secs_f64(1.0 / rate))
 }
 
 /// The link the options name, and the configuration to send (none to a recording).
 fn open_link(
     args: &Args,
-    replay: Option<&std::path::Path>,
+    checked: &Checked,
 ) -> anyhow::Result<(Box<dyn Transport>, Option<DeviceConfig>)> {
-    Ok(match replay {
+    Ok(match checked.replay.as_deref() {
         Some(file) => (Box::new(Replay::open(file)?), None),
         None if args.device == "usb" => (Box::new(Usb::open()?), Some(args.config(16))),
         None => {
@@ -183,7 +264,7 @@ fn open_link(
             } else {
                 DeviceMemory::Firmware
             };
-            let dev = SimDevice::start_with(&Scene::load(path)?, memory)?;
+            let dev = SimDevice::start_paced(&Scene::load(path)?, memory, checked.frame_period)?;
             let spacing = dev.default_config().frame_spacing_px;
             (Box::new(dev), Some(args.config(spacing)))
         }

@@ -7,6 +7,10 @@
 //! it waits instead of dropping tiles, so its streams are reproducible; its send queue
 //! holds [`QUEUE`] messages.
 //!
+//! Paced ([`SimDevice::start_paced`], `rollfuse stream --frame-rate`), it captures at most
+//! so many frames a second in real time, as the camera would, for live views and demos;
+//! the frames and tiles are the same, only later.
+//!
 //! Its stream is the core's `device::Session`, the one the firmware runs, on the
 //! firmware's memory by default ([`DeviceMemory`]): it refuses what the module refuses.
 
@@ -22,7 +26,7 @@ use rollfuse_core::device::{
 use rollfuse_core::protocol::{DeviceConfig, DeviceMessage, MAX_MESSAGE, PixelFormat, Tile};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, SyncSender, TryRecvError};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Messages the virtual device may have in flight to the host.
 pub const QUEUE: usize = 64;
@@ -78,6 +82,16 @@ impl SimDevice {
 
     /// [`Self::start`] with the given pipeline memory.
     pub fn start_with(scene: &Scene, memory: DeviceMemory) -> anyhow::Result<Self> {
+        Self::start_paced(scene, memory, None)
+    }
+
+    /// [`Self::start_with`], capturing a frame at most every `frame_period` of real time
+    /// (none: in virtual time, as fast as the host reads).
+    pub fn start_paced(
+        scene: &Scene,
+        memory: DeviceMemory,
+        frame_period: Option<Duration>,
+    ) -> anyhow::Result<Self> {
         let sim = Simulator::new(scene)?;
         let (sensor, config) = sensor_for(scene, &sim);
         let refused = |reason| {
@@ -109,6 +123,10 @@ impl SimDevice {
                     capacity,
                     next_frame: 0,
                     origin_px: None,
+                    pace: frame_period.map(|period| Pace {
+                        period,
+                        due: Instant::now(),
+                    }),
                 };
                 dev.run();
             })
@@ -218,6 +236,15 @@ struct Device {
     next_frame: usize,
     /// Commanded position of the first streamed frame's top row, camera pixels.
     origin_px: Option<f64>,
+    /// Real-time pacing of the frames, if any.
+    pace: Option<Pace>,
+}
+
+/// A frame rate held in real time.
+struct Pace {
+    period: Duration,
+    /// When the next frame may be captured.
+    due: Instant,
 }
 
 /// Why the device loop on one session ended.
@@ -248,10 +275,9 @@ impl Device {
     fn serve(&mut self, session: &mut Session) -> Ended {
         loop {
             let command = if session.streaming() {
-                match self.commands.try_recv() {
-                    Ok(c) => Some(c),
-                    Err(TryRecvError::Empty) => None,
-                    Err(TryRecvError::Disconnected) => return Ended::Exit,
+                match self.command_before_next_frame() {
+                    Ok(c) => c,
+                    Err(ended) => return ended,
                 }
             } else {
                 match self.commands.recv() {
@@ -266,6 +292,24 @@ impl Device {
             if let Err(ended) = served {
                 return ended;
             }
+        }
+    }
+
+    /// A command from the host, if one comes before the next frame is due: at once in
+    /// virtual time, within the frame period when paced (commands are never held up).
+    fn command_before_next_frame(&mut self) -> Result<Option<Vec<u8>>, Ended> {
+        let Some(pace) = &self.pace else {
+            return match self.commands.try_recv() {
+                Ok(c) => Ok(Some(c)),
+                Err(TryRecvError::Empty) => Ok(None),
+                Err(TryRecvError::Disconnected) => Err(Ended::Exit),
+            };
+        };
+        let wait = pace.due.saturating_duration_since(Instant::now());
+        match self.commands.recv_timeout(wait) {
+            Ok(c) => Ok(Some(c)),
+            Err(RecvTimeoutError::Timeout) => Ok(None),
+            Err(RecvTimeoutError::Disconnected) => Err(Ended::Exit),
         }
     }
 
@@ -298,6 +342,10 @@ impl Device {
         }
         let (bytes, position) = self.camera_frame(self.next_frame);
         self.next_frame += 1;
+        if let Some(pace) = &mut self.pace {
+            // Behind (a slow host): the next frame at once, not a burst to catch up.
+            pace.due = (pace.due + pace.period).max(Instant::now());
+        }
         let origin = *self.origin_px.get_or_insert(position);
         let position_px = (position - origin).round().max(0.0) as u64;
         // The simulated camera always delivers.

@@ -1,0 +1,120 @@
+//! `/events`: Server-Sent Events. Each client first gets the tiles the server keeps, then
+//! every new tile and the status as they come, from its own bounded queue. A client that
+//! falls behind is told how many rows it missed and goes on from the newest.
+
+use super::state::{ClientFeed, Event, Shared, Status, TileRing, client_queue, lock};
+use base64::Engine;
+use std::io::Write;
+use std::sync::atomic::Ordering;
+use std::sync::mpsc::RecvTimeoutError;
+use std::time::Duration;
+
+/// How often an idle connection gets a comment line, so a client that is gone is noticed.
+const KEEPALIVE: Duration = Duration::from_secs(10);
+
+/// An event named `name` with a one-line JSON payload.
+fn event(name: &str, json: &str, rows: u64) -> Event {
+    Event {
+        text: format!("event: {name}\ndata: {json}\n\n").into(),
+        rows,
+    }
+}
+
+/// A tile's event: its index, first belt row, size and pixels (8-bit gray, base64).
+pub fn tile_event(index: u32, (width, height): (usize, usize), pixels: &[u8]) -> Event {
+    let json = serde_json::json!({
+        "index": index,
+        "row": u64::from(index) * height as u64,
+        "width": width,
+        "rows": height,
+        "pixels": base64::engine::general_purpose::STANDARD.encode(pixels),
+    });
+    event("tile", &json.to_string(), height as u64)
+}
+
+/// The status's event; `end` once the session is over.
+pub fn status_event(status: &Status) -> Event {
+    let name = if status.state == "ended" {
+        "end"
+    } else {
+        "status"
+    };
+    event(name, &serde_json::to_string(status).unwrap_or_default(), 0)
+}
+
+/// The marker a client gets after its queue overflowed.
+fn skipped_event(rows: u64) -> Event {
+    event("skipped", &format!("{{\"rows\":{rows}}}"), 0)
+}
+
+/// The tiles kept so far, oldest first, as events.
+fn backlog(ring: &TileRing) -> Vec<Event> {
+    let Some(size) = ring.size else {
+        return Vec::new();
+    };
+    let tiles = ring.tiles.iter();
+    tiles.map(|(&i, px)| tile_event(i, size, px)).collect()
+}
+
+/// Registers a client: the backlog and the status now, then its feed. Taken under the
+/// clients' lock, which the watcher holds while it keeps and hands out a tile, so no
+/// tile is both in the backlog and in the feed, and none is in neither.
+pub fn subscribe(shared: &Shared) -> (Vec<Event>, ClientFeed) {
+    let mut clients = lock(&shared.clients);
+    let ring = lock(&shared.ring);
+    let (queue, feed) = client_queue();
+    let mut first = backlog(&ring);
+    drop(ring);
+    clients.push(queue);
+    drop(clients);
+    first.push(status_event(&shared.status_now()));
+    (first, feed)
+}
+
+/// Writes the stream to one client until its feed ends or the client goes.
+pub fn serve_client(out: &mut dyn Write, first: Vec<Event>, feed: ClientFeed) {
+    let _ = serve_client_inner(out, first, feed);
+}
+
+fn serve_client_inner(
+    out: &mut dyn Write,
+    first: Vec<Event>,
+    feed: ClientFeed,
+) -> std::io::Result<()> {
+    for e in first {
+        out.write_all(e.text.as_bytes())?;
+    }
+    out.flush()?;
+    loop {
+        let next = match feed.events.recv_timeout(KEEPALIVE) {
+            Ok(e) => e,
+            Err(RecvTimeoutError::Timeout) => {
+                out.write_all(b": keepalive\n\n")?;
+                out.flush()?;
+                continue;
+            }
+            Err(RecvTimeoutError::Disconnected) => return Ok(()),
+        };
+        let skipped = feed.skipped.swap(0, Ordering::Relaxed);
+        if skipped > 0 {
+            // Behind: what is queued is old too; drop it and go on from the newest.
+            // The newest status among them is kept (it may be the end).
+            let mut dropped = skipped + next.rows;
+            let mut status = (next.rows == 0).then_some(next);
+            while let Ok(e) = feed.events.try_recv() {
+                dropped += e.rows;
+                if e.rows == 0 {
+                    status = Some(e);
+                }
+            }
+            dropped += feed.skipped.swap(0, Ordering::Relaxed);
+            out.write_all(skipped_event(dropped).text.as_bytes())?;
+            if let Some(status) = status {
+                out.write_all(status.text.as_bytes())?;
+            }
+        } else {
+            out.write_all(next.text.as_bytes())?;
+        }
+        out.flush()?;
+    }
+}

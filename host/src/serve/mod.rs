@@ -1,0 +1,272 @@
+//! `rollfuse stream --serve ADDR`: a live page of the strip as it is fused.
+//!
+//! A [`Server`] answers HTTP on its own threads (one per request, an `/events` client
+//! keeping its own): `GET /` the page, `/status.json`, `/strip.png?rows=N`, `/events`
+//! (Server-Sent Events) and, with a control token, `POST /control/roller/...`. The session
+//! feeds it through a [`LiveWatch`], which only copies into bounded structures and
+//! returns: a slow or vanished browser never holds up the stream, it skips rows instead.
+//! docs/serve.md has the endpoints and the measurements.
+
+mod events;
+mod routes;
+pub mod state;
+
+use crate::stream::{Manifest, Watch};
+use anyhow::Context;
+use rollfuse_core::protocol::{self, Command};
+use state::{Rate, Shared, Status, lock};
+use std::collections::VecDeque;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// How often the status is refreshed and pushed to the clients.
+pub const STATUS_EVERY: Duration = Duration::from_millis(250);
+
+/// Requests answered at once; beyond, a request gets 503 (each `/events` client counts).
+pub const MAX_REQUESTS: usize = 128;
+
+/// What to serve and how.
+#[derive(Debug, Clone)]
+pub struct ServeOptions {
+    /// The address to listen on (port 0: any free port).
+    pub addr: SocketAddr,
+    /// Take commands for the device, with a token.
+    pub control: bool,
+    /// Where the tiles come from, as shown on the page (`usb`, `sim`, `replay`).
+    pub source: String,
+    /// Whether the session talks to a live device (a recording takes no commands).
+    pub live: bool,
+}
+
+/// The running server. Dropping it stops it.
+pub struct Server {
+    shared: Arc<Shared>,
+    http: Arc<tiny_http::Server>,
+    addr: SocketAddr,
+    accept: Option<JoinHandle<()>>,
+}
+
+/// Parses a `--serve` address (`127.0.0.1:8080`, `[::1]:8080`, `0.0.0.0:8080`).
+pub fn parse_addr(text: &str) -> anyhow::Result<SocketAddr> {
+    text.parse().map_err(|_| {
+        anyhow::anyhow!(
+            "--serve must be an IP address and port such as 127.0.0.1:8080, got `{text}`"
+        )
+    })
+}
+
+/// A fresh control token: 128 bits from the standard library's per-process random keys
+/// (seeded by the operating system), as 32 hex digits.
+fn new_token() -> String {
+    use std::hash::{BuildHasher, Hasher};
+    let mut words = [0u64; 2];
+    for (i, w) in words.iter_mut().enumerate() {
+        let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+        h.write_usize(i);
+        h.write_u128(
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_nanos()),
+        );
+        *w = h.finish();
+    }
+    format!("{:016x}{:016x}", words[0], words[1])
+}
+
+impl Server {
+    /// Binds `opts.addr` and starts answering. Fails, saying so, when the address cannot
+    /// be had (in use, not this machine's).
+    pub fn start(opts: &ServeOptions) -> anyhow::Result<Self> {
+        let http = tiny_http::Server::http(opts.addr)
+            .map_err(|e| anyhow::anyhow!("cannot serve on {}: {e}", opts.addr))?;
+        let addr = http
+            .server_addr()
+            .to_ip()
+            .context("the server is not on an IP address")?;
+        let shared = Arc::new(Shared {
+            started: Instant::now(),
+            token: opts.control.then(new_token),
+            live: opts.live,
+            status: std::sync::Mutex::new(Status {
+                source: opts.source.clone(),
+                state: "streaming",
+                control: opts.control,
+                ..Status::default()
+            }),
+            ring: Default::default(),
+            clients: Default::default(),
+            commands: Default::default(),
+        });
+        let http = Arc::new(http);
+        let accept = {
+            let (http, shared) = (Arc::clone(&http), Arc::clone(&shared));
+            std::thread::Builder::new()
+                .name("serve-accept".into())
+                .spawn(move || accept_loop(&http, &shared))
+                .context("cannot start the server's thread")?
+        };
+        Ok(Self {
+            shared,
+            http,
+            addr,
+            accept: Some(accept),
+        })
+    }
+
+    /// The address it listens on (with the port chosen when asked for port 0).
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    /// The control token, with `--control`.
+    pub fn token(&self) -> Option<&str> {
+        self.shared.token.as_deref()
+    }
+
+    /// The watcher that feeds this server from a session.
+    pub fn watcher(&self) -> LiveWatch {
+        LiveWatch {
+            shared: Arc::clone(&self.shared),
+            last_status: None,
+            tile_size_shown: false,
+            samples: VecDeque::new(),
+        }
+    }
+
+    /// The session is over: the final status goes to the page (`ended`), the event
+    /// streams close, and the server goes on answering until dropped.
+    pub fn finish(&self, manifest: &Manifest) {
+        // The session's average: there is no recent rate once it is over.
+        let secs = self.shared.started.elapsed().as_secs_f64().max(1e-9);
+        let rate = Rate {
+            tiles_per_s: manifest.tiles_received as f64 / secs,
+            bytes_per_s: manifest.bytes as f64 / secs,
+        };
+        {
+            let mut status = lock(&self.shared.status);
+            status.update(manifest, rate);
+            status.state = "ended";
+        }
+        let status = self.shared.status_now();
+        let mut clients = lock(&self.shared.clients);
+        Shared::broadcast(&mut clients, &events::status_event(&status));
+        drop(clients);
+        self.shared.close_clients();
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        self.shared.close_clients();
+        self.http.unblock();
+        if let Some(t) = self.accept.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// Takes requests and answers each on a thread of its own, up to [`MAX_REQUESTS`].
+fn accept_loop(http: &tiny_http::Server, shared: &Arc<Shared>) {
+    let busy = Arc::new(AtomicUsize::new(0));
+    for request in http.incoming_requests() {
+        if busy.load(Ordering::Relaxed) >= MAX_REQUESTS {
+            let _ = request.respond(
+                tiny_http::Response::from_string("too many requests\n").with_status_code(503),
+            );
+            continue;
+        }
+        busy.fetch_add(1, Ordering::Relaxed);
+        let (shared, done) = (Arc::clone(shared), Arc::clone(&busy));
+        let spawned = std::thread::Builder::new()
+            .name("serve-request".into())
+            .spawn(move || {
+                routes::handle(request, &shared);
+                done.fetch_sub(1, Ordering::Relaxed);
+            });
+        if spawned.is_err() {
+            busy.fetch_sub(1, Ordering::Relaxed);
+        }
+    }
+}
+
+/// Feeds a [`Server`] from a session ([`crate::stream::run_watched`]). Each call copies
+/// into bounded structures and returns; it never waits for a client.
+pub struct LiveWatch {
+    shared: Arc<Shared>,
+    last_status: Option<Instant>,
+    /// Whether the status has the tile size (the manifest has it only at the end).
+    tile_size_shown: bool,
+    /// (when, tiles, bytes), for the recent rate.
+    samples: VecDeque<(Instant, u64, u64)>,
+}
+
+impl LiveWatch {
+    /// Tiles and bytes a second over the last two seconds or so.
+    fn rate(&mut self, m: &Manifest, now: Instant) -> Rate {
+        self.samples.push_back((now, m.tiles_received, m.bytes));
+        while self.samples.len() > 2
+            && self
+                .samples
+                .front()
+                .is_some_and(|s| now - s.0 > Duration::from_secs(2))
+        {
+            self.samples.pop_front();
+        }
+        let Some(&(then, tiles, bytes)) = self.samples.front() else {
+            return Rate::default();
+        };
+        let secs = (now - then).as_secs_f64();
+        if secs <= 0.0 {
+            return Rate::default();
+        }
+        Rate {
+            tiles_per_s: (m.tiles_received - tiles) as f64 / secs,
+            bytes_per_s: (m.bytes - bytes) as f64 / secs,
+        }
+    }
+}
+
+impl Watch for LiveWatch {
+    fn tile(&mut self, tile: &protocol::Tile<'_>, _manifest: &Manifest) {
+        let size = (usize::from(tile.width), usize::from(tile.height));
+        // The clients' lock is held while the tile is kept and handed out, so a client
+        // subscribing meanwhile gets it once (see events::subscribe).
+        if !self.tile_size_shown {
+            self.tile_size_shown = true;
+            lock(&self.shared.status).tile_size = Some([tile.width, tile.height]);
+        }
+        let mut clients = lock(&self.shared.clients);
+        lock(&self.shared.ring).push(tile.index, size, tile.pixels);
+        if !clients.is_empty() {
+            let event = events::tile_event(tile.index, size, tile.pixels);
+            Shared::broadcast(&mut clients, &event);
+        }
+    }
+
+    fn message(&mut self, manifest: &Manifest) {
+        let now = Instant::now();
+        if self.last_status.is_some_and(|t| now - t < STATUS_EVERY) {
+            return;
+        }
+        self.last_status = Some(now);
+        let rate = self.rate(manifest, now);
+        let mut status = {
+            let mut status = lock(&self.shared.status);
+            status.update(manifest, rate);
+            status.clone()
+        };
+        let mut clients = lock(&self.shared.clients);
+        if !clients.is_empty() {
+            status.uptime_s = self.shared.started.elapsed().as_secs_f64();
+            status.clients = clients.len();
+            Shared::broadcast(&mut clients, &events::status_event(&status));
+        }
+    }
+
+    fn command(&mut self) -> Option<Command> {
+        lock(&self.shared.commands).pop_front()
+    }
+}

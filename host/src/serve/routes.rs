@@ -1,0 +1,210 @@
+//! The server's answers: the page, `/status.json`, `/strip.png`, `/events` and, with
+//! `--control`, the commands.
+
+use super::events;
+use super::state::{COMMAND_QUEUE, KEPT_ROWS, Shared, lock};
+use rollfuse_core::device::controller::MAX_SPEED_UM_S;
+use rollfuse_core::protocol::{Command, RollerCommand};
+use std::io::Write;
+use tiny_http::{Header, Method, Request, Response, StatusCode};
+
+/// The page, with its script and style; it loads nothing else.
+const PAGE: &str = include_str!("page.html");
+
+/// Rows `/strip.png` gives without `?rows=`.
+const DEFAULT_PNG_ROWS: usize = 512;
+
+/// Belt speed a roller start asks for without `?speed_um_s=`, µm/s.
+const DEFAULT_SPEED_UM_S: u32 = 10_000;
+
+/// A response with a body held in memory.
+type Answer = Response<std::io::Cursor<Vec<u8>>>;
+
+fn header(name: &str, value: &str) -> Header {
+    // Names and values here are fixed ASCII, which tiny_http always takes.
+    Header::from_bytes(name.as_bytes(), value.as_bytes()).expect("an ASCII header")
+}
+
+fn answer(code: u16, content_type: &str, body: Vec<u8>) -> Answer {
+    Response::from_data(body)
+        .with_status_code(StatusCode(code))
+        .with_header(header("Content-Type", content_type))
+        .with_header(header("Cache-Control", "no-store"))
+}
+
+fn text(code: u16, message: &str) -> Answer {
+    answer(
+        code,
+        "text/plain; charset=utf-8",
+        format!("{message}\n").into_bytes(),
+    )
+}
+
+/// Answers one request (an `/events` request holds its thread until the client goes).
+pub fn handle(request: Request, shared: &Shared) {
+    let url = request.url().to_string();
+    let (path, query) = url.split_once('?').unwrap_or((&url, ""));
+    let method = request.method().clone();
+    let reply = match (&method, path) {
+        (Method::Get, "/events") => return events_stream(request, shared),
+        (Method::Get | Method::Head, "/" | "/index.html") => {
+            answer(200, "text/html; charset=utf-8", PAGE.as_bytes().to_vec())
+        }
+        (Method::Get | Method::Head, "/status.json") => status_json(shared),
+        (Method::Get | Method::Head, "/strip.png") => strip_png(shared, query),
+        (Method::Post, p) if p.starts_with("/control/") => control(&request, shared, p, query),
+        (_, "/" | "/index.html" | "/status.json" | "/strip.png" | "/events") => {
+            text(405, "method not allowed: this path is read with GET")
+        }
+        (_, p) if p.starts_with("/control/") => text(405, "control requests are POST"),
+        _ => text(404, &format!("no such page: {path}")),
+    };
+    // A client gone before its answer is no concern of the stream.
+    let _ = request.respond(reply);
+}
+
+fn status_json(shared: &Shared) -> Answer {
+    let json = serde_json::to_vec_pretty(&shared.status_now()).unwrap_or_default();
+    answer(200, "application/json", json)
+}
+
+/// The value of `name` in a query string.
+fn query_value<'q>(query: &'q str, name: &str) -> Option<&'q str> {
+    query
+        .split('&')
+        .filter_map(|kv| kv.split_once('='))
+        .find_map(|(k, v)| (k == name).then_some(v))
+}
+
+/// `?rows=N`, checked: 1..=[`KEPT_ROWS`].
+fn rows_asked(query: &str) -> Result<usize, String> {
+    let Some(v) = query_value(query, "rows") else {
+        return Ok(DEFAULT_PNG_ROWS);
+    };
+    match v.parse::<usize>() {
+        Ok(n) if (1..=KEPT_ROWS).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "rows must be a whole number from 1 to {KEPT_ROWS} (the rows kept), got `{v}`"
+        )),
+    }
+}
+
+fn strip_png(shared: &Shared, query: &str) -> Answer {
+    let rows = match rows_asked(query) {
+        Ok(n) => n,
+        Err(message) => return text(400, &message),
+    };
+    let newest = lock(&shared.ring).newest_rows(rows);
+    let Some((width, height, pixels)) = newest else {
+        return text(503, "no tile has arrived yet");
+    };
+    match encode_png(width, height, &pixels) {
+        Ok(png) => answer(200, "image/png", png),
+        Err(e) => text(500, &format!("cannot encode the strip: {e}")),
+    }
+}
+
+/// 8-bit gray pixels as a PNG file's bytes.
+fn encode_png(width: usize, height: usize, pixels: &[u8]) -> anyhow::Result<Vec<u8>> {
+    use image::ImageEncoder;
+    let mut png = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut png).write_image(
+        pixels,
+        u32::try_from(width)?,
+        u32::try_from(height)?,
+        image::ExtendedColorType::L8,
+    )?;
+    Ok(png)
+}
+
+/// Hands the connection to the event stream: the headers written here, because the
+/// events must leave as they come (tiny_http's bodies are buffered and chunked).
+fn events_stream(request: Request, shared: &Shared) {
+    let (first, feed) = events::subscribe(shared);
+    let mut out = request.into_writer();
+    let head = "HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\n\
+                Cache-Control: no-store\r\nConnection: close\r\n\r\n";
+    if out.write_all(head.as_bytes()).is_ok() {
+        events::serve_client(&mut out, first, feed);
+    }
+}
+
+/// Whether the request carries the control token (`Authorization: Bearer TOKEN`).
+fn authorized(request: &Request, token: &str) -> bool {
+    request.headers().iter().any(|h| {
+        h.field.equiv("Authorization")
+            && h.value
+                .as_str()
+                .strip_prefix("Bearer ")
+                .is_some_and(|given| same_secret(given.trim(), token))
+    })
+}
+
+/// Compares two strings in time independent of where they differ.
+fn same_secret(a: &str, b: &str) -> bool {
+    a.len() == b.len() && a.bytes().zip(b.bytes()).fold(0u8, |d, (x, y)| d | (x ^ y)) == 0
+}
+
+/// A control request: checked (control on, token, live device), then queued for the
+/// session to send.
+fn control(request: &Request, shared: &Shared, path: &str, query: &str) -> Answer {
+    let Some(token) = &shared.token else {
+        return text(403, "control is off: start the stream with --control");
+    };
+    if !authorized(request, token) {
+        return text(
+            401,
+            "a control request needs the token printed at start-up (Authorization: Bearer TOKEN)",
+        )
+        .with_header(header("WWW-Authenticate", "Bearer"));
+    }
+    let command = match command_for(path, query) {
+        Ok(c) => c,
+        Err((code, message)) => return text(code, &message),
+    };
+    if !shared.live {
+        return text(
+            409,
+            "the tiles come from a recording: there is no device to command",
+        );
+    }
+    let mut queue = lock(&shared.commands);
+    if queue.len() >= COMMAND_QUEUE {
+        return text(503, "commands are waiting to be sent; try again");
+    }
+    queue.push_back(command);
+    text(202, "queued for the device")
+}
+
+/// The command a control path names.
+fn command_for(path: &str, query: &str) -> Result<Command, (u16, String)> {
+    let speed = || -> Result<u32, (u16, String)> {
+        let Some(v) = query_value(query, "speed_um_s") else {
+            return Ok(DEFAULT_SPEED_UM_S);
+        };
+        match v.parse::<u32>() {
+            Ok(s) if (1..=MAX_SPEED_UM_S).contains(&s) => Ok(s),
+            _ => Err((
+                400,
+                format!("speed_um_s must be 1..={MAX_SPEED_UM_S}, got `{v}`"),
+            )),
+        }
+    };
+    Ok(match path {
+        "/control/roller/start" => Command::Roller(RollerCommand::Start {
+            speed_um_s: speed()?,
+        }),
+        "/control/roller/speed" => Command::Roller(RollerCommand::Speed {
+            speed_um_s: speed()?,
+        }),
+        "/control/roller/stop" => Command::Roller(RollerCommand::Stop),
+        _ => {
+            return Err((
+                404,
+                format!(
+                    "no such control: {path} (there are /control/roller/start, /control/roller/speed, /control/roller/stop)"
+                ),
+            ));
+        }
+    })
+}
