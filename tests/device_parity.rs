@@ -102,8 +102,11 @@ fn lifted_memory_accepts_what_the_firmware_cannot_hold() {
     let scene = letters();
     let mut bounded = SimDevice::start(&scene).unwrap();
     let mut unbounded = SimDevice::start_with(&scene, DeviceMemory::Unbounded).unwrap();
+    // Full resolution in 48-row tiles: two work images of 48 × 320 words, more than the
+    // module's 16 Ki.
     let full_resolution = Command::Configure(DeviceConfig {
         downsample: 1,
+        tile_rows: 48,
         ..bounded.default_config()
     });
     assert_eq!(

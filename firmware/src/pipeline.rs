@@ -10,7 +10,7 @@ use crate::{frame_clock, fw_warn, liveness, roller};
 use embassy_futures::select::{Either4, select4};
 use embassy_time::{Duration, Timer, with_timeout};
 use rollfuse_core::device::{
-    CAMERA, Capture, Event, Handed, ModuleBuffers, Next, Order, Outlet, PipelineConfig, Session,
+    CAMERA, Capture, Event, Handed, Next, Order, Outlet, PipelineBuffers, PipelineConfig, Session,
     raw_chunks,
 };
 use rollfuse_core::protocol::Tile;
@@ -178,10 +178,10 @@ async fn on_trigger(
 pub async fn run(
     camera: &mut impl Camera,
     frame: &'static mut [u32; FRAME_WORDS],
-    buffers: &'static mut ModuleBuffers,
+    buffers: PipelineBuffers<'static>,
     initial: PipelineConfig,
 ) {
-    let Ok(mut session) = Session::new(initial, buffers.buffers()) else {
+    let Ok(mut session) = Session::new(initial, buffers) else {
         fw_warn!("pipeline buffers too small for the configuration");
         return;
     };

@@ -48,7 +48,7 @@ fn a_silent_camera_blocks_no_order_and_is_reported() {
     let config = PipelineConfig::from_wire(&DeviceConfig::default(), CAMERA).unwrap();
     assert!(config.memory().fits(&MCU_CAPACITY));
     let frame: &'static mut _ = Box::leak(Box::new([0u32; FRAME_WORDS]));
-    let buffers: &'static mut _ = Box::leak(Box::new(ModuleBuffers::new()));
+    let buffers = Box::leak(Box::new(ModuleBuffers::new())).buffers();
     let (mut camera, mut leds, mut pins) = (Silent, MockLeds, Pins);
     let test = async {
         STREAM.send(Order::Start).await;

@@ -93,6 +93,37 @@ fn the_default_configuration_needs_what_the_formula_says() {
     }
 }
 
+/// The module's memory holds the camera's full resolution: every 1× configuration of the
+/// trade-off study (both wavelets, 1–3 levels, either normalization) on the integer path,
+/// and its fusion memory (tiles, work, profiles) fits the H743's 128 KiB DTCM, where the
+/// firmware places it.
+#[test]
+fn full_resolution_fits_the_module() {
+    use rollfuse_core::device::{MCU_CAPACITY, ModuleWork};
+    use rollfuse_core::protocol::{NormMode, WaveletId};
+    for wavelet in [WaveletId::Haar, WaveletId::Db2] {
+        for levels in 1..=3 {
+            for norm in [NormMode::PerFrame, NormMode::PerTile] {
+                let wire = DeviceConfig {
+                    wavelet,
+                    levels,
+                    norm,
+                    downsample: 1,
+                    ..DeviceConfig::default()
+                };
+                let cfg = PipelineConfig::from_wire(&wire, QVGA).unwrap();
+                assert_eq!(cfg.precision, Precision::Fixed);
+                assert!(
+                    cfg.memory().fits(&MCU_CAPACITY),
+                    "{wire:?}: {:?}",
+                    cfg.memory()
+                );
+            }
+        }
+    }
+    assert!(core::mem::size_of::<ModuleWork>() <= 128 * 1024);
+}
+
 /// A gray belt with texture everywhere, as the camera sees it at belt row `offset`.
 fn belt_frame(offset: usize, w: usize, h: usize) -> Vec<u8> {
     (0..w * h)

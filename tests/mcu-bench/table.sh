@@ -28,7 +28,7 @@ echo
 echo "Default configuration (db2, 2 levels, 2× downsampling, per-frame normalization, QVGA YUYV in):"
 echo
 awk -F, '
-    /^kernel/ { k[$2] = $10; kp[$2] = $11; kpx[$2] = $7 }
+    /^kernel,[^,]*,db2,2,2,/ { k[$2] = $10; kp[$2] = $11; kpx[$2] = $7 }
     /^pipeline,frame_fixed,db2,2,2,frame/ { frame = $10; per = $11; obs = $12 }
     /^tile,fuse_fixed,db2,2,2,frame/ { fuse = $10; fusepx = $11; tilepx = $7 }
     /^tile,fuse_f32,db2,2,2,frame/ { fuse32 = $10; fuse32px = $11 }

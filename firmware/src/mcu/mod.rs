@@ -14,7 +14,7 @@ use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{Config, Peri, bind_interrupts, dcmi, dma, i2c, interrupt, peripherals, usb};
 use embassy_time::{Instant, Timer};
 use rollfuse_core::protocol::DeviceConfig;
-use rollfuse_fw::buffers::{FRAME, PIPELINE, TX};
+use rollfuse_fw::buffers::{self, FRAME, TX};
 use rollfuse_fw::pipeline;
 use rollfuse_fw::roller::{self, StepPins};
 use rollfuse_fw::{effects, link, liveness, outbox, stack_guard};
@@ -113,6 +113,15 @@ fn clocks() -> Config {
 #[embassy_executor::main]
 async fn main(_spawner: Spawner) {
     let p = embassy_stm32::init(clocks());
+    // D2 SRAM1–3 (the camera's frame) clocked for the CPU, then the DTCM and D2 sections
+    // given the zeros their statics were built with (firmware/src/buffers.rs).
+    embassy_stm32::pac::RCC.ahb2enr().modify(|w| {
+        w.set_sram1en(true);
+        w.set_sram2en(true);
+        w.set_sram3en(true);
+    });
+    // SAFETY: first thing after the clocks; nothing has taken a placed static yet.
+    unsafe { buffers::zero_placed() };
     info!("rollfuse-fw {}", env!("CARGO_PKG_VERSION"));
     guard_stack_and_cache_code();
     self_test();
@@ -161,7 +170,7 @@ async fn main(_spawner: Spawner) {
             link::serve(&mut read_ep, &mut write_ep, &mut controller, tx).await;
         }
     };
-    let frames = pipeline::run(&mut camera, FRAME.take(), PIPELINE.take(), initial);
+    let frames = pipeline::run(&mut camera, FRAME.take(), buffers::pipeline(), initial);
     let effects = effects::run(&mut leds);
     let alive = feed_watchdog(p.IWDG1, p.PB0);
     join5(device.run(), serve, effects, alive, frames).await;

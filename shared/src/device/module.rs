@@ -15,24 +15,65 @@ pub const CAMERA: Sensor = Sensor {
     format: PixelFormat::Yuyv,
 };
 
-/// The pipeline buffers the firmware reserves ([`ModuleBuffers`]): the camera's frame
-/// downsampled at least 2×, 48 KiB of tiles, 16 Ki words of work area, the row profiles
-/// of a 2×-downsampled frame. The controller refuses configurations that need more
+/// The pipeline buffers the firmware reserves ([`ModuleFrame`] and [`ModuleWork`]): the
+/// camera's whole frame at full resolution (so every downsampling factor, 1× included),
+/// 48 KiB of tiles, 16 Ki words of work area, the row profiles of a full-resolution frame.
+/// Tiles, work and profiles are sized to fit the H743's 128 KiB DTCM together (the
+/// firmware's `memory.x`). The controller refuses configurations that need more
 /// (`Controller::with_capacity`).
 pub const MCU_CAPACITY: Memory = Memory {
-    frame_bytes: (CAMERA.width / 2) * (CAMERA.height / 2),
+    frame_bytes: CAMERA.width * CAMERA.height,
     tile_bytes: 48 * 1024,
     work_words: 16 * 1024,
-    profile_words: 2 * (CAMERA.height / 2 - 1),
+    profile_words: 2 * (CAMERA.height - 1),
 };
 
-/// The pipeline's buffers at [`MCU_CAPACITY`], as fixed arrays: const-initialized, so a
-/// `static` of them is placed by the linker and costs no stack.
-pub struct ModuleBuffers {
-    frame: [u8; MCU_CAPACITY.frame_bytes],
+/// The downsampled observation window at [`MCU_CAPACITY`]: written once per frame and
+/// read by the kernels that follow, so the firmware may place it apart from the fusion's
+/// work ([`ModuleWork`]).
+pub type ModuleFrame = [u8; MCU_CAPACITY.frame_bytes];
+
+/// The fusion's memory at [`MCU_CAPACITY`] — tiles, work area and row profiles — as
+/// fixed arrays: const-initialized, so a `static` of it is placed by the linker and costs
+/// no stack. Every fused tile reads and writes it many times over.
+pub struct ModuleWork {
     tiles: [u8; MCU_CAPACITY.tile_bytes],
     work: [i32; MCU_CAPACITY.work_words],
     profiles: [i32; MCU_CAPACITY.profile_words],
+}
+
+impl Default for ModuleWork {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ModuleWork {
+    /// All zero.
+    pub const fn new() -> Self {
+        Self {
+            tiles: [0; MCU_CAPACITY.tile_bytes],
+            work: [0; MCU_CAPACITY.work_words],
+            profiles: [0; MCU_CAPACITY.profile_words],
+        }
+    }
+
+    /// The pipeline's buffers: `frame` for the window, the rest from here.
+    pub fn buffers<'a>(&'a mut self, frame: &'a mut ModuleFrame) -> PipelineBuffers<'a> {
+        PipelineBuffers {
+            frame,
+            tiles: &mut self.tiles,
+            work: &mut self.work,
+            profiles: &mut self.profiles,
+        }
+    }
+}
+
+/// The pipeline's buffers at [`MCU_CAPACITY`] in one value, for the host's virtual device
+/// and tests (the firmware keeps [`ModuleFrame`] and [`ModuleWork`] in different RAMs).
+pub struct ModuleBuffers {
+    frame: ModuleFrame,
+    work: ModuleWork,
 }
 
 impl Default for ModuleBuffers {
@@ -46,19 +87,12 @@ impl ModuleBuffers {
     pub const fn new() -> Self {
         Self {
             frame: [0; MCU_CAPACITY.frame_bytes],
-            tiles: [0; MCU_CAPACITY.tile_bytes],
-            work: [0; MCU_CAPACITY.work_words],
-            profiles: [0; MCU_CAPACITY.profile_words],
+            work: ModuleWork::new(),
         }
     }
 
     /// The buffers, for a [`super::Pipeline`] or a [`super::Session`].
     pub fn buffers(&mut self) -> PipelineBuffers<'_> {
-        PipelineBuffers {
-            frame: &mut self.frame,
-            tiles: &mut self.tiles,
-            work: &mut self.work,
-            profiles: &mut self.profiles,
-        }
+        self.work.buffers(&mut self.frame)
     }
 }

@@ -16,7 +16,7 @@ use embassy_futures::join::join5;
 use embassy_futures::select::select;
 use embassy_time::Timer;
 use rollfuse_core::protocol::{DeviceConfig, LedDuty};
-use rollfuse_fw::buffers::{FRAME, PIPELINE, TX};
+use rollfuse_fw::buffers::{self, FRAME, TX};
 use rollfuse_fw::effects::{self, Leds};
 use rollfuse_fw::roller::{self, StepPins};
 use rollfuse_fw::{link, liveness, outbox, pipeline, stack_guard};
@@ -123,6 +123,8 @@ async fn roller_task(mut pins: Pins, spacing_px: u16) {
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
+    // SAFETY: first thing; nothing has taken a placed static yet.
+    unsafe { buffers::zero_placed() };
     let Some(mut core) = cortex_m::Peripherals::take() else {
         fail("core peripherals taken");
     };
@@ -151,7 +153,7 @@ async fn main(spawner: Spawner) {
         }
     };
     let mut camera = camera::Sensor;
-    let frames = pipeline::run(&mut camera, FRAME.take(), PIPELINE.take(), initial);
+    let frames = pipeline::run(&mut camera, FRAME.take(), buffers::pipeline(), initial);
     let mut leds = MockLeds;
     let effects = effects::run(&mut leds);
 

@@ -135,7 +135,13 @@ pub fn all(clock: &Clock, out: &mut impl FnMut(&Row)) -> bool {
         fb: [0.0; 16 * WIDTH],
         fscratch: [0.0; 8 * 1024],
     };
-    let mut ok = kernels(clock, &mut b, out);
+    let full = Setup {
+        wavelet: WaveletId::Db2,
+        levels: 1,
+        downsample: 1,
+        per_frame: true,
+    };
+    let mut ok = kernels(clock, &mut b, DEFAULT, out) && kernels(clock, &mut b, full, out);
     for wavelet in [WaveletId::Haar, WaveletId::Db2] {
         for levels in 1..=3 {
             for downsample in [1, 2, 4] {
@@ -274,15 +280,16 @@ fn tile_fuse(clock: &Clock, b: &mut Buffers, setup: Setup, out: &mut impl FnMut(
     true
 }
 
-/// The pipeline's parts at the default configuration (db2, 2 levels, 2× downsampling,
-/// per-frame normalization), each on the data it sees there.
-fn kernels(clock: &Clock, b: &mut Buffers, out: &mut impl FnMut(&Row)) -> bool {
-    let setup = Setup {
-        wavelet: WaveletId::Db2,
-        levels: 2,
-        downsample: 2,
-        per_frame: true,
-    };
+/// The default configuration: db2, 2 levels, 2× downsampling, per-frame normalization.
+const DEFAULT: Setup = Setup {
+    wavelet: WaveletId::Db2,
+    levels: 2,
+    downsample: 2,
+    per_frame: true,
+};
+
+/// The pipeline's parts at `setup` (normalized per frame), each on the data it sees there.
+fn kernels(clock: &Clock, b: &mut Buffers, setup: Setup, out: &mut impl FnMut(&Row)) -> bool {
     let Some(cfg) = setup.config() else {
         return false;
     };
@@ -306,7 +313,7 @@ fn kernels(clock: &Clock, b: &mut Buffers, out: &mut impl FnMut(&Row)) -> bool {
             &b.camera,
             SENSOR.format,
             (WIDTH, HEIGHT),
-            2,
+            usize::from(setup.downsample),
             window,
             &mut b.frame,
         )
@@ -337,12 +344,12 @@ fn kernels(clock: &Clock, b: &mut Buffers, out: &mut impl FnMut(&Row)) -> bool {
         *v = i32::from(p);
     }
     let (ints, scratch) = (&mut b.ints[..n], &mut b.work[..]);
-    let (r, i) = clock.instructions(|| forward_2d(Wavelet::Db2, ints, tile, 2, scratch));
+    let (r, i) = clock.instructions(|| forward_2d(Wavelet::Db2, ints, tile, setup.levels, scratch));
     if r.is_err() {
         return false;
     }
     row("forward_2d", n, i);
-    let (r, i) = clock.instructions(|| inverse_2d(Wavelet::Db2, ints, tile, 2, scratch));
+    let (r, i) = clock.instructions(|| inverse_2d(Wavelet::Db2, ints, tile, setup.levels, scratch));
     if r.is_err() {
         return false;
     }
