@@ -103,14 +103,14 @@ impl Samples<'_> {
             ),
         };
         anyhow::ensure!(h > 0 && w > 0, "{what} is empty ({h}×{w})");
-        let planes = match self {
-            Samples::U8(a) => split(a, c, f32::from),
-            Samples::U16(a) => split(a, c, from_u16),
-            Samples::F32(a) => split(a, c, |v| v),
-            Samples::F64(a) => split(a, c, |v| v as f32),
+        let (planes, float) = match self {
+            Samples::U8(a) => (split(a, c, f32::from), false),
+            Samples::U16(a) => (split(a, c, from_u16), false),
+            Samples::F32(a) => (split(a, c, |v| v), true),
+            Samples::F64(a) => (split(a, c, |v| v as f32), true),
         };
         anyhow::ensure!(
-            planes.iter().flatten().all(|v| v.is_finite()),
+            !float || planes.iter().flatten().all(|v| v.is_finite()),
             "{what} holds values that are not finite (NaN or infinity)"
         );
         Ok(Planes {
@@ -146,6 +146,16 @@ pub fn shape_text(shape: &[usize]) -> String {
 
 /// The `c` channel planes of an (H, W) or (H, W, c) view, each row-major.
 fn split<T: Copy>(a: &ArrayViewD<'_, T>, c: usize, f: impl Fn(T) -> f32) -> Vec<Vec<f32>> {
+    // A contiguous array is read as a slice: iterating a dynamic-rank view indexes every
+    // element, which costs as much as the fusion of uint8 frames.
+    if let Some(s) = a.as_slice() {
+        if c == 1 {
+            return vec![s.iter().map(|&v| f(v)).collect()];
+        }
+        return (0..c)
+            .map(|k| s.iter().skip(k).step_by(c).map(|&v| f(v)).collect())
+            .collect();
+    }
     if a.ndim() == 2 {
         return vec![a.iter().map(|&v| f(v)).collect()];
     }
