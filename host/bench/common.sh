@@ -14,3 +14,12 @@ print_ratio() {
     printf '%-34s %.4f s\n' "$3:" "$4"
     printf 'ratio (reference / rollfuse): %.2f×\n' "$(echo "$4 / $2" | bc -l)"
 }
+
+# letters_1280 BIN OUT: six frames of the letters scene at 1280×960 (the same field of
+# view, finer pixels) simulated by BIN into OUT/frames; OUT must exist.
+letters_1280() {
+    sed -e 's/^mm_per_px = .*/mm_per_px = 0.0125/' -e 's/^width_px = .*/width_px = 1280/' \
+        -e 's/^height_px = .*/height_px = 960/' -e 's/^frames = .*/frames = 6/' \
+        host/scenes/letters.toml > "$2/letters_1280.toml"
+    "$1" simulate "$2/letters_1280.toml" --out "$2/frames" > /dev/null
+}

@@ -19,14 +19,9 @@ trap 'rm -rf "$work"' EXIT
 
 cargo build --release -q -p rollfuse
 bin=target/release/rollfuse
-# Six frames of the letters scene at 1280×960 (the same field of view, finer pixels).
-sed -e 's/^mm_per_px = .*/mm_per_px = 0.0125/' -e 's/^width_px = .*/width_px = 1280/' \
-    -e 's/^height_px = .*/height_px = 960/' -e 's/^frames = .*/frames = 6/' \
-    host/scenes/letters.toml > "$work/letters_1280.toml"
-"$bin" simulate "$work/letters_1280.toml" --out "$work/frames" > /dev/null
-frames=("$work"/frames/frame_000{0..5}.png)
-
 source host/bench/common.sh
+letters_1280 "$bin" "$work"
+frames=("$work"/frames/frame_000{0..5}.png)
 best_rust=""
 best_py=""
 for _ in $(seq "$rounds"); do

@@ -23,14 +23,9 @@ py="$work/venv/bin/python"
 "$work/venv/bin/pip" install -q numpy pillow PyWavelets
 CARGO_TARGET_DIR="$PWD/target" MATURIN_PEP517_ARGS="--strip" "$work/venv/bin/pip" install -q ./python
 
-# Six frames of the letters scene at 1280×960, as host/bench/compare.sh makes them.
-sed -e 's/^mm_per_px = .*/mm_per_px = 0.0125/' -e 's/^width_px = .*/width_px = 1280/' \
-    -e 's/^height_px = .*/height_px = 960/' -e 's/^frames = .*/frames = 6/' \
-    host/scenes/letters.toml > "$work/letters_1280.toml"
-"$bin" simulate "$work/letters_1280.toml" --out "$work/frames" > /dev/null
-frames=("$work"/frames/frame_000{0..5}.png)
-
 source host/bench/common.sh
+letters_1280 "$bin" "$work"
+frames=("$work"/frames/frame_000{0..5}.png)
 best_cli="" best_module="" best_ref=""
 for _ in $(seq "$rounds"); do
     cli=$("$bin" fuse "${frames[@]}" --out "$work/cli.png" --align none --levels 1 |
