@@ -270,3 +270,6 @@ impl Watch for LiveWatch {
         lock(&self.shared.commands).pop_front()
     }
 }
+
+#[cfg(test)]
+mod tests;

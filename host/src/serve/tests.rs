@@ -1,0 +1,116 @@
+//! The client queue's behaviour without sockets: a client that does not read never holds
+//! up the watcher, and once it reads again it is told what it missed and goes on from the
+//! newest tiles.
+
+use super::state::{CLIENT_QUEUE, Shared, Status, lock};
+use super::{LiveWatch, events};
+use crate::stream::{Manifest, Watch};
+use rollfuse_core::protocol::Tile;
+use std::io::Write;
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, SyncSender};
+
+/// A client whose every write waits until the test lets it go.
+struct HeldClient {
+    gate: Receiver<()>,
+    written: SyncSender<Vec<u8>>,
+}
+
+impl Write for HeldClient {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.gate
+            .recv()
+            .map_err(|_| std::io::Error::other("released"))?;
+        let _ = self.written.send(buf.to_vec());
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+fn shared() -> Arc<Shared> {
+    Arc::new(Shared {
+        started: std::time::Instant::now(),
+        token: None,
+        live: false,
+        status: std::sync::Mutex::new(Status::default()),
+        ring: Default::default(),
+        clients: Default::default(),
+        commands: Default::default(),
+    })
+}
+
+fn tile(index: u32, pixels: &[u8]) -> Tile<'_> {
+    Tile {
+        index,
+        width: 4,
+        height: 2,
+        observations: 1,
+        pixels,
+    }
+}
+
+/// The tile indices and skipped-row counts in an event stream, in order.
+fn read_events(text: &str) -> (Vec<u64>, Vec<u64>) {
+    let (mut tiles, mut skipped) = (Vec::new(), Vec::new());
+    for block in text.split("\n\n") {
+        let Some((name, data)) = block.split_once("\ndata: ") else {
+            continue;
+        };
+        let json: serde_json::Value = serde_json::from_str(data).unwrap();
+        match name {
+            "event: tile" => tiles.push(json["index"].as_u64().unwrap()),
+            "event: skipped" => skipped.push(json["rows"].as_u64().unwrap()),
+            _ => {}
+        }
+    }
+    (tiles, skipped)
+}
+
+#[test]
+fn a_stuck_client_skips_rows_and_never_holds_up_the_watcher() {
+    let shared = shared();
+    let mut watch = LiveWatch {
+        shared: Arc::clone(&shared),
+        last_status: None,
+        tile_size_shown: false,
+        samples: Default::default(),
+    };
+    let (release, gate) = std::sync::mpsc::sync_channel(0);
+    let (written, output) = std::sync::mpsc::sync_channel(10_000);
+    let (first, feed) = events::subscribe(&shared);
+    let client = std::thread::spawn(move || {
+        let mut out = HeldClient { gate, written };
+        events::serve_client(&mut out, first, feed);
+    });
+    // Four times the queue, while the client cannot write a byte: each call returns.
+    let pixels = [7u8; 8];
+    let m = Manifest::default();
+    let total = 4 * CLIENT_QUEUE as u32;
+    for i in 0..total {
+        watch.tile(&tile(i, &pixels), &m);
+    }
+    // Let the client write again: it says what it skipped.
+    let releaser = std::thread::spawn(move || while release.send(()).is_ok() {});
+    let mut text = String::new();
+    while !text.contains("event: skipped") {
+        text += &String::from_utf8(output.recv().unwrap()).unwrap();
+    }
+    // Then it goes on from the newest tiles.
+    for i in total..total + 10 {
+        watch.tile(&tile(i, &pixels), &m);
+    }
+    shared.close_clients();
+    client.join().unwrap();
+    releaser.join().unwrap();
+    text.extend(output.try_iter().map(|b| String::from_utf8(b).unwrap()));
+    let (tiles, skipped) = read_events(&text);
+    // It skipped once, every row counted, and got the newest tiles in order.
+    assert_eq!(skipped, vec![2 * u64::from(total)], "{text}");
+    assert_eq!(
+        tiles,
+        (u64::from(total)..u64::from(total) + 10).collect::<Vec<_>>()
+    );
+    assert_eq!(lock(&shared.ring).tiles.len() as u32, total + 10);
+}

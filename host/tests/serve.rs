@@ -1,0 +1,337 @@
+//! `stream --serve` over real HTTP on a loopback port: the endpoints and their errors, the
+//! event stream delivering every tile in order, the control token, clients that read
+//! slowly or not at all, and the command line's outputs unchanged by serving.
+
+use rollfuse::link::sim::{DeviceMemory, SimDevice};
+use rollfuse::progress::Silent;
+use rollfuse::serve::{ServeOptions, Server};
+use rollfuse::sim::Scene;
+use rollfuse::stream::{self, Options, Outcome};
+use std::io::{BufRead, BufReader, Read, Write};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Duration;
+
+fn letters(frames: usize) -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/letters.toml");
+    let mut scene = Scene::load(&path).unwrap();
+    scene.sensor.frames = frames;
+    scene
+}
+
+fn options(out: &Path) -> Options {
+    Options {
+        out: out.to_path_buf(),
+        config: None,
+        max_tiles: None,
+        max_duration: None,
+        record: None,
+    }
+}
+
+fn server(control: bool) -> Server {
+    Server::start(&ServeOptions {
+        addr: "127.0.0.1:0".parse().unwrap(),
+        control,
+        source: "sim".into(),
+        live: true,
+    })
+    .unwrap()
+}
+
+/// Streams `scene` from the virtual device into `out`, feeding `server`, and finishes it.
+fn stream_served(scene: &Scene, out: &Path, server: &Server) -> Outcome {
+    let mut dev = SimDevice::start(scene).unwrap();
+    let outcome = stream::run_watched(&mut dev, &options(out), &Silent, &mut server.watcher());
+    let outcome = outcome.unwrap();
+    server.finish(&outcome.manifest);
+    outcome
+}
+
+fn agent() -> ureq::Agent {
+    let config = ureq::Agent::config_builder()
+        .http_status_as_error(false)
+        .timeout_global(Some(Duration::from_secs(60)))
+        .build();
+    ureq::Agent::new_with_config(config)
+}
+
+/// Status and body of a GET.
+fn get(server: &Server, path: &str) -> (u16, Vec<u8>) {
+    let url = format!("http://{}{path}", server.addr());
+    let mut response = agent().get(&url).call().unwrap();
+    let status = response.status().as_u16();
+    (status, response.body_mut().read_to_vec().unwrap())
+}
+
+/// Status of a POST with the given token, if any.
+fn post(server: &Server, path: &str, token: Option<&str>) -> u16 {
+    let url = format!("http://{}{path}", server.addr());
+    let mut request = agent().post(&url);
+    if let Some(t) = token {
+        request = request.header("Authorization", &format!("Bearer {t}"));
+    }
+    request.send_empty().unwrap().status().as_u16()
+}
+
+/// A tile event's index and pixels.
+struct TileEvent {
+    index: u32,
+    pixels: Vec<u8>,
+}
+
+/// Reads `/events` until the stream's end: the tiles, and the names of all events.
+fn read_events(reader: impl Read) -> (Vec<TileEvent>, Vec<String>) {
+    use base64::Engine;
+    let (mut tiles, mut names) = (Vec::new(), Vec::new());
+    let mut name = String::new();
+    for line in BufReader::new(reader).lines() {
+        let line = line.unwrap();
+        if let Some(n) = line.strip_prefix("event: ") {
+            name = n.to_string();
+            names.push(name.clone());
+        } else if let Some(data) = line.strip_prefix("data: ") {
+            let json: serde_json::Value = serde_json::from_str(data).unwrap();
+            if name == "tile" {
+                let b64 = json["pixels"].as_str().unwrap();
+                tiles.push(TileEvent {
+                    index: json["index"].as_u64().unwrap() as u32,
+                    pixels: base64::engine::general_purpose::STANDARD
+                        .decode(b64)
+                        .unwrap(),
+                });
+            }
+            if name == "end" {
+                break;
+            }
+        }
+    }
+    (tiles, names)
+}
+
+/// Opens `/events` and reads it on a thread until the end.
+fn follow(server: &Server) -> std::thread::JoinHandle<(Vec<TileEvent>, Vec<String>)> {
+    let url = format!("http://{}/events", server.addr());
+    let response = agent().get(&url).call().unwrap();
+    assert_eq!(response.status().as_u16(), 200);
+    std::thread::spawn(move || read_events(response.into_body().into_reader()))
+}
+
+/// The strip's rows as 8-bit gray: width and pixels.
+fn strip_pixels(png: &[u8]) -> (u32, u32, Vec<u8>) {
+    let img = image::load_from_memory(png).unwrap().to_luma8();
+    (img.width(), img.height(), img.into_raw())
+}
+
+#[test]
+fn endpoints_answer_with_the_strip_and_status_and_refuse_bad_requests() {
+    let tmp = tempfile::tempdir().unwrap();
+    let server = server(false);
+    assert_eq!(get(&server, "/strip.png").0, 503, "no tile yet");
+    let outcome = stream_served(&letters(36), tmp.path(), &server);
+    let status: serde_json::Value =
+        serde_json::from_slice(&get(&server, "/status.json").1).unwrap();
+    assert_eq!(status["tiles"], outcome.manifest.tiles_received);
+    assert_eq!(status["bytes"], outcome.manifest.bytes);
+    assert_eq!(status["state"], "ended");
+    assert_eq!(
+        status["last_tile_index"],
+        outcome.manifest.index_range.unwrap()[1]
+    );
+    // The newest 64 rows are the last 64 rows of the strip written to disk.
+    let (code, png) = get(&server, "/strip.png?rows=64");
+    assert_eq!(code, 200);
+    let (w, h, served) = strip_pixels(&png);
+    let (fw, fh, file) = strip_pixels(&std::fs::read(tmp.path().join("strip.png")).unwrap());
+    assert_eq!((w, h), (fw, 64));
+    assert_eq!(served, file[((fh - 64) * fw) as usize..]);
+    let (code, page) = get(&server, "/");
+    assert_eq!(code, 200);
+    let page = String::from_utf8(page).unwrap();
+    assert!(page.contains("<canvas") && !page.contains("src=\"http"));
+    for (path, code) in [
+        ("/strip.png?rows=0", 400),
+        ("/strip.png?rows=4097", 400),
+        ("/strip.png?rows=ten", 400),
+        ("/nothing-here", 404),
+    ] {
+        assert_eq!(get(&server, path).0, code, "{path}");
+    }
+    assert_eq!(post(&server, "/status.json", None), 405);
+}
+
+#[test]
+fn events_deliver_every_tile_in_order_with_its_pixels() {
+    let tmp = tempfile::tempdir().unwrap();
+    let server = server(false);
+    let reader = follow(&server);
+    let outcome = stream_served(&letters(36), tmp.path(), &server);
+    let (tiles, names) = reader.join().unwrap();
+    assert_eq!(tiles.len() as u64, outcome.manifest.tiles_received);
+    assert!(tiles.windows(2).all(|w| w[1].index == w[0].index + 1));
+    assert_eq!(names.last().map(String::as_str), Some("end"));
+    assert!(!names.iter().any(|n| n == "skipped"));
+    let (_, _, file) = strip_pixels(&std::fs::read(tmp.path().join("strip.png")).unwrap());
+    let all: Vec<u8> = tiles.iter().flat_map(|t| t.pixels.clone()).collect();
+    assert_eq!(all, file);
+}
+
+#[test]
+fn control_needs_the_token_and_without_it_changes_nothing() {
+    let scene = letters(12);
+    let tmp = tempfile::tempdir().unwrap();
+    let roller_after = |server: &Server| {
+        let outcome = stream_served(&scene, tmp.path(), server);
+        outcome.manifest.device_counters.unwrap().roller_running
+    };
+    let controlled = server(true);
+    let token = controlled.token().unwrap().to_string();
+    let start = "/control/roller/start?speed_um_s=20000";
+    assert_eq!(post(&controlled, start, None), 401);
+    assert_eq!(
+        post(&controlled, start, Some("0123456789abcdef0123456789abcdef")),
+        401
+    );
+    assert!(
+        !roller_after(&controlled),
+        "a refused request reached the device"
+    );
+    let controlled = server(true);
+    let token_now = controlled.token().unwrap().to_string();
+    assert_ne!(token_now, token, "each server has its own token");
+    assert_eq!(
+        post(
+            &controlled,
+            "/control/roller/start?speed_um_s=0",
+            Some(&token_now)
+        ),
+        400
+    );
+    assert_eq!(post(&controlled, "/control/nothing", Some(&token_now)), 404);
+    assert_eq!(post(&controlled, start, Some(&token_now)), 202);
+    assert!(
+        roller_after(&controlled),
+        "the command did not reach the device"
+    );
+    // Without --control no command is taken, token or not.
+    assert_eq!(post(&server(false), start, Some(&token_now)), 403);
+}
+
+/// A client that asks for `/events` and then never reads a byte.
+fn stuck_client(server: &Server) -> std::net::TcpStream {
+    let mut s = std::net::TcpStream::connect(server.addr()).unwrap();
+    write!(s, "GET /events HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
+    s
+}
+
+#[test]
+fn stuck_and_many_clients_change_nothing_in_the_stream() {
+    let scene = letters(120);
+    let plain = tempfile::tempdir().unwrap();
+    let mut dev = SimDevice::start_with(&scene, DeviceMemory::Firmware).unwrap();
+    let unwatched = stream::run(&mut dev, &options(plain.path()), &Silent).unwrap();
+    let served = tempfile::tempdir().unwrap();
+    let server = server(false);
+    let _stuck: Vec<_> = (0..3).map(|_| stuck_client(&server)).collect();
+    let readers: Vec<_> = (0..20).map(|_| follow(&server)).collect();
+    let outcome = stream_served(&scene, served.path(), &server);
+    assert_eq!(
+        outcome.manifest.tiles_received,
+        unwatched.manifest.tiles_received
+    );
+    for file in ["strip.png", "manifest.json"] {
+        let a = std::fs::read(plain.path().join(file)).unwrap();
+        assert_eq!(
+            a,
+            std::fs::read(served.path().join(file)).unwrap(),
+            "{file}"
+        );
+    }
+    for r in readers {
+        let (tiles, _) = r.join().unwrap();
+        assert!(tiles.windows(2).all(|w| w[0].index < w[1].index));
+    }
+}
+
+fn rollfuse(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_rollfuse"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn scene_path() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/letters.toml")
+}
+
+#[test]
+fn the_command_line_writes_the_same_files_with_and_without_serve() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = scene_path();
+    let run = |name: &str, extra: &[&str]| {
+        let out = tmp.path().join(name);
+        let mut args = vec!["stream", "--device", "sim", "--scene"];
+        args.extend([scene.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+        args.extend(extra);
+        let o = rollfuse(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (out, String::from_utf8(o.stdout).unwrap())
+    };
+    let (plain, _) = run("plain", &[]);
+    let (served, said) = run("served", &["--serve", "127.0.0.1:0", "--control"]);
+    assert!(said.contains("live page: http://127.0.0.1:"), "{said}");
+    assert!(said.contains("control token: "), "{said}");
+    for file in ["strip.png", "manifest.json"] {
+        let a = std::fs::read(plain.join(file)).unwrap();
+        assert_eq!(a, std::fs::read(served.join(file)).unwrap(), "{file}");
+    }
+}
+
+#[test]
+fn the_command_line_refuses_bad_serve_options_clearly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let scene = scene_path();
+    let base = [
+        "stream",
+        "--device",
+        "sim",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let in_use = taken.local_addr().unwrap().to_string();
+    for (extra, says) in [
+        (
+            vec!["--serve", "localhost"],
+            "--serve must be an IP address and port",
+        ),
+        (vec!["--serve", &in_use], "cannot serve on"),
+        (vec!["--control"], "--serve"),
+        (vec!["--frame-rate", "0"], "--frame-rate must be from"),
+    ] {
+        let mut args = base.to_vec();
+        args.extend(extra.iter().copied());
+        let o = rollfuse(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains(says),
+            "{extra:?}: {err}"
+        );
+    }
+}
+
+#[test]
+fn a_replayed_stream_takes_no_commands() {
+    let server = Server::start(&ServeOptions {
+        addr: "127.0.0.1:0".parse().unwrap(),
+        control: true,
+        source: "replay".into(),
+        live: false,
+    })
+    .unwrap();
+    let token = server.token().unwrap().to_string();
+    assert_eq!(post(&server, "/control/roller/stop", Some(&token)), 409);
+}
