@@ -244,7 +244,6 @@ fn warn_all(py: Python<'_>, warnings: &[String]) -> PyResult<()> {
 #[pyo3(signature = (frames, *, wavelet="db2", levels=1, align="template", offsets=None,
     template_rows=(1.0 / 3.0, 2.0 / 3.0), max_shift=None, min_score=None, ablation="none",
     precision="f32", ll_weighting="paper", out_dtype="float32"))]
-#[allow(clippy::too_many_arguments)] // Keyword arguments, one per command-line option.
 pub fn fuse(
     py: Python<'_>,
     frames: &Bound<'_, PyAny>,
@@ -287,7 +286,6 @@ pub fn fuse(
 #[pyfunction]
 #[pyo3(signature = (a, b, *, wavelet="db2", levels=1, ablation="none", precision="f32",
     ll_weighting="paper", out_dtype="float32"))]
-#[allow(clippy::too_many_arguments)] // Keyword arguments, one per command-line option.
 pub fn fuse_pair(
     py: Python<'_>,
     a: &Bound<'_, PyAny>,
