@@ -14,6 +14,7 @@ import argparse
 import base64
 import json
 import os
+import signal
 import socket
 import struct
 import subprocess
@@ -147,18 +148,36 @@ def start_chromium(chromium, profile):
          "--window-size=1100,760", "--remote-debugging-port=0", f"--user-data-dir={profile}",
          "about:blank"],
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        start_new_session=True,
     )
     port_file = os.path.join(profile, "DevToolsActivePort")
     deadline = time.time() + 30
     while not os.path.exists(port_file) or os.path.getsize(port_file) == 0:
         if time.time() > deadline or proc.poll() is not None:
-            proc.kill()
+            stop_chromium(proc)
             raise RuntimeError("Chromium did not open its DevTools port")
         time.sleep(0.1)
     port = open(port_file).read().split()[0]
     targets = json.load(urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list"))
     page = next(t for t in targets if t["type"] == "page")
     return proc, page["webSocketDebuggerUrl"]
+
+
+def stop_chromium(proc):
+    """Ends Chromium and its helper processes (its own process group), and waits for them, so
+    none is still writing into the profile when the temporary directory goes."""
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    proc.wait(timeout=30)
+    deadline = time.time() + 10
+    while time.time() < deadline:
+        try:
+            os.killpg(proc.pid, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.1)
 
 
 def watch_page(page, url, seconds):
@@ -187,7 +206,8 @@ def main():
     ap.add_argument("--frame-rate", type=float, default=8.0)
     ap.add_argument("--screenshot", required=True)
     args = ap.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
+    # A helper Chromium left behind may still hold its profile; that must not fail the check.
+    with tempfile.TemporaryDirectory(ignore_cleanup_errors=True) as tmp:
         stream, url = start_stream(args.rollfuse, args.scene, os.path.join(tmp, "out"), args.frame_rate)
         browser, ws_url = start_chromium(args.chromium, os.path.join(tmp, "profile"))
         try:
@@ -197,7 +217,7 @@ def main():
             with open(args.screenshot, "wb") as f:
                 f.write(base64.b64decode(shot["data"]))
         finally:
-            browser.kill()
+            stop_chromium(browser)
             stream.wait(timeout=60)
     grew = any(b > a for a, b in zip(samples, samples[1:]))
     print(f"rows shown over time: {samples}")
