@@ -7,6 +7,7 @@ use numpy::ndarray::{ArrayViewD, Axis, IxDyn};
 use numpy::{PyArray, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyList, PyTuple};
+use rollfuse::fullres::FrameSource;
 use rollfuse::image::{Planes, from_u16};
 
 /// A numpy array held for reading, by element type.
@@ -91,9 +92,9 @@ impl Samples<'_> {
         }
     }
 
-    /// An image of shape (H, W), (H, W, 1) or (H, W, 3) as planes on the 8-bit scale.
-    /// Float values must be finite; `what` names the image in errors.
-    pub fn planes(&self, what: &str) -> anyhow::Result<Planes> {
+    /// The (height, width, channels) of an image of shape (H, W), (H, W, 1) or (H, W, 3);
+    /// `what` names it in errors.
+    pub fn image_shape(&self, what: &str) -> anyhow::Result<(usize, usize, usize)> {
         let (h, w, c) = match *self.shape() {
             [h, w] => (h, w, 1),
             [h, w, c @ (1 | 3)] => (h, w, c),
@@ -103,21 +104,56 @@ impl Samples<'_> {
             ),
         };
         anyhow::ensure!(h > 0 && w > 0, "{what} is empty ({h}×{w})");
-        let (planes, float) = match self {
-            Samples::U8(a) => (split(a, c, f32::from), false),
-            Samples::U16(a) => (split(a, c, from_u16), false),
-            Samples::F32(a) => (split(a, c, |v| v), true),
-            Samples::F64(a) => (split(a, c, |v| v as f32), true),
+        Ok((h, w, c))
+    }
+
+    /// Refuses float values that are not finite; `what` names the image in the error.
+    pub fn check_finite(&self, what: &str) -> anyhow::Result<()> {
+        let finite = match self {
+            Samples::U8(_) | Samples::U16(_) => true,
+            Samples::F32(a) => all(a, |v| v.is_finite()),
+            Samples::F64(a) => all(a, |v| v.is_finite()),
         };
         anyhow::ensure!(
-            !float || planes.iter().flatten().all(|v| v.is_finite()),
+            finite,
             "{what} holds values that are not finite (NaN or infinity)"
         );
-        Ok(Planes {
+        Ok(())
+    }
+
+    /// Writes channel `k` of an image with `c` channels (checked by [`Self::image_shape`])
+    /// into `out`, row-major on the 8-bit scale.
+    pub fn read_channel(&self, k: usize, c: usize, out: &mut [f32]) {
+        match self {
+            Samples::U8(a) => read(a, k, c, out, f32::from),
+            Samples::U16(a) => read(a, k, c, out, from_u16),
+            Samples::F32(a) => read(a, k, c, out, |v| v),
+            Samples::F64(a) => read(a, k, c, out, |v| v as f32),
+        }
+    }
+
+    /// An image of shape (H, W), (H, W, 1) or (H, W, 3) as planes on the 8-bit scale.
+    /// Float values must be finite; `what` names the image in errors.
+    pub fn planes(&self, what: &str) -> anyhow::Result<Planes> {
+        let (h, w, c) = self.image_shape(what)?;
+        self.check_finite(what)?;
+        Ok(self.converted((h, w, c)))
+    }
+
+    /// The image, of the checked shape `(h, w, c)`, as planes.
+    fn converted(&self, (h, w, c): (usize, usize, usize)) -> Planes {
+        let planes = (0..c)
+            .map(|k| {
+                let mut plane = vec![0.0; h * w];
+                self.read_channel(k, c, &mut plane);
+                plane
+            })
+            .collect();
+        Planes {
             width: w,
             height: h,
             planes,
-        })
+        }
     }
 }
 
@@ -144,24 +180,42 @@ pub fn shape_text(shape: &[usize]) -> String {
     }
 }
 
-/// The `c` channel planes of an (H, W) or (H, W, c) view, each row-major.
-fn split<T: Copy>(a: &ArrayViewD<'_, T>, c: usize, f: impl Fn(T) -> f32) -> Vec<Vec<f32>> {
+/// Whether every value of `a` passes `test`.
+fn all<T: Copy>(a: &ArrayViewD<'_, T>, test: impl Fn(T) -> bool) -> bool {
+    match a.as_slice() {
+        Some(s) => s.iter().all(|&v| test(v)),
+        None => a.iter().all(|&v| test(v)),
+    }
+}
+
+/// Channel `k` of an (H, W) or (H, W, c) view into `out`, row-major, through `f`.
+fn read<T: Copy>(a: &ArrayViewD<'_, T>, k: usize, c: usize, out: &mut [f32], f: impl Fn(T) -> f32) {
     // A contiguous array is read as a slice: iterating a dynamic-rank view indexes every
     // element, which costs as much as the fusion of uint8 frames.
-    if let Some(s) = a.as_slice() {
-        if c == 1 {
-            return vec![s.iter().map(|&v| f(v)).collect()];
+    // One channel gets its own loop: `step_by` keeps the compiler from vectorising it.
+    match a.as_slice() {
+        Some(s) if c == 1 => {
+            for (o, &v) in out.iter_mut().zip(s) {
+                *o = f(v);
+            }
+            return;
         }
-        return (0..c)
-            .map(|k| s.iter().skip(k).step_by(c).map(|&v| f(v)).collect())
-            .collect();
+        Some(s) => {
+            for (o, &v) in out.iter_mut().zip(s.iter().skip(k).step_by(c)) {
+                *o = f(v);
+            }
+            return;
+        }
+        None => {}
     }
-    if a.ndim() == 2 {
-        return vec![a.iter().map(|&v| f(v)).collect()];
+    let channel = if a.ndim() == 2 {
+        a.view()
+    } else {
+        a.index_axis(Axis(2), k)
+    };
+    for (o, &v) in out.iter_mut().zip(channel.iter()) {
+        *o = f(v);
     }
-    (0..c)
-        .map(|k| a.index_axis(Axis(2), k).iter().map(|&v| f(v)).collect())
-        .collect()
 }
 
 /// A sequence of images: a list or tuple of (H, W) / (H, W, 3) arrays, or one array of
@@ -212,30 +266,52 @@ impl<'py> Stack<'py> {
     }
 }
 
-/// The images of `views` as planes, all of one size and all gray or all RGB.
-pub fn same_size_planes(views: &[Samples<'_>], what: &str) -> anyhow::Result<Vec<Planes>> {
-    let planes: Vec<Planes> = views
-        .iter()
-        .enumerate()
-        .map(|(k, v)| v.planes(&format!("{what}[{k}]")))
-        .collect::<anyhow::Result<_>>()?;
-    if let Some(first) = planes.first() {
-        for (k, p) in planes.iter().enumerate() {
+/// Images of one size, all gray or all RGB, read channel by channel as fusion reaches
+/// them: no frame is converted before it is needed.
+pub struct Frames<'a> {
+    views: Vec<Samples<'a>>,
+    /// (height, width, channels).
+    shape: (usize, usize, usize),
+}
+
+impl<'a> Frames<'a> {
+    /// Checks `views` (shapes, sizes, finite values); `what` names them in errors.
+    pub fn new(views: Vec<Samples<'a>>, what: &str) -> anyhow::Result<Self> {
+        let mut shape = None;
+        for (k, v) in views.iter().enumerate() {
+            let name = format!("{what}[{k}]");
+            let (h, w, c) = v.image_shape(&name)?;
+            v.check_finite(&name)?;
+            let (h0, w0, c0) = *shape.get_or_insert((h, w, c));
             anyhow::ensure!(
-                (p.width, p.height) == (first.width, first.height),
-                "{what}[{k}] is {}×{} but {what}[0] is {}×{}: all must have one size",
-                p.width,
-                p.height,
-                first.width,
-                first.height
+                (w, h) == (w0, h0),
+                "{name} is {w}×{h} but {what}[0] is {w0}×{h0}: all must have one size"
             );
-            anyhow::ensure!(
-                p.is_rgb() == first.is_rgb(),
-                "{what}[0] and {what}[{k}] mix gray and RGB"
-            );
+            anyhow::ensure!(c == c0, "{what}[0] and {name} mix gray and RGB");
         }
+        let shape = shape.unwrap_or((0, 0, 1));
+        Ok(Self { views, shape })
     }
-    Ok(planes)
+
+    /// Every image as planes (for the work that needs them all at once).
+    pub fn planes(&self) -> Vec<Planes> {
+        self.views.iter().map(|v| v.converted(self.shape)).collect()
+    }
+}
+
+impl FrameSource for Frames<'_> {
+    fn frames(&self) -> usize {
+        self.views.len()
+    }
+
+    fn shape(&self) -> (usize, usize, usize) {
+        let (h, w, c) = self.shape;
+        (w, h, c)
+    }
+
+    fn read(&self, frame: usize, channel: usize, out: &mut [f32]) {
+        self.views[frame].read_channel(channel, self.shape.2, out);
+    }
 }
 
 /// What an image comes back as.

@@ -1,7 +1,7 @@
 //! `rollfuse.fuse` and `rollfuse.fuse_pair`: the command line's mosaic fusion
 //! (`rollfuse fuse --mode mosaic`) on numpy frames.
 
-use crate::arrays::{OutDtype, Samples, Stack, image_array, same_size_planes};
+use crate::arrays::{Frames, OutDtype, Samples, Stack, image_array};
 use crate::errors::{OrPy, value_error};
 use clap::ValueEnum;
 use numpy::ndarray::Array2;
@@ -10,7 +10,7 @@ use pyo3::exceptions::PyRuntimeWarning;
 use pyo3::prelude::*;
 use rollfuse::commands::{AblationArg, LlWeightingArg, WaveletArg};
 use rollfuse::fullres::align::{Aligned, Offset, TemplateParams, align_chain};
-use rollfuse::fullres::{Precision, fuse_mosaic_mut};
+use rollfuse::fullres::{FrameSource, Precision, fuse_mosaic_from, fuse_mosaic_mut};
 use rollfuse::image::Planes;
 use rollfuse::progress::Silent;
 use rollfuse_core::{FuseConfig, SaliencyNorm};
@@ -81,30 +81,6 @@ enum Placement {
 struct Placed {
     offsets: Vec<Result<Offset, String>>,
     warnings: Vec<String>,
-}
-
-impl Placement {
-    /// Places `frames`.
-    fn place(&self, frames: &[Planes]) -> anyhow::Result<Placed> {
-        let origin = Offset { dy: 0, dx: 0 };
-        let offsets = match self {
-            Placement::None => vec![Ok(origin); frames.len()],
-            Placement::Given(given) => {
-                anyhow::ensure!(
-                    given.len() == frames.len(),
-                    "offsets has {} rows for {} frames",
-                    given.len(),
-                    frames.len()
-                );
-                given.iter().copied().map(Ok).collect()
-            }
-            Placement::Template(params) => return Ok(by_template(frames, params)),
-        };
-        Ok(Placed {
-            offsets,
-            warnings: Vec::new(),
-        })
-    }
 }
 
 /// Frames matched frame to frame, as `rollfuse fuse --align template` places them.
@@ -183,8 +159,10 @@ fn given_offsets(o: &PyReadonlyArrayDyn<'_, i64>) -> PyResult<Vec<Offset>> {
 }
 
 /// Places and fuses `views` (without the GIL); the fused image and the placement.
+/// Matching by template needs every frame converted at once; otherwise each frame is
+/// converted as fusion reaches it.
 fn fuse_views(
-    views: &[Samples<'_>],
+    views: Vec<Samples<'_>>,
     placement: &Placement,
     settings: &Settings,
 ) -> anyhow::Result<(Planes, Placed)> {
@@ -193,8 +171,37 @@ fn fuse_views(
         "fusion needs at least two frames, got {}",
         views.len()
     );
-    let frames = same_size_planes(views, "frames")?;
-    let placed = placement.place(&frames)?;
+    let frames = Frames::new(views, "frames")?;
+    let (cfg, precision) = (&settings.cfg, settings.precision);
+    let offsets = match placement {
+        Placement::Template(params) => return fuse_by_template(&frames, params, settings),
+        Placement::None => vec![Offset { dy: 0, dx: 0 }; frames.frames()],
+        Placement::Given(given) => {
+            anyhow::ensure!(
+                given.len() == frames.frames(),
+                "offsets has {} rows for {} frames",
+                given.len(),
+                frames.frames()
+            );
+            given.clone()
+        }
+    };
+    let fused = fuse_mosaic_from(&frames, &offsets, cfg, precision)?;
+    let placed = Placed {
+        offsets: offsets.into_iter().map(Ok).collect(),
+        warnings: Vec::new(),
+    };
+    Ok((fused, placed))
+}
+
+/// Matches `frames` frame to frame and fuses those placed.
+fn fuse_by_template(
+    frames: &Frames,
+    params: &TemplateParams,
+    settings: &Settings,
+) -> anyhow::Result<(Planes, Placed)> {
+    let frames = frames.planes();
+    let placed = by_template(&frames, params);
     let mut kept: Vec<(Planes, Offset)> = frames
         .into_iter()
         .zip(&placed.offsets)
@@ -271,7 +278,7 @@ pub fn fuse(
     let stack = Stack::new(frames, "frames")?;
     let views = stack.views();
     let (fused, placed) = py
-        .detach(|| fuse_views(&views, &placement, &settings))
+        .detach(|| fuse_views(views, &placement, &settings))
         .or_py()?;
     warn_all(py, &placed.warnings)?;
     let image = image_array(py, fused, settings.out)?;
@@ -309,7 +316,7 @@ pub fn fuse_pair(
     let stack = Stack::new(pair.as_any(), "images")?;
     let views = stack.views();
     let (fused, _) = py
-        .detach(|| fuse_views(&views, &Placement::None, &settings))
+        .detach(|| fuse_views(views, &Placement::None, &settings))
         .or_py()?;
     image_array(py, fused, settings.out)
 }

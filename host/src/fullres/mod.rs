@@ -139,6 +139,47 @@ impl<T: ?Sized> std::ops::Deref for FrameRef<'_, T> {
     }
 }
 
+/// Frames that fusion reads one channel plane at a time, into a buffer it reuses: input
+/// held in another type or layout (a numpy array of uint8) is converted frame by frame,
+/// as fusion reaches it, instead of all at once, so it costs one frame's memory, not all
+/// of them.
+pub trait FrameSource: Sync {
+    /// How many frames there are.
+    fn frames(&self) -> usize;
+    /// Every frame's width, height and number of channels (1 gray, 3 RGB).
+    fn shape(&self) -> (usize, usize, usize);
+    /// Writes channel `channel` of frame `frame` into `out` (`width × height`, row-major,
+    /// on the 8-bit scale). Called only with `frame < frames()` and `channel` below the
+    /// number of channels.
+    fn read(&self, frame: usize, channel: usize, out: &mut [f32]);
+}
+
+/// [`fuse_mosaic`] of the frames of `source`, frame `k` at `offsets[k]`, each read when
+/// fusion reaches it. The result is the same as that of [`fuse_mosaic`] on the frames.
+pub fn fuse_mosaic_from(
+    source: &dyn FrameSource,
+    offsets: &[Offset],
+    cfg: &FuseConfig,
+    precision: Precision,
+) -> anyhow::Result<Planes> {
+    ensure!(
+        offsets.len() == source.frames(),
+        "{} offsets for {} frames",
+        offsets.len(),
+        source.frames()
+    );
+    ensure!(!offsets.is_empty(), "no frames to fuse");
+    let (w, h, channels) = source.shape();
+    let per_channel = (0..channels)
+        .map(|c| {
+            (0..offsets.len())
+                .map(|k| Plane::Read(source, k, c))
+                .collect()
+        })
+        .collect();
+    fuse_planes(per_channel, offsets, (w, h), cfg, precision)
+}
+
 fn fuse_frames(
     frames: Vec<(FrameRef<Planes>, Offset)>,
     cfg: &FuseConfig,
@@ -163,31 +204,52 @@ fn fuse_frames(
             );
         }
     }
-    Dims::new(w, h)?.check_levels(cfg.levels)?;
     let offsets: Vec<Offset> = frames.iter().map(|(_, at)| *at).collect();
-    let (min_x, min_y, cw, ch) = canvas(&offsets, w, h)?;
-    let starts: Vec<usize> = offsets
-        .iter()
-        .map(|at| (at.dy - min_y) as usize * cw + (at.dx - min_x) as usize)
-        .collect();
     // One list of planes per channel, each kept or spent as its frame is.
-    let mut per_channel: Vec<Vec<FrameRef<Vec<f32>>>> = (0..channels)
+    let mut per_channel: Vec<Vec<Plane>> = (0..channels)
         .map(|_| Vec::with_capacity(frames.len()))
         .collect();
     for (image, _) in frames {
         match image {
             FrameRef::Kept(image) => {
                 for (list, plane) in per_channel.iter_mut().zip(&image.planes) {
-                    list.push(FrameRef::Kept(plane));
+                    list.push(Plane::Kept(plane));
                 }
             }
             FrameRef::Spent(image) => {
                 for (list, plane) in per_channel.iter_mut().zip(&mut image.planes) {
-                    list.push(FrameRef::Spent(plane));
+                    list.push(Plane::Spent(plane));
                 }
             }
         }
     }
+    fuse_planes(per_channel, &offsets, (w, h), cfg, precision)
+}
+
+/// One channel of one frame, as fusion gets it.
+enum Plane<'a> {
+    /// To be left as it is.
+    Kept(&'a Vec<f32>),
+    /// Fusion may overwrite it.
+    Spent(&'a mut Vec<f32>),
+    /// Read from a source (frame, channel) into a buffer fusion owns.
+    Read(&'a dyn FrameSource, usize, usize),
+}
+
+/// Fuses `w × h` planes, one list per channel, frame `k` at `offsets[k]`.
+fn fuse_planes(
+    per_channel: Vec<Vec<Plane>>,
+    offsets: &[Offset],
+    (w, h): (usize, usize),
+    cfg: &FuseConfig,
+    precision: Precision,
+) -> anyhow::Result<Planes> {
+    Dims::new(w, h)?.check_levels(cfg.levels)?;
+    let (min_x, min_y, cw, ch) = canvas(offsets, w, h)?;
+    let starts: Vec<usize> = offsets
+        .iter()
+        .map(|at| (at.dy - min_y) as usize * cw + (at.dx - min_x) as usize)
+        .collect();
     // Channels are independent: fuse them in parallel (results do not depend on threads).
     let planes: Vec<Vec<f32>> = per_channel
         .into_par_iter()
@@ -202,7 +264,7 @@ fn fuse_frames(
 
 /// Fuses one channel's planes (`w × h`, packed), frame `k` at `starts[k]` on the canvas.
 fn fuse_channel(
-    planes: Vec<FrameRef<Vec<f32>>>,
+    planes: Vec<Plane>,
     starts: &[usize],
     (w, h): (usize, usize),
     (cw, ch): (usize, usize),
@@ -215,14 +277,30 @@ fn fuse_channel(
     // (what the general case below makes of it) and no pixel needs tracking.
     let (mut mosaic, mut seen) = if (cw, ch) == (w, h) {
         let first = frames.next().map(|(_, (plane, _))| match plane {
-            FrameRef::Kept(plane) => plane.clone(),
-            FrameRef::Spent(plane) => std::mem::take(plane),
+            Plane::Kept(plane) => plane.clone(),
+            Plane::Spent(plane) => std::mem::take(plane),
+            Plane::Read(source, k, c) => {
+                let mut plane = vec![0.0; w * h];
+                source.read(k, c, &mut plane);
+                plane
+            }
         });
         (first.unwrap_or_default(), None)
     } else {
         (vec![0f32; cw * ch], Some(vec![false; cw * ch]))
     };
-    for (k, (frame, &start)) in frames {
+    // Where planes are read from a source, one buffer takes each in turn.
+    let mut read = Vec::new();
+    for (k, (plane, &start)) in frames {
+        let frame = match plane {
+            Plane::Kept(plane) => FrameRef::Kept(plane),
+            Plane::Spent(plane) => FrameRef::Spent(plane),
+            Plane::Read(source, k, c) => {
+                read.resize(w * h, 0.0);
+                source.read(k, c, &mut read);
+                FrameRef::Spent(&mut read)
+            }
+        };
         // The footprint's holes take the frame's own values: fusing them with themselves
         // gives them back, so the first frame over any region passes through.
         let mut any_seen = true;
@@ -489,8 +567,24 @@ mod tests {
         }
     }
 
+    /// Frames read through [`FrameSource`].
+    struct Frames<'a>(&'a [Planes]);
+
+    impl FrameSource for Frames<'_> {
+        fn frames(&self) -> usize {
+            self.0.len()
+        }
+        fn shape(&self) -> (usize, usize, usize) {
+            let f = &self.0[0];
+            (f.width, f.height, f.planes.len())
+        }
+        fn read(&self, frame: usize, channel: usize, out: &mut [f32]) {
+            out.copy_from_slice(&self.0[frame].planes[channel]);
+        }
+    }
+
     #[test]
-    fn working_in_the_frames_gives_the_same_mosaic() {
+    fn working_in_the_frames_or_reading_them_gives_the_same_mosaic() {
         let (w, h) = (37, 23);
         // Same footprint (the first frame becomes the mosaic), rows only (frames are the
         // work space), rows and columns (frames are copied): gray and RGB, both precisions.
@@ -520,6 +614,13 @@ mod tests {
                         kept, worked,
                         "{offsets:?}, {channels} channels, {precision:?}"
                     );
+                    let source = Frames(&frames);
+                    let offsets: Vec<Offset> = offsets.iter().map(at).collect();
+                    let read = fuse_mosaic_from(&source, &offsets, &cfg, precision).unwrap();
+                    assert_eq!(
+                        kept, read,
+                        "{offsets:?}, {channels} channels, {precision:?}"
+                    );
                     // A real fusion: the mosaic is no frame's copy.
                     assert!(frames.iter().all(|f| f.planes != kept.planes));
                 }
@@ -539,5 +640,10 @@ mod tests {
         // Refused before any work: the frames are as they were.
         assert_eq!(mixed[0].0, frame(8, 8, 1, 0));
         assert_eq!(mixed[1].0, frame(8, 8, 3, 1));
+        let one = [frame(8, 8, 1, 0)];
+        let err = fuse_mosaic_from(&Frames(&one), &[], &cfg, Precision::F32).unwrap_err();
+        assert_eq!(err.to_string(), "0 offsets for 1 frames");
+        let err = fuse_mosaic_from(&Frames(&[]), &[], &cfg, Precision::F32).unwrap_err();
+        assert_eq!(err.to_string(), "no frames to fuse");
     }
 }
