@@ -359,7 +359,10 @@ fn a_roll_given_as_a_folder_becomes_a_strip_with_its_index_and_frame_report() {
     assert_eq!(index["details"]["window_source"], "geometry");
     let csv = std::fs::read_to_string(tmp.path().join("strip.frames.csv")).unwrap();
     assert_eq!(csv.lines().count(), 21, "a header and a line per frame");
-    assert!(csv.lines().nth(2).unwrap().contains(",matched,"), "{csv}");
+    assert!(csv.lines().nth(2).unwrap().contains(",0,matched,"), "{csv}");
+    // Every line has the header's fields (the score is empty for the first frame).
+    let fields = |line: &str| line.split(',').count();
+    assert!(csv.lines().all(|l| fields(l) == 6), "{csv}");
     // Cut into segments of 100 rows: the same rows, in order.
     let seg = tmp.path().join("seg.png");
     let run = fuse(&[

@@ -8,6 +8,9 @@ Images are (H, W) gray or (H, W, 3) RGB arrays of uint8, uint16 (scaled by 255/6
 function releases the GIL while it works.
 """
 
+import os
+from typing import Optional, Union
+
 from . import metrics
 from ._rollfuse import (
     Lights,
@@ -17,9 +20,23 @@ from ._rollfuse import (
     dwt2,
     fuse,
     fuse_pair,
+    fuse_roll,
     idwt2,
     simulate,
+    Stream,
+    stream,
 )
+
+
+
+def replay(
+    path: Union[str, "os.PathLike[str]"], *, out: Optional[Union[str, "os.PathLike[str]"]] = None
+) -> Stream:
+    """Plays back a recording made with ``stream(..., record=FILE)`` (or ``rollfuse stream
+    --record FILE``): a Stream of its tiles as they were received, whose strip and
+    manifest are the ones the recorded session wrote."""
+    return stream(f"replay:{os.fspath(path)}", out=out)
+
 
 __all__ = [
     "Lights",
@@ -29,7 +46,11 @@ __all__ = [
     "dwt2",
     "fuse",
     "fuse_pair",
+    "fuse_roll",
     "idwt2",
     "metrics",
+    "replay",
     "simulate",
+    "Stream",
+    "stream",
 ]

@@ -9,42 +9,92 @@ import numpy.typing as npt
 ImageLike = npt.NDArray[Union[np.uint8, np.uint16, np.float32, np.float64]]
 Frames = Union[ImageLike, Sequence[ImageLike]]
 OutDtype = Literal["float32", "uint8", "uint16"]
+Wavelet = Literal["haar", "db2"]
+Ablation = Literal["none", "no-wavelet", "single-ll", "max-high"]
+Precision = Literal["f32", "fixed"]
+LlWeighting = Literal["paper", "equal"]
 
 __version__: str
 
 def fuse(
     frames: Frames,
     *,
-    wavelet: Literal["haar", "db2"] = "db2",
+    wavelet: Wavelet = "db2",
     levels: int = 1,
     align: Literal["template", "none", "offsets"] = "template",
     offsets: Optional[npt.NDArray[np.int64]] = None,
     template_rows: Tuple[float, float] = (1.0 / 3.0, 2.0 / 3.0),
     max_shift: Optional[int] = None,
     min_score: Optional[float] = None,
-    ablation: Literal["none", "no-wavelet", "single-ll", "max-high"] = "none",
-    precision: Literal["f32", "fixed"] = "f32",
-    ll_weighting: Literal["paper", "equal"] = "paper",
+    ablation: Ablation = "none",
+    precision: Precision = "f32",
+    ll_weighting: LlWeighting = "paper",
     out_dtype: OutDtype = "float32",
 ) -> Tuple[npt.NDArray[Any], npt.NDArray[np.float64]]:
     """Fuses frames into one image as ``rollfuse fuse --mode mosaic``; returns
     (image, offsets), offsets (N, 2) rows and columns, NaN for frames left out."""
 
+class Geometry(TypedDict, total=False):
+    roller_radius_mm: float
+    press_depth_mm: float
+    mm_per_px: float
+    apex_row: float
+
+class Placements(TypedDict):
+    row: npt.NDArray[np.float64]
+    col: npt.NDArray[np.int64]
+    score: npt.NDArray[np.float64]
+    source: list[Literal["first", "matched", "predicted", "manifest"]]
+
+class RollReport(TypedDict):
+    first_row: int
+    window: Tuple[int, int]
+    window_source: Literal["window_rows", "geometry", "measured", "default"]
+    matched: int
+    predicted: int
+    bands: int
+    bands_outside_window: int
+    gap_bands: int
+
+def fuse_roll(
+    frames: Frames,
+    *,
+    rows: Optional[npt.NDArray[np.float64]] = None,
+    align: Literal["template", "motion"] = "template",
+    window_rows: Optional[int] = None,
+    geometry: Optional[Geometry] = None,
+    band_rows: int = 32,
+    blend_rows: int = 8,
+    search_rows: Optional[int] = None,
+    max_shift: Optional[int] = None,
+    min_score: Optional[float] = None,
+    subpixel: bool = True,
+    max_drift_cols: int = 0,
+    wavelet: Wavelet = "db2",
+    levels: int = 1,
+    ablation: Ablation = "none",
+    precision: Precision = "f32",
+    ll_weighting: LlWeighting = "paper",
+    out_dtype: OutDtype = "float32",
+) -> Tuple[npt.NDArray[Any], Placements, RollReport]:
+    """Fuses a whole roll into a strip as ``rollfuse fuse --mode roll``; returns
+    (strip, placements, report)."""
+
 def fuse_pair(
     a: ImageLike,
     b: ImageLike,
     *,
-    wavelet: Literal["haar", "db2"] = "db2",
+    wavelet: Wavelet = "db2",
     levels: int = 1,
-    ablation: Literal["none", "no-wavelet", "single-ll", "max-high"] = "none",
-    precision: Literal["f32", "fixed"] = "f32",
-    ll_weighting: Literal["paper", "equal"] = "paper",
+    ablation: Ablation = "none",
+    precision: Precision = "f32",
+    ll_weighting: LlWeighting = "paper",
     out_dtype: OutDtype = "float32",
 ) -> npt.NDArray[Any]:
     """Fuses two images of one size (one fuse step)."""
 
 def dwt2(
-    data: ImageLike, wavelet: Literal["haar", "db2"] = "db2"
+    data: ImageLike, wavelet: Wavelet = "db2"
 ) -> Tuple[
     npt.NDArray[np.float32],
     Tuple[npt.NDArray[np.float32], npt.NDArray[np.float32], npt.NDArray[np.float32]],
@@ -53,7 +103,7 @@ def dwt2(
 
 def idwt2(
     coeffs: Tuple[ImageLike, Tuple[ImageLike, ImageLike, ImageLike]],
-    wavelet: Literal["haar", "db2"] = "db2",
+    wavelet: Wavelet = "db2",
 ) -> npt.NDArray[np.float32]:
     """pywt.idwt2(coeffs, wavelet, mode='periodization') in float32."""
 
@@ -141,6 +191,7 @@ class Simulation(TypedDict):
     scene: str
     seed: int
     mm_per_px: float
+    geometry: Geometry
 
 def simulate(
     scene: Union[str, PathLike[str], dict[str, Any]],
@@ -148,3 +199,54 @@ def simulate(
     seed: Optional[int] = None,
 ) -> Simulation:
     """A scene's frames and ground truth as arrays, as ``rollfuse simulate``."""
+
+class StreamTile(TypedDict):
+    index: int
+    observations: int
+    pixels: npt.NDArray[np.uint8]
+
+class Stream:
+    """A streaming session; iterate it for its tiles as they arrive."""
+
+    def __iter__(self) -> "Stream": ...
+    def __next__(self) -> StreamTile: ...
+    def stop_streaming(self) -> None:
+        """Asks a live device to stop streaming (its last tiles still arrive)."""
+    @property
+    def manifest(self) -> Optional[dict[str, Any]]:
+        """manifest.json as a dict, once the stream has ended."""
+    @property
+    def strip_files(self) -> list[str]:
+        """The strip's files, once the stream has ended."""
+    @property
+    def stop_reason(self) -> Optional[
+        Literal["tiles", "seconds", "device stopped", "link closed", "device silent"]
+    ]:
+        """Why the session ended, once it has."""
+    @property
+    def skipped(self) -> int:
+        """Tiles a slow reader missed from a live device (the strip file has them)."""
+    @property
+    def out(self) -> str:
+        """The session's folder."""
+
+def stream(
+    device: str,
+    *,
+    scene: Optional[Union[str, PathLike[str]]] = None,
+    out: Optional[Union[str, PathLike[str]]] = None,
+    tiles: Optional[int] = None,
+    seconds: Optional[float] = None,
+    record: Optional[Union[str, PathLike[str]]] = None,
+    wavelet: Wavelet = "db2",
+    levels: int = 2,
+    downsample: int = 2,
+    tile_rows: int = 16,
+    frames_per_tile: int = 4,
+    spacing_px: Optional[int] = None,
+    refine_rows: int = 2,
+    norm: Literal["per-tile", "per-frame"] = "per-frame",
+    unbounded_memory: bool = False,
+    frame_rate: Optional[float] = None,
+) -> Stream:
+    """Streams fused tiles from 'sim', 'usb' or 'replay:FILE' as ``rollfuse stream``."""

@@ -295,7 +295,12 @@ impl<'a> Frames<'a> {
 
     /// Every image as planes (for the work that needs them all at once).
     pub fn planes(&self) -> Vec<Planes> {
-        self.views.iter().map(|v| v.converted(self.shape)).collect()
+        self.each().collect()
+    }
+
+    /// The images as planes, each converted when it is taken.
+    pub fn each(&self) -> impl Iterator<Item = Planes> + '_ {
+        self.views.iter().map(|v| v.converted(self.shape))
     }
 }
 

@@ -8,7 +8,9 @@ mod depth;
 mod errors;
 mod fuse;
 mod metrics;
+mod roll;
 mod sim;
+mod stream;
 mod wavelet;
 
 use pyo3::prelude::*;
@@ -19,6 +21,7 @@ fn _rollfuse(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_function(wrap_pyfunction!(fuse::fuse, m)?)?;
     m.add_function(wrap_pyfunction!(fuse::fuse_pair, m)?)?;
+    m.add_function(wrap_pyfunction!(roll::fuse_roll, m)?)?;
     m.add_function(wrap_pyfunction!(wavelet::dwt2, m)?)?;
     m.add_function(wrap_pyfunction!(wavelet::idwt2, m)?)?;
     m.add_class::<depth::PyLights>()?;
@@ -28,5 +31,7 @@ fn _rollfuse(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(metrics::ms_ssim, m)?)?;
     m.add_function(wrap_pyfunction!(metrics::strip_std, m)?)?;
     m.add_function(wrap_pyfunction!(sim::simulate, m)?)?;
+    m.add_class::<stream::Stream>()?;
+    m.add_function(wrap_pyfunction!(stream::stream, m)?)?;
     Ok(())
 }

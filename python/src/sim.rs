@@ -82,7 +82,9 @@ fn render(sim: &Simulator) -> Rendered {
 /// offset_mm, actual_offset_mm, strip_row, actual_strip_row (float64 (N,): the
 /// manifest's positions; round strip_row for fuse's align='offsets'), height_mm (float32
 /// (rows, W): truth/height.npy), ideal (uint8: truth/ideal.png), lights (the Lights the
-/// frames were rendered with, RGB scenes; else None), scene (its name), seed, mm_per_px.
+/// frames were rendered with, RGB scenes; else None), scene (its name), seed, mm_per_px,
+/// geometry (the roller's, for fuse_roll: roller_radius_mm, press_depth_mm, mm_per_px,
+/// apex_row).
 /// The scene's warnings are issued as UserWarning.
 #[pyfunction]
 #[pyo3(signature = (scene, frames=None, seed=None))]
@@ -140,6 +142,13 @@ pub fn simulate<'py>(
     d.set_item("scene", &scene.name)?;
     d.set_item("seed", scene.seed)?;
     d.set_item("mm_per_px", s.mm_per_px)?;
+    let g = s.roller_geometry();
+    let geometry = PyDict::new(py);
+    geometry.set_item("roller_radius_mm", g.roller_radius_mm)?;
+    geometry.set_item("press_depth_mm", g.press_depth_mm)?;
+    geometry.set_item("mm_per_px", g.mm_per_px)?;
+    geometry.set_item("apex_row", g.apex_row)?;
+    d.set_item("geometry", geometry)?;
     Ok(d)
 }
 

@@ -48,14 +48,13 @@ fn manifest_geometry(manifest: &Path, (width, height): (u32, u32)) -> Option<Geo
         return None;
     }
     let sensor = &doc["scene_file"]["sensor"];
-    let apex = sensor["focal_row"]
-        .as_f64()
-        .unwrap_or(f64::from(height) / 2.0);
+    // The apex is the middle row, as the simulator renders it (`Sensor::roller_geometry`);
+    // the focal row is where the camera focuses, not where the roller touches.
     Some(Geometry {
         roller_radius_mm: sensor["roller_radius_mm"].as_f64()?,
         press_depth_mm: sensor["press_depth_mm"].as_f64()?,
         mm_per_px: sensor["mm_per_px"].as_f64()?,
-        apex_row: apex,
+        apex_row: f64::from(height) / 2.0,
     })
 }
 
@@ -121,9 +120,10 @@ pub fn run(args: &Args, loaded: Option<Vec<Planes>>, cfg: &FuseConfig) -> anyhow
         let score = p.score.map(|s| format!("{s:.4}")).unwrap_or_default();
         csv.write_all(
             format!(
-                "{k},{},{:.3},{},{score}\n",
+                "{k},{},{:.3},{},{},{score}\n",
                 files[k].display(),
                 p.row,
+                p.col,
                 p.source.name()
             )
             .as_bytes(),

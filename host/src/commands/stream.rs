@@ -111,17 +111,28 @@ impl Args {
     }
 }
 
-/// Runs `rollfuse stream`.
-pub fn run(args: Args) -> anyhow::Result<()> {
-    // Every option checked, and no output an input, before the output folder is made.
-    let checked = check(&args)?;
+/// A session ready to run: its link, options and the address to serve on.
+pub struct Opened {
+    /// The device, virtual device or recording.
+    pub link: Box<dyn Transport>,
+    /// The session's options.
+    pub opts: Options,
+    /// `--serve`'s address.
+    pub serve: Option<std::net::SocketAddr>,
+}
+
+/// Checks every option of `args` (and that no output is an input), makes the output
+/// folder and opens the link: what `rollfuse stream` runs, and the Python package's
+/// `rollfuse.stream`.
+pub fn open(args: &Args) -> anyhow::Result<Opened> {
+    let checked = check(args)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create output folder {}", args.out.display()))?;
     super::check_writable(&args.out.join("manifest.json"))?;
     if let Some(r) = &args.record {
         super::check_writable(r)?;
     }
-    let (mut link, config) = open_link(&args, &checked)?;
+    let (link, config) = open_link(args, &checked)?;
     let opts = Options {
         out: args.out.clone(),
         config,
@@ -129,8 +140,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         max_duration: checked.max_duration,
         record: args.record.clone(),
     };
-    let server = checked
-        .serve
+    Ok(Opened {
+        link,
+        opts,
+        serve: checked.serve,
+    })
+}
+
+/// Runs `rollfuse stream`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    // Every option checked, and no output an input, before the output folder is made.
+    let Opened {
+        mut link,
+        opts,
+        serve,
+    } = open(&args)?;
+    let server = serve
         .map(|addr| start_server(&args, addr, link.is_live()))
         .transpose()?;
     let bars = super::bars::Bars::new();
@@ -146,7 +171,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Starts the live page's server, saying where it is (and the control token).
 fn start_server(
     args: &Args,
     addr: std::net::SocketAddr,
