@@ -2,6 +2,7 @@
 //! event stream delivering every tile in order, the control token, clients that read
 //! slowly or not at all, and the command line's outputs unchanged by serving.
 
+use rollfuse::detect::Detector;
 use rollfuse::link::sim::{DeviceMemory, SimDevice};
 use rollfuse::progress::Silent;
 use rollfuse::serve::{ServeOptions, Server};
@@ -29,14 +30,17 @@ fn options(out: &Path) -> Options {
     }
 }
 
-fn server(control: bool) -> Server {
-    Server::start(&ServeOptions {
+fn serve_options(control: bool) -> ServeOptions {
+    ServeOptions {
         addr: "127.0.0.1:0".parse().unwrap(),
         control,
         source: "sim".into(),
         live: true,
-    })
-    .unwrap()
+    }
+}
+
+fn server(control: bool) -> Server {
+    Server::start(&serve_options(control)).unwrap()
 }
 
 /// Streams `scene` from the virtual device into `out`, feeding `server`, and finishes it.
@@ -80,10 +84,19 @@ struct TileEvent {
     pixels: Vec<u8>,
 }
 
-/// Reads `/events` until the stream's end: the tiles, and the names of all events.
-fn read_events(reader: impl Read) -> (Vec<TileEvent>, Vec<String>) {
+/// What a client read from `/events`.
+struct Events {
+    tiles: Vec<TileEvent>,
+    /// Every event's name, in order.
+    names: Vec<String>,
+    /// The `defects` events' payloads.
+    defects: Vec<serde_json::Value>,
+}
+
+/// Reads `/events` until the stream's end.
+fn read_events(reader: impl Read) -> Events {
     use base64::Engine;
-    let (mut tiles, mut names) = (Vec::new(), Vec::new());
+    let (mut tiles, mut names, mut defects) = (Vec::new(), Vec::new(), Vec::new());
     let mut name = String::new();
     for line in BufReader::new(reader).lines() {
         let line = line.unwrap();
@@ -101,16 +114,23 @@ fn read_events(reader: impl Read) -> (Vec<TileEvent>, Vec<String>) {
                         .unwrap(),
                 });
             }
+            if name == "defects" {
+                defects.push(json.clone());
+            }
             if name == "end" {
                 break;
             }
         }
     }
-    (tiles, names)
+    Events {
+        tiles,
+        names,
+        defects,
+    }
 }
 
 /// Opens `/events` and reads it on a thread until the end.
-fn follow(server: &Server) -> std::thread::JoinHandle<(Vec<TileEvent>, Vec<String>)> {
+fn follow(server: &Server) -> std::thread::JoinHandle<Events> {
     let url = format!("http://{}/events", server.addr());
     let response = agent().get(&url).call().unwrap();
     assert_eq!(response.status().as_u16(), 200);
@@ -166,7 +186,7 @@ fn events_deliver_every_tile_in_order_with_its_pixels() {
     let server = server(false);
     let reader = follow(&server);
     let outcome = stream_served(&letters(36), tmp.path(), &server);
-    let (tiles, names) = reader.join().unwrap();
+    let Events { tiles, names, .. } = reader.join().unwrap();
     assert_eq!(tiles.len() as u64, outcome.manifest.tiles_received);
     assert!(tiles.windows(2).all(|w| w[1].index == w[0].index + 1));
     assert_eq!(names.last().map(String::as_str), Some("end"));
@@ -279,7 +299,7 @@ fn stuck_and_many_clients_change_nothing_in_the_stream() {
     );
     assert_same_outputs(plain.path(), served.path());
     for r in readers {
-        let (tiles, _) = r.join().unwrap();
+        let tiles = r.join().unwrap().tiles;
         assert!(tiles.windows(2).all(|w| w[0].index < w[1].index));
     }
 }
@@ -362,4 +382,100 @@ fn a_replayed_stream_takes_no_commands() {
     .unwrap();
     let token = server.token().unwrap().to_string();
     assert_eq!(post(&server, "/control/roller/stop", Some(&token)), 409);
+}
+
+/// Boxes `[x0, y0, x1, y1]` overlap: intersection over union.
+fn iou(a: [f64; 4], b: [f64; 4]) -> f64 {
+    let w = (a[2].min(b[2]) - a[0].max(b[0])).max(0.0);
+    let h = (a[3].min(b[3]) - a[1].max(b[1])).max(0.0);
+    let area = |r: [f64; 4]| (r[2] - r[0]) * (r[3] - r[1]);
+    w * h / (area(a) + area(b) - w * h)
+}
+
+#[test]
+fn the_detector_boxes_the_strips_defects_before_the_stream_ends() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/textile.toml");
+    let scene = Scene::load(&path).unwrap();
+    let detector = Detector::built_in().unwrap();
+    let server = Server::start_detecting(&serve_options(false), Some(detector)).unwrap();
+    let reader = follow(&server);
+    stream_served(&scene, tmp.path(), &server);
+    let Events {
+        tiles,
+        names,
+        defects,
+    } = reader.join().unwrap();
+    // Every box reaches the page before it is told the stream ended.
+    assert_eq!(names.last().map(String::as_str), Some("end"));
+    assert!(!defects.is_empty());
+    let summary = &defects.last().unwrap()["detector"];
+    let strip_rows = tiles.len() * 16;
+    assert_eq!(summary["rows_checked"], strip_rows, "every row checked");
+    assert_eq!(summary["rows_skipped"], 0);
+    assert_eq!(summary["fabric"], "twill_2_2", "the scene's fabric");
+    let status: serde_json::Value =
+        serde_json::from_slice(&get(&server, "/status.json").1).unwrap();
+    assert_eq!(&status["detector"], summary);
+    // The defects `rollfuse detect --upsample 2` finds on the strip written, each boxed
+    // on the page with its kind (the page's rows are belt rows: the file's from the
+    // first tile's).
+    let live: Vec<(String, [f64; 4])> = defects
+        .iter()
+        .flat_map(|d| d["boxes"].as_array().unwrap().clone())
+        .map(|b| {
+            let r: Vec<f64> = b["strip_box"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect();
+            (
+                b["kind"].as_str().unwrap().to_string(),
+                [r[0], r[1], r[2], r[3]],
+            )
+        })
+        .collect();
+    let run = rollfuse(&[
+        "detect",
+        tmp.path().join("strip.png").to_str().unwrap(),
+        "--upsample",
+        "2",
+        "--json",
+        tmp.path().join("found.json").to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let found: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(tmp.path().join("found.json")).unwrap()).unwrap();
+    let offline = found[0]["defects"].as_array().unwrap();
+    assert!(!offline.is_empty(), "the scene has defects");
+    assert_eq!(live.len(), offline.len(), "{live:?}\n{offline:?}");
+    for d in offline {
+        let r: Vec<f64> = d["box_px"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        let kind = d["kind"].as_str().unwrap();
+        let top = f64::from(tiles[0].index * 16);
+        let on_belt = [r[0], r[1] + top, r[2], r[3] + top];
+        assert!(
+            live.iter()
+                .any(|(k, b)| k == kind && iou(*b, on_belt) >= 0.3),
+            "{kind} at {on_belt:?} on the belt is not on the page: {live:?}"
+        );
+    }
+}
+
+#[test]
+fn without_the_detector_the_status_says_none() {
+    let server = server(false);
+    let status: serde_json::Value =
+        serde_json::from_slice(&get(&server, "/status.json").1).unwrap();
+    assert!(status["detector"].is_null());
 }

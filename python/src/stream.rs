@@ -255,6 +255,8 @@ pub fn stream(
         frame_rate,
         serve: None,
         control: false,
+        detect: false,
+        model: None,
     };
     let Opened { mut link, opts, .. } = py.detach(|| open(&args)).or_py()?;
     let (tx, rx) = sync_channel(WAITING_TILES);

@@ -127,11 +127,12 @@ class Page:
         return result.get("result", {}).get("value")
 
 
-def start_stream(rollfuse, scene, out_dir, frame_rate):
-    """`rollfuse stream --serve 127.0.0.1:0`, paced; the process and the page's address."""
+def start_stream(rollfuse, scene, out_dir, frame_rate, detect):
+    """`rollfuse stream --serve 127.0.0.1:0`, paced (with the detector if `detect`); the
+    process and the page's address."""
     proc = subprocess.Popen(
         [rollfuse, "stream", "--device", "sim", "--scene", scene, "--out", out_dir,
-         "--frame-rate", str(frame_rate), "--serve", "127.0.0.1:0"],
+         "--frame-rate", str(frame_rate), "--serve", "127.0.0.1:0"] + (["--detect"] if detect else []),
         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
     )
     line = proc.stdout.readline().strip()
@@ -205,14 +206,19 @@ def main():
     ap.add_argument("--scene", default="host/scenes/letters.toml")
     ap.add_argument("--frame-rate", type=float, default=8.0)
     ap.add_argument("--screenshot", required=True)
+    ap.add_argument("--detect", action="store_true",
+                    help="run the defect detector too, and require its boxes on the page")
     args = ap.parse_args()
     # A helper Chromium left behind may still hold its profile; that must not fail the check.
     with tempfile.TemporaryDirectory(ignore_cleanup_errors=True) as tmp:
-        stream, url = start_stream(args.rollfuse, args.scene, os.path.join(tmp, "out"), args.frame_rate)
+        stream, url = start_stream(args.rollfuse, args.scene, os.path.join(tmp, "out"),
+                                   args.frame_rate, args.detect)
         browser, ws_url = start_chromium(args.chromium, os.path.join(tmp, "profile"))
         try:
             page = Page(WebSocket(ws_url))
             samples = watch_page(page, url, seconds=60)
+            boxes = page.evaluate("found.boxes.length")
+            table_shown = page.evaluate("!document.getElementById('detector').hidden")
             shot = page.call("Page.captureScreenshot", format="png")
             with open(args.screenshot, "wb") as f:
                 f.write(base64.b64decode(shot["data"]))
@@ -227,6 +233,14 @@ def main():
         return 1
     if not grew or samples[-1] == 0:
         print("FAIL: the strip did not grow on the page")
+        return 1
+    if args.detect:
+        print(f"defect boxes on the page: {boxes}")
+        if not (boxes and table_shown):
+            print("FAIL: the detector's boxes or its table are not on the page")
+            return 1
+    elif table_shown:
+        print("FAIL: the page shows a detector that does not run")
         return 1
     print("the page showed the strip growing, with no console error")
     return 0

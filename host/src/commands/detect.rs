@@ -134,16 +134,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(dir) = &args.draw {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
-    let mut detector = match &args.model {
-        Some(m) => Detector::load(m)?,
-        None => Detector::built_in()?,
-    };
+    let mut detector = Detector::load_or_built_in(args.model.as_deref())?;
     detector.threshold = args.threshold;
     let mut batch = Batch::new();
     let mut results = Vec::new();
     for (k, path) in args.images.iter().enumerate() {
         let image = Planes::load(path)?;
-        let d = detect_at_scale(&detector, &image, args.upsample.into())
+        let d = detector
+            .detect_at_scale(&image, args.upsample.into())
             .with_context(|| format!("{}", path.display()))?;
         println!("{}", summary(path, &d));
         if let Some(out) = drawn.get(k) {
@@ -166,19 +164,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )?;
     }
     batch.commit()
-}
-
-/// Detects on `image` upsampled `d`× (a gray image; others go to the detector as they
-/// are, to be refused), boxes scaled back to its pixels.
-fn detect_at_scale(detector: &Detector, image: &Planes, d: usize) -> anyhow::Result<Detection> {
-    if d == 1 || image.planes.len() != 1 {
-        return detector.detect(image);
-    }
-    let mut found = detector.detect(&image.upsampled(d))?;
-    for f in &mut found.defects {
-        f.box_px = f.box_px.map(|v| v / d as f32);
-    }
-    Ok(found)
 }
 
 /// `DIR/STEM_detect.png` for an input image.

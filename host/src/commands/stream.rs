@@ -88,6 +88,14 @@ pub struct Args {
     /// that carry the token printed at start-up.
     #[arg(long, requires = "serve")]
     pub control: bool,
+    /// With --serve: run the defect detector over the strip as it grows and draw its boxes
+    /// on the page (at the camera's scale: the strip is upsampled by the device's
+    /// downsampling first).
+    #[arg(long, requires = "serve")]
+    pub detect: bool,
+    /// With --detect: the detector's model (default: the one built into the tool).
+    #[arg(long, requires = "detect")]
+    pub model: Option<PathBuf>,
 }
 
 impl Args {
@@ -168,7 +176,42 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => stream::run(link.as_mut(), &opts, &bars)?,
     };
     print_summary(&args.out, &outcome);
+    if let Some(d) = server.as_ref().and_then(serve::Server::detector_status) {
+        print_defects(&d);
+    }
     Ok(())
+}
+
+/// What the detector found on the strip.
+fn print_defects(d: &serve::detect::DetectorStatus) {
+    let kinds: Vec<String> = d
+        .defects
+        .iter()
+        .map(|(k, n)| format!("{n} {k}{}", if *n == 1 { "" } else { "s" }))
+        .collect();
+    println!(
+        "defects: {} on {} strip rows{}; fabric {}",
+        if kinds.is_empty() {
+            "none".to_string()
+        } else {
+            kinds.join(", ")
+        },
+        d.rows_checked,
+        if d.rows_skipped > 0 {
+            format!(
+                " ({} rows passed over: the detector fell behind)",
+                d.rows_skipped
+            )
+        } else {
+            String::new()
+        },
+        d.fabric
+            .as_ref()
+            .map_or("not known".to_string(), |f| format!(
+                "{f} ({:.0} %)",
+                100.0 * d.probability
+            )),
+    );
 }
 
 fn start_server(
@@ -190,12 +233,17 @@ fn start_server(
         "usb" | "sim" => args.device.clone(),
         _ => "replay".to_string(),
     };
-    let server = serve::Server::start(&serve::ServeOptions {
+    let detector = args
+        .detect
+        .then(|| crate::detect::Detector::load_or_built_in(args.model.as_deref()))
+        .transpose()?;
+    let options = serve::ServeOptions {
         addr,
         control: args.control,
         source,
         live,
-    })?;
+    };
+    let server = serve::Server::start_detecting(&options, detector)?;
     println!("live page: http://{}/", server.addr());
     if let Some(token) = server.token() {
         println!(
@@ -255,6 +303,7 @@ fn check(args: &Args) -> anyhow::Result<Checked> {
         let mut inputs: Vec<(&str, &std::path::Path)> = Vec::new();
         inputs.extend(replay.as_deref().map(|p| ("recording replayed", p)));
         inputs.extend(args.scene.as_deref().map(|p| ("scene", p)));
+        inputs.extend(args.model.as_deref().map(|p| ("model", p)));
         crate::files::refuse_overwriting(&[r], &inputs)?;
     }
     Ok(Checked {

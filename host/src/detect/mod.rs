@@ -69,6 +69,14 @@ impl Detector {
         Ok(Self::from_net(net, about))
     }
 
+    /// The model at `path`, or the built-in one without a path.
+    pub fn load_or_built_in(path: Option<&Path>) -> anyhow::Result<Self> {
+        match path {
+            Some(path) => Self::load(path),
+            None => Self::built_in(),
+        }
+    }
+
     /// Wraps a network already in memory (training's validation).
     pub fn from_net(net: net::Net, about: model::About) -> Self {
         Self {
@@ -138,6 +146,21 @@ impl Detector {
             probabilities: mean,
             defects,
         })
+    }
+
+    /// [`Self::detect`] on `image` upsampled `d`× (a strip downsampled on the device,
+    /// brought back to the camera's scale the model knows), boxes scaled back to the
+    /// image's own pixels. Images that are not gray go to the detector as they are, to be
+    /// refused.
+    pub fn detect_at_scale(&self, image: &Planes, d: usize) -> anyhow::Result<Detection> {
+        if d <= 1 || image.planes.len() != 1 {
+            return self.detect(image);
+        }
+        let mut found = self.detect(&image.upsampled(d))?;
+        for f in &mut found.defects {
+            f.box_px = f.box_px.map(|v| v / d as f32);
+        }
+        Ok(found)
     }
 
     /// One tile through the network: class probabilities and decoded boxes.

@@ -2,6 +2,7 @@
 //! every new tile and the status as they come, from its own bounded queue. A client that
 //! falls behind is told how many rows it missed and goes on from the newest.
 
+use super::detect::{DetectorStatus, LiveBox};
 use super::state::{ClientFeed, Event, Shared, Status, TileRing, client_queue, lock};
 use base64::Engine;
 use std::io::Write;
@@ -42,6 +43,12 @@ pub fn status_event(status: &Status) -> Event {
     event(name, &serde_json::to_string(status).unwrap_or_default(), 0)
 }
 
+/// New defect boxes on the strip and the detector's summary.
+pub fn defects_event(boxes: &[LiveBox], status: &DetectorStatus) -> Event {
+    let json = serde_json::json!({ "boxes": boxes, "detector": status });
+    event("defects", &json.to_string(), 0)
+}
+
 /// The marker a client gets after its queue overflowed.
 fn skipped_event(rows: u64) -> Event {
     event("skipped", &format!("{{\"rows\":{rows}}}"), 0)
@@ -65,6 +72,11 @@ pub fn subscribe(shared: &Shared) -> (Vec<Event>, ClientFeed) {
     let (queue, feed) = client_queue();
     let mut first = backlog(&ring);
     drop(ring);
+    if shared.detecting {
+        let findings = lock(&shared.findings);
+        let kept: Vec<LiveBox> = findings.boxes.iter().copied().collect();
+        first.push(defects_event(&kept, &findings.status));
+    }
     clients.push(queue);
     drop(clients);
     first.push(status_event(&shared.status_now()));

@@ -7,6 +7,7 @@
 //! returns: a slow or vanished browser never holds up the stream, it skips rows instead.
 //! docs/serve.md has the endpoints and the measurements.
 
+pub mod detect;
 mod events;
 mod routes;
 pub mod state;
@@ -44,6 +45,8 @@ pub struct ServeOptions {
 /// The running server. Dropping it stops it.
 pub struct Server {
     shared: Arc<Shared>,
+    /// The detector's thread, with `--detect` (taken when the session is over).
+    detector: std::sync::Mutex<Option<detect::LiveDetector>>,
     http: Arc<tiny_http::Server>,
     addr: SocketAddr,
     accept: Option<JoinHandle<()>>,
@@ -80,6 +83,15 @@ impl Server {
     /// Binds `opts.addr` and starts answering. Fails, saying so, when the address cannot
     /// be had (in use, not this machine's).
     pub fn start(opts: &ServeOptions) -> anyhow::Result<Self> {
+        Self::start_detecting(opts, None)
+    }
+
+    /// [`Server::start`], with `detector` run over the strip as it grows and its boxes
+    /// drawn on the page ([`detect`]).
+    pub fn start_detecting(
+        opts: &ServeOptions,
+        detector: Option<crate::detect::Detector>,
+    ) -> anyhow::Result<Self> {
         let http = tiny_http::Server::http(opts.addr)
             .map_err(|e| anyhow::anyhow!("cannot serve on {}: {e}", opts.addr))?;
         let addr = http
@@ -99,7 +111,13 @@ impl Server {
             ring: Default::default(),
             clients: Default::default(),
             commands: Default::default(),
+            detecting: detector.is_some(),
+            findings: Default::default(),
         });
+        let detector = detector
+            .map(|d| detect::LiveDetector::start(Arc::clone(&shared), d))
+            .transpose()
+            .context("cannot start the detector's thread")?;
         let http = Arc::new(http);
         let accept = {
             let (http, shared) = (Arc::clone(&http), Arc::clone(&shared));
@@ -110,6 +128,7 @@ impl Server {
         };
         Ok(Self {
             shared,
+            detector: std::sync::Mutex::new(detector),
             http,
             addr,
             accept: Some(accept),
@@ -119,6 +138,11 @@ impl Server {
     /// The address it listens on (with the port chosen when asked for port 0).
     pub fn addr(&self) -> SocketAddr {
         self.addr
+    }
+
+    /// The detector's findings so far, with `--detect`.
+    pub fn detector_status(&self) -> Option<detect::DetectorStatus> {
+        self.shared.status_now().detector
     }
 
     /// The control token, with `--control`.
@@ -139,6 +163,10 @@ impl Server {
     /// The session is over: the final status goes to the page (`ended`), the event
     /// streams close, and the server goes on answering until dropped.
     pub fn finish(&self, manifest: &Manifest) {
+        // The detector checks the last rows first, so the page has every box.
+        if let Some(mut d) = lock(&self.detector).take() {
+            d.finish();
+        }
         // The session's average: there is no recent rate once it is over.
         let secs = self.shared.started.elapsed().as_secs_f64().max(1e-9);
         let rate = Rate {

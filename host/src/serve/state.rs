@@ -2,6 +2,7 @@
 //! answering requests: the newest tiles, the status, the event clients and the commands
 //! waiting for the device. Every lock is held only to copy or push, never across I/O.
 
+use super::detect::{DetectorStatus, Findings};
 use crate::stream::{Faults, Manifest};
 use rollfuse_core::protocol::{Command, DeviceInfo, StatusCounters};
 use serde::Serialize;
@@ -76,26 +77,42 @@ impl TileRing {
         }
     }
 
-    /// The newest `rows` rows of the strip (fewer when it is shorter), in belt order,
-    /// missing tiles black: width, height and pixels. None before the first tile.
-    pub fn newest_rows(&self, rows: usize) -> Option<(usize, usize, Vec<u8>)> {
-        let (width, height) = self.size?;
+    /// The belt rows the kept tiles span, `first..end` (missing tiles within count).
+    pub fn span(&self) -> Option<std::ops::Range<u64>> {
+        let (_, height) = self.size?;
         let (&first, _) = self.tiles.first_key_value()?;
         let (&last, _) = self.tiles.last_key_value()?;
-        let first_row = u64::from(first) * height as u64;
-        let end_row = (u64::from(last) + 1) * height as u64;
-        let start = end_row.saturating_sub(rows as u64).max(first_row);
-        let shown = (end_row - start) as usize;
+        Some(u64::from(first) * height as u64..(u64::from(last) + 1) * height as u64)
+    }
+
+    /// Belt rows `rows` of the strip (clipped to what is kept), missing tiles black: width,
+    /// the first row given, its height and pixels. None before the first tile.
+    pub fn rows(&self, rows: std::ops::Range<u64>) -> Option<(usize, u64, usize, Vec<u8>)> {
+        let (width, height) = self.size?;
+        let span = self.span()?;
+        let (start, end) = (
+            rows.start.max(span.start),
+            rows.end.min(span.end).max(rows.start.max(span.start)),
+        );
+        let shown = (end - start) as usize;
         let mut pixels = vec![0u8; shown * width];
         for (&index, tile) in self.tiles.range((start / height as u64) as u32..) {
             for (r, line) in tile.chunks_exact(width).enumerate() {
                 let row = u64::from(index) * height as u64 + r as u64;
-                if let Some(at) = row.checked_sub(start) {
-                    let at = at as usize * width;
+                if (start..end).contains(&row) {
+                    let at = (row - start) as usize * width;
                     pixels[at..at + width].copy_from_slice(line);
                 }
             }
         }
+        Some((width, start, shown, pixels))
+    }
+
+    /// The newest `rows` rows of the strip (fewer when it is shorter), in belt order,
+    /// missing tiles black: width, height and pixels. None before the first tile.
+    pub fn newest_rows(&self, rows: usize) -> Option<(usize, usize, Vec<u8>)> {
+        let end = self.span()?.end;
+        let (width, _, shown, pixels) = self.rows(end.saturating_sub(rows as u64)..end)?;
         Some((width, shown, pixels))
     }
 }
@@ -144,6 +161,8 @@ pub struct Status {
     pub clients: usize,
     /// Whether commands are taken (`--control`).
     pub control: bool,
+    /// The defect detector's findings, with `--detect`.
+    pub detector: Option<DetectorStatus>,
 }
 
 impl Status {
@@ -181,6 +200,10 @@ pub struct Shared {
     pub clients: Mutex<Vec<ClientQueue>>,
     /// Commands for the device, oldest first.
     pub commands: Mutex<VecDeque<Command>>,
+    /// Whether the defect detector runs (`--detect`).
+    pub detecting: bool,
+    /// What it found.
+    pub findings: Mutex<Findings>,
 }
 
 /// Locks a mutex, taking the data even if a thread panicked while holding it: every
@@ -195,6 +218,9 @@ impl Shared {
         let mut status = lock(&self.status).clone();
         status.uptime_s = self.started.elapsed().as_secs_f64();
         status.clients = lock(&self.clients).len();
+        if self.detecting {
+            status.detector = Some(lock(&self.findings).status.clone());
+        }
         status
     }
 

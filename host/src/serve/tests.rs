@@ -38,6 +38,8 @@ fn shared() -> Arc<Shared> {
         ring: Default::default(),
         clients: Default::default(),
         commands: Default::default(),
+        detecting: false,
+        findings: Default::default(),
     })
 }
 

@@ -1,0 +1,260 @@
+//! The defect detector on the live strip (`stream --serve --detect`): a thread of its own
+//! runs the detector over the strip's kept rows as they grow, window by window, and hands
+//! the boxes to the page. It reads the rows the server keeps anyway, at its own pace:
+//! when the detector is slower than the stream it passes over the rows that have left
+//! the server's memory (counted), and the stream never waits for it.
+
+use super::events;
+use super::state::{Shared, lock};
+use crate::detect::{Detector, TILE_OVERLAP, TILE_ROWS};
+use crate::image::Planes;
+use crate::sim::textile::DefectKind;
+use serde::Serialize;
+use std::collections::{BTreeMap, VecDeque};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+/// Boxes the server keeps for pages that connect later (older ones are dropped).
+pub const KEPT_BOXES: usize = 1024;
+
+/// How often the detector looks for new rows when it has none to work on.
+const POLL: Duration = Duration::from_millis(100);
+
+/// A defect on the strip, in strip pixels (belt rows down, columns across).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct LiveBox {
+    /// Its kind.
+    pub kind: DefectKind,
+    /// The heatmap's peak, 0..1.
+    pub score: f32,
+    /// `[x0, row0, x1, row1]`: columns and belt rows of the strip.
+    pub strip_box: [f32; 4],
+}
+
+/// What the detector has said so far, as `/status.json` and the page show it.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct DetectorStatus {
+    /// The most probable fabric over the rows checked (their probabilities averaged).
+    pub fabric: Option<String>,
+    /// Its mean probability.
+    pub probability: f64,
+    /// Defects found, by kind.
+    pub defects: BTreeMap<String, u64>,
+    /// Strip rows the detector has looked at.
+    pub rows_checked: u64,
+    /// Strip rows it passed over, having fallen behind the stream.
+    pub rows_skipped: u64,
+}
+
+/// The detector's findings, shared with the server's threads.
+#[derive(Default)]
+pub struct Findings {
+    /// The summary.
+    pub status: DetectorStatus,
+    /// The newest boxes, oldest first.
+    pub boxes: VecDeque<LiveBox>,
+    /// Every fabric's probability summed over the rows checked, weighted by rows.
+    weights: Vec<f64>,
+}
+
+/// The running detector: stops when dropped.
+pub struct LiveDetector {
+    ended: Arc<AtomicBool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl LiveDetector {
+    /// Starts the detector's thread on `shared`'s strip.
+    pub fn start(shared: Arc<Shared>, detector: Detector) -> anyhow::Result<Self> {
+        let ended = Arc::new(AtomicBool::new(false));
+        let flag = Arc::clone(&ended);
+        let thread = std::thread::Builder::new()
+            .name("serve-detect".into())
+            .spawn(move || Windows::new(detector).run(&shared, &flag))?;
+        Ok(Self {
+            ended,
+            thread: Some(thread),
+        })
+    }
+
+    /// The stream is over: the detector checks the rows left and stops; this waits for
+    /// it, so the page has every box before it is told the stream ended.
+    pub fn finish(&mut self) {
+        self.ended.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+impl Drop for LiveDetector {
+    fn drop(&mut self) {
+        self.finish();
+    }
+}
+
+/// The detector walking down the strip: each window's own rows are those whose defects
+/// it reports, with context rows either side so a defect on the edge is seen whole.
+struct Windows {
+    detector: Detector,
+    /// The first strip row not yet reported on.
+    next: Option<u64>,
+}
+
+/// A window: rows `own` reported on, rows `seen` given to the detector.
+struct Window {
+    own: std::ops::Range<u64>,
+    seen: std::ops::Range<u64>,
+}
+
+impl Windows {
+    fn new(detector: Detector) -> Self {
+        Self {
+            detector,
+            next: None,
+        }
+    }
+
+    fn run(mut self, shared: &Shared, ended: &AtomicBool) {
+        loop {
+            // Read before looking at the rows, so rows that came before the end are seen.
+            let last = ended.load(Ordering::Relaxed);
+            let Some(upsample) = downsample_of(shared) else {
+                if last {
+                    return;
+                }
+                std::thread::sleep(POLL);
+                continue;
+            };
+            match self.next_window(shared, upsample, last) {
+                Some(w) => self.check(shared, w, upsample),
+                None if last => return,
+                None => std::thread::sleep(POLL),
+            }
+        }
+    }
+
+    /// The next window whose rows are all in (or the rest of the strip once it has
+    /// ended), passing over rows the server no longer keeps.
+    fn next_window(&mut self, shared: &Shared, upsample: usize, last: bool) -> Option<Window> {
+        let span = lock(&shared.ring).span()?;
+        let context = (TILE_OVERLAP / upsample / 2) as u64;
+        let own_rows = (TILE_ROWS / upsample) as u64 - 2 * context;
+        let next = *self.next.get_or_insert(span.start);
+        if next < span.start {
+            lock(&shared.findings).status.rows_skipped += span.start - next;
+            self.next = Some(span.start);
+            return self.next_window(shared, upsample, last);
+        }
+        let own_end = next + own_rows;
+        let ready = span.end >= own_end + context;
+        if !(ready || last && span.end > next) {
+            return None;
+        }
+        let own = next..own_end.min(span.end);
+        let seen =
+            own.start.saturating_sub(context).max(span.start)..(own.end + context).min(span.end);
+        Some(Window { own, seen })
+    }
+
+    /// Runs the detector on a window and hands its boxes on.
+    fn check(&mut self, shared: &Shared, w: Window, upsample: usize) {
+        self.next = Some(w.own.end);
+        let Some((width, start, rows, pixels)) = lock(&shared.ring).rows(w.seen.clone()) else {
+            return;
+        };
+        let image = Planes {
+            width,
+            height: rows,
+            planes: vec![pixels.iter().map(|&v| f32::from(v)).collect()],
+        };
+        // A window too small for the detector (a short tail) is counted as checked.
+        let found = self.detector.detect_at_scale(&image, upsample).ok();
+        let boxes: Vec<LiveBox> = found
+            .as_ref()
+            .map(|d| {
+                d.defects
+                    .iter()
+                    .map(|f| {
+                        let [x0, y0, x1, y1] = f.box_px;
+                        let top = start as f32;
+                        LiveBox {
+                            kind: f.kind,
+                            score: f.score,
+                            strip_box: [x0, y0 + top, x1, y1 + top],
+                        }
+                    })
+                    .filter(|b| {
+                        w.own
+                            .contains(&(((b.strip_box[1] + b.strip_box[3]) / 2.0) as u64))
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        let status = {
+            let mut findings = lock(&shared.findings);
+            findings.take(
+                &boxes,
+                found.as_ref(),
+                w.own.end - w.own.start,
+                self.detector.about().fabrics.as_slice(),
+            );
+            findings.status.clone()
+        };
+        let event = events::defects_event(&boxes, &status);
+        let mut clients = lock(&shared.clients);
+        super::state::Shared::broadcast(&mut clients, &event);
+    }
+}
+
+impl Findings {
+    /// Counts a window's boxes and weighs its fabric probabilities by its `rows`.
+    fn take(
+        &mut self,
+        boxes: &[LiveBox],
+        found: Option<&crate::detect::Detection>,
+        rows: u64,
+        fabrics: &[String],
+    ) {
+        self.status.rows_checked += rows;
+        for b in boxes {
+            let name = serde_json::to_value(b.kind)
+                .ok()
+                .and_then(|v| v.as_str().map(str::to_string))
+                .unwrap_or_default();
+            *self.status.defects.entry(name).or_default() += 1;
+            self.boxes.push_back(*b);
+        }
+        while self.boxes.len() > KEPT_BOXES {
+            self.boxes.pop_front();
+        }
+        let Some(found) = found else {
+            return;
+        };
+        self.weights.resize(found.probabilities.len(), 0.0);
+        for (w, &p) in self.weights.iter_mut().zip(&found.probabilities) {
+            *w += f64::from(p) * rows as f64;
+        }
+        let total: f64 = self.weights.iter().sum();
+        if let Some((class, &w)) = self
+            .weights
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.total_cmp(b.1))
+            .filter(|_| total > 0.0)
+        {
+            self.status.fabric = fabrics.get(class).cloned();
+            self.status.probability = w / total;
+        }
+    }
+}
+
+/// The device's downsampling (the detector works at the camera's scale), once the
+/// device has said its configuration.
+fn downsample_of(shared: &Shared) -> Option<usize> {
+    let status = lock(&shared.status);
+    status
+        .device
+        .map(|d| usize::from(d.config.downsample.max(1)))
+}
