@@ -186,17 +186,18 @@ def watch_page(page, url, seconds):
     for domain in ("Runtime", "Log", "Page"):
         page.call(f"{domain}.enable")
     page.call("Page.navigate", url=url)
-    samples = []
+    samples, tables = [], []
     deadline = time.time() + seconds
     while time.time() < deadline:
         page.pump(0.3)
         shown = page.evaluate("Number(document.getElementById('rows').textContent)")
         state = page.evaluate("document.getElementById('state').textContent")
         samples.append(shown)
+        tables.append(page.evaluate("!document.getElementById('detector').hidden"))
         if state == "stream ended":
             break
     page.pump(0.5)
-    return samples
+    return samples, tables
 
 
 def main():
@@ -216,7 +217,7 @@ def main():
         browser, ws_url = start_chromium(args.chromium, os.path.join(tmp, "profile"))
         try:
             page = Page(WebSocket(ws_url))
-            samples = watch_page(page, url, seconds=60)
+            samples, tables = watch_page(page, url, seconds=60)
             boxes = page.evaluate("found.boxes.length")
             table_shown = page.evaluate("!document.getElementById('detector').hidden")
             shot = page.call("Page.captureScreenshot", format="png")
@@ -238,6 +239,9 @@ def main():
         print(f"defect boxes on the page: {boxes}")
         if not (boxes and table_shown):
             print("FAIL: the detector's boxes or its table are not on the page")
+            return 1
+        if any(a and not b for a, b in zip(tables, tables[1:])):
+            print(f"FAIL: the detector's table came and went while streaming: {tables}")
             return 1
     elif table_shown:
         print("FAIL: the page shows a detector that does not run")

@@ -281,15 +281,10 @@ impl Watch for LiveWatch {
         }
         self.last_status = Some(now);
         let rate = self.rate(manifest, now);
-        let mut status = {
-            let mut status = lock(&self.shared.status);
-            status.update(manifest, rate);
-            status.clone()
-        };
+        lock(&self.shared.status).update(manifest, rate);
+        let status = self.shared.status_now();
         let mut clients = lock(&self.shared.clients);
         if !clients.is_empty() {
-            status.uptime_s = self.shared.started.elapsed().as_secs_f64();
-            status.clients = clients.len();
             Shared::broadcast(&mut clients, &events::status_event(&status));
         }
     }
