@@ -2,8 +2,9 @@
 //! [`crate::lifting`]. This is what the MCU runs.
 
 use super::{
-    Arith, FuseConfig, ImagePair, LlWeight, ScratchLayout, Sequential, TABLE_WORDS, WindowLayout,
-    WindowMap, fuse_generic, fuse_pair_checked, maps_len, split_maps, split_scratch,
+    Ablation, Arith, ByteImages, FuseConfig, ImagePair, LlWeight, ScratchLayout, Sequential,
+    TABLE_WORDS, WindowLayout, WindowMap, fuse_generic, fuse_pair_checked, maps_len, split_maps,
+    split_scratch,
 };
 use crate::lifting::{self, LevelBounds, bounds::level_bounds};
 use crate::packed::widen_shifted;
@@ -241,18 +242,39 @@ pub fn fuse_u8(
         first_level_maps(images, cfg, parts.maps.space, table, parts.lines.line)?;
         parts.maps.first_ready = true;
     }
-    // Every buffer was checked to hold its region above: the zips pair all `h` rows.
-    for (src, src_dims, dst) in [(&*a, a_dims, &mut *work.a), (b, b_dims, &mut *work.b)] {
-        for (row, dst_row) in src_dims.rows(src).zip(dst.chunks_exact_mut(w)) {
-            widen_shifted::<GUARD_BITS>(row, dst_row);
-        }
-    }
     let images = ImagePair {
         a: &mut *work.a,
         b: &mut *work.b,
         dims: packed,
     };
-    fuse_generic(images, cfg, ll_weight, parts, [None; 2], &Sequential)?;
+    if cfg.ablation != Ablation::NoWavelet {
+        // Level 1 reads its rows from the bytes and the result goes straight back to
+        // them: no widened copies, no rounding pass. Past the checks above nothing fails
+        // once the inverse has begun writing `a` (the step's errors stand in for panics).
+        let bytes = ByteImages {
+            a,
+            a_dims,
+            b,
+            b_dims,
+        };
+        return fuse_generic(
+            images,
+            cfg,
+            ll_weight,
+            parts,
+            [None; 2],
+            &Sequential,
+            Some(bytes),
+        );
+    }
+    // Without the wavelet the samples are mixed as they are.
+    // Every buffer was checked to hold its region above: the zips pair all `h` rows.
+    for (src, src_dims, dst) in [(&*a, a_dims, &mut *images.a), (b, b_dims, &mut *images.b)] {
+        for (row, dst_row) in src_dims.rows(src).zip(dst.chunks_exact_mut(w)) {
+            widen_shifted::<GUARD_BITS>(row, dst_row);
+        }
+    }
+    fuse_generic(images, cfg, ll_weight, parts, [None; 2], &Sequential, None)?;
     let half = 1 << (GUARD_BITS - 1);
     for (row, fused) in a_dims.rows_mut(a).zip(work.a.chunks_exact(w)) {
         for (d, &v) in row.iter_mut().zip(fused) {

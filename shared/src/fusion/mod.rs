@@ -165,7 +165,8 @@ pub(crate) trait Arith: Lift + Send + Sync + core::ops::AddAssign {
     fn inverse_bounds(wavelet: Wavelet, levels: u8) -> [LevelBounds; MAX_LEVELS as usize];
     /// All inverse levels of a fused `levels`-deep transform of `dims` in `buf`, deepest
     /// first; `prepare(level, y, row y)` runs on each row of each level's region before
-    /// that level reads it.
+    /// that level reads it. With `out` the result goes there as bytes
+    /// ([`Lift::to_byte`]) instead of into `buf`.
     fn inverse(
         wavelet: Wavelet,
         buf: &mut [Self],
@@ -173,6 +174,7 @@ pub(crate) trait Arith: Lift + Send + Sync + core::ops::AddAssign {
         levels: u8,
         scratch: &mut [Self],
         prepare: &mut impl FnMut(u8, usize, &mut [Self]),
+        out: Option<lifting::ByteRows<'_>>,
     ) {
         let bounds = Self::inverse_bounds(wavelet, levels);
         // Fused coefficients are convex combinations of forward-transform outputs of the
@@ -181,7 +183,8 @@ pub(crate) trait Arith: Lift + Send + Sync + core::ops::AddAssign {
             bounds: &bounds,
             coefficients: Coefficients::InBounds,
         };
-        lifting::inverse_levels(wavelet, buf, dims, levels, scratch, saturation, prepare);
+        let hooks = lifting::RowHooks { prepare, out };
+        lifting::inverse_levels_into(wavelet, buf, dims, levels, scratch, saturation, hooks);
     }
     /// What [`Arith::saliency_row`] normalizes the Laplacian by.
     type SaliencyScale: Copy + PartialEq + Send + Sync;
@@ -249,6 +252,21 @@ pub(crate) struct ImagePair<'i, T> {
     pub dims: Dims,
 }
 
+/// The 8-bit images behind a fuse step's buffers (with their regions), where the step
+/// reads level 1's rows from them and writes its result back to `a` as bytes
+/// ([`Lift::from_guarded_byte`], [`Lift::to_byte`]): no widened copy of either image and
+/// no rounding pass after.
+pub(crate) struct ByteImages<'i> {
+    /// Image A's bytes: read by the forward transform, overwritten by the result.
+    pub a: &'i mut [u8],
+    /// Where image A lies in `a`.
+    pub a_dims: Dims,
+    /// Image B's bytes.
+    pub b: &'i [u8],
+    /// Where image B lies in `b`.
+    pub b_dims: Dims,
+}
+
 /// The checks and the call shared by both paths' public `fuse_pair`, with the scratch laid
 /// out as `layout` says.
 pub(crate) fn fuse_pair_checked<T: Arith>(
@@ -272,7 +290,7 @@ pub(crate) fn fuse_pair_checked<T: Arith>(
     let max_a = T::check_and_max(a, dims, local_max)?;
     let max_b = T::check_and_max(b, dims, local_max)?;
     let images = ImagePair { a, b, dims };
-    fuse_generic(images, cfg, ll_weight, work, [max_a, max_b], join)
+    fuse_generic(images, cfg, ll_weight, work, [max_a, max_b], join, None)
 }
 
 /// Scratch a fuse step needs besides its transform line: one window map per image, each
@@ -536,9 +554,20 @@ type MapOf<'m, T> = (
     Option<<T as Arith>::SaliencyScale>,
 );
 
+/// Sets the `dims` region of `img` to the samples of the 8-bit image `src` (on its own
+/// region) with the guard bits ([`Lift::from_guarded_byte`]).
+fn widen<T: Lift>((bytes, src_dims): (&[u8], Dims), img: &mut [T], dims: Dims) {
+    for (row, dst) in src_dims.rows(bytes).zip(dims.rows_mut(img)) {
+        for (d, &v) in dst.iter_mut().zip(row) {
+            *d = T::from_guarded_byte(v);
+        }
+    }
+}
+
 /// One image's part of a fuse step level: its saliency map (when `map` is given: the
 /// map, its layout and the image's normalization, `None` for a flat image), then its forward
-/// transform. With `ring` (two rows of scratch) both run in one sweep over the image:
+/// transform. With `src` (an 8-bit image and its region) the image is read from those
+/// bytes ([`ByteImages`]), not from `img`. With `ring` (two rows of scratch) both run in one sweep over the image:
 /// each row's saliency is taken as the transform's sweep brings in the row below it, from
 /// copies of the original rows above, which the transform has lifted by then. That saves
 /// a pass over the image; the result is the same to the bit.
@@ -549,11 +578,19 @@ fn saliency_and_forward<T: Arith>(
     map: Option<MapOf<'_, T>>,
     line: &mut [T],
     ring: Option<&mut [T]>,
+    src: Option<(&[u8], Dims)>,
 ) {
     let Some((map, layout, scale)) = map else {
-        lifting::forward_level(wavelet, img, dims, line);
+        match src {
+            Some(src) => lifting::forward_level_from_bytes(wavelet, img, dims, line, src),
+            None => lifting::forward_level(wavelet, img, dims, line),
+        }
         return;
     };
+    // (`transform_level` widens bytes itself before a map is taken: no `src` comes here.)
+    if let Some(src) = src {
+        widen(src, img, dims);
+    }
     let (w, h) = (dims.width(), dims.height());
     let mut map = WindowMap::new(map, layout, dims);
     let lagged = ring.and_then(|r| LaggedRows::new(r, w));
@@ -664,6 +701,7 @@ pub(crate) fn fuse_generic<T: Arith>(
     work: Work<'_, T>,
     maxima: [Option<T>; 2],
     join: &impl Join,
+    mut bytes: Option<ByteImages<'_>>,
 ) -> Result<(), Error> {
     let ImagePair { a, b, dims } = images;
     let Work {
@@ -675,6 +713,8 @@ pub(crate) fn fuse_generic<T: Arith>(
         return mix_region(a, b, dims, ll_weight).ok_or(image_error);
     }
     let mut d = dims;
+    // Level 1 reads the images' bytes, where given.
+    let mut sources = bytes.as_ref().map(|i| [(&*i.a, i.a_dims), (i.b, i.b_dims)]);
     for level in 1..cfg.levels {
         let level_images = ImagePair {
             a: &mut *a,
@@ -687,7 +727,10 @@ pub(crate) fn fuse_generic<T: Arith>(
             cfg,
             &mut maps,
             &mut lines,
-            maxima,
+            LevelInputs {
+                maxima,
+                sources: sources.take(),
+            },
             join,
         )?;
         for y in 0..d.height() {
@@ -709,7 +752,10 @@ pub(crate) fn fuse_generic<T: Arith>(
         cfg,
         &mut maps,
         &mut lines,
-        maxima,
+        LevelInputs {
+            maxima,
+            sources: sources.take(),
+        },
         join,
     )?;
     let b = &*b;
@@ -723,6 +769,7 @@ pub(crate) fn fuse_generic<T: Arith>(
             outcome = outcome.and(fused);
         }
     };
+    let out = bytes.take().map(|i| (i.a, i.a_dims));
     T::inverse(
         cfg.wavelet,
         a,
@@ -730,8 +777,17 @@ pub(crate) fn fuse_generic<T: Arith>(
         cfg.levels,
         lines.line,
         &mut fuse_deepest,
+        out,
     );
     outcome
+}
+
+/// What a fuse step level's images come with besides their buffers.
+struct LevelInputs<'s, T> {
+    /// The images' level-1 `|∇²I|` where the checks found them (used at level 1 only).
+    maxima: [Option<T>; 2],
+    /// The 8-bit images level 1 reads its rows from ([`ByteImages`]), if any.
+    sources: Option<[(&'s [u8], Dims); 2]>,
 }
 
 /// One level of a fuse step up to its fusion: each image's saliency map (read before its
@@ -744,9 +800,13 @@ fn transform_level<'m, T: Arith>(
     cfg: &FuseConfig,
     maps: &'m mut Maps<'_, T>,
     lines: &mut Lines<'_, T>,
-    [max_a, max_b]: [Option<T>; 2],
+    inputs: LevelInputs<'_, T>,
     join: &impl Join,
 ) -> Result<LevelFusion<'m, T>, Error> {
+    let LevelInputs {
+        maxima: [max_a, max_b],
+        sources,
+    } = inputs;
     let ImagePair { a, b, dims: d } = images;
     let maps_ready = level == 1 && maps.first_ready;
     let with_weights = cfg.ablation.uses_saliency();
@@ -759,6 +819,15 @@ fn transform_level<'m, T: Arith>(
         T::saliency_scale(img, d, cfg.norm, cfg.wavelet, level, known_max)
     };
     let take_maps = with_weights && !maps_ready;
+    // A map is taken from the samples: widened first where they are bytes.
+    let sources = match sources {
+        Some([src_a, src_b]) if take_maps => {
+            widen(src_a, a, d);
+            widen(src_b, b, d);
+            None
+        }
+        other => other,
+    };
     let [scale_a, scale_b] = if take_maps {
         [scale_of(a, max_a), scale_of(b, max_b)]
     } else {
@@ -774,14 +843,23 @@ fn transform_level<'m, T: Arith>(
         None => (None, None),
     };
     let line = &mut *lines.line;
+    let [src_a, src_b] = sources.map_or([None; 2], |s| s.map(Some));
     match lines.line_b.as_deref_mut() {
         Some(lb) => join.join(
-            || saliency_and_forward(a, d, wl, with_map(&mut *map_a, scale_a), line, ring_a),
-            || saliency_and_forward(b, d, wl, with_map(&mut *map_b, scale_b), lb, ring_b),
+            || {
+                let map = with_map(&mut *map_a, scale_a);
+                saliency_and_forward(a, d, wl, map, line, ring_a, src_a);
+            },
+            || {
+                let map = with_map(&mut *map_b, scale_b);
+                saliency_and_forward(b, d, wl, map, lb, ring_b, src_b);
+            },
         ),
         None => {
-            saliency_and_forward(a, d, wl, with_map(&mut *map_a, scale_a), line, ring_a);
-            saliency_and_forward(b, d, wl, with_map(&mut *map_b, scale_b), line, ring_b);
+            let map = with_map(&mut *map_a, scale_a);
+            saliency_and_forward(a, d, wl, map, line, ring_a, src_a);
+            let map = with_map(&mut *map_b, scale_b);
+            saliency_and_forward(b, d, wl, map, line, ring_b, src_b);
         }
     }
     if with_weights {
@@ -1051,5 +1129,109 @@ mod tests {
             }
         }
         assert_eq!(tabled, 3, "regions with tables");
+    }
+
+    /// `fuse_u8` lifts level 1's rows straight from the bytes and writes its result
+    /// straight back as bytes (no widened copies, no saturation of the last row pass, no
+    /// rounding pass): the same bytes as widening both images, the generic step and
+    /// rounding its result, for every ablation, flat and extreme images (all 0, all 255,
+    /// 0/255 checkerboards and stripes), random ones, and regions one sample wide or high.
+    #[test]
+    fn fuse_u8_from_bytes_matches_the_widened_step() {
+        let mut state = 0x2545_f491_u32;
+        let mut random = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state
+        };
+        let kinds = 7;
+        let image = |kind: usize, w: usize, h: usize, rng: &mut dyn FnMut() -> u32| -> Vec<u8> {
+            (0..w * h)
+                .map(|i| {
+                    let (x, y) = (i % w, i / w);
+                    match kind {
+                        0 => 0,
+                        1 => 255,
+                        2 => [0, 255][(x + y) % 2],
+                        3 => [255, 0][(x + y) % 2],
+                        4 => [0, 255][x % 2],
+                        5 => [0, 255][y % 2],
+                        _ => (rng() >> 24) as u8,
+                    }
+                })
+                .collect()
+        };
+        let ablations = [
+            Ablation::None,
+            Ablation::MaxHigh,
+            Ablation::SingleLl,
+            Ablation::NoWavelet,
+        ];
+        let mut runs = 0;
+        for (w, h) in [(64, 16), (33, 9), (8, 8), (1, 7), (9, 1), (2, 2), (3, 5)] {
+            let dims = Dims::new(w, h).unwrap();
+            for ka in 0..kinds {
+                for kb in 0..kinds {
+                    let a = image(ka, w, h, &mut random);
+                    let b = image(kb, w, h, &mut random);
+                    for wavelet in [Wavelet::Haar, Wavelet::Db2] {
+                        for levels in 1..=3 {
+                            if dims.check_levels(levels).is_err() {
+                                continue;
+                            }
+                            let ablation = ablations[(ka + kb + usize::from(levels)) % 4];
+                            let norm = if (ka + kb) % 2 == 0 {
+                                SaliencyNorm::Local
+                            } else {
+                                SaliencyNorm::Reference(17 * (ka as u32 + 1))
+                            };
+                            let cfg = FuseConfig {
+                                wavelet,
+                                levels,
+                                ablation,
+                                norm,
+                                ..FuseConfig::default()
+                            };
+                            let ll = LlWeight((random() >> 17) as u16);
+                            let wide = |img: &[u8]| -> Vec<i32> {
+                                img.iter().map(|&v| i32::from(v) << GUARD_BITS).collect()
+                            };
+                            let (mut wa, mut wb) = (wide(&a), wide(&b));
+                            let mut scratch = vec![0i32; fuse_scratch_len(dims)];
+                            let generic = FuseConfig {
+                                norm: match norm {
+                                    SaliencyNorm::Reference(r) => {
+                                        SaliencyNorm::Reference(r << GUARD_BITS)
+                                    }
+                                    local => local,
+                                },
+                                ..cfg
+                            };
+                            fuse_pair(&mut wa, &mut wb, dims, &generic, ll, &mut scratch).unwrap();
+                            let half = 1 << (GUARD_BITS - 1);
+                            let want: Vec<u8> = wa
+                                .iter()
+                                .map(|&v| ((v + half) >> GUARD_BITS).clamp(0, 255) as u8)
+                                .collect();
+                            let mut got = a.clone();
+                            let (mut ua, mut ub) = (vec![0; w * h], vec![0; w * h]);
+                            let work = U8Work {
+                                a: &mut ua,
+                                b: &mut ub,
+                                scratch: &mut scratch,
+                            };
+                            fuse_u8(U8Pair::same(&mut got, &b, dims), &cfg, ll, work).unwrap();
+                            assert_eq!(
+                                got, want,
+                                "{w}×{h} images {ka}, {kb} {wavelet:?} L{levels} {ablation:?} {norm:?}"
+                            );
+                            runs += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(runs > 500, "{runs} runs");
     }
 }

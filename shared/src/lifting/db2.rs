@@ -140,18 +140,32 @@ fn from<T>(c: &[T], start: usize) -> &[T] {
 
 /// Forward lifting of one line: `src` holds the samples, `dst` (as long) gets the low band
 /// then the high band. A line of one sample is copied.
+#[inline(always)]
 pub(crate) fn forward_line<T: Lift>(src: &[T], dst: &mut [T]) {
+    forward_line_from(src, dst, |v| v);
+}
+
+/// [`forward_line`] of the samples `sample(src[i])`: `src` may hold something else than
+/// the samples (8-bit values, say), converted as they are read.
+#[inline(always)]
+pub(crate) fn forward_line_from<S: Copy, T: Lift>(
+    src: &[S],
+    dst: &mut [T],
+    sample: impl Fn(S) -> T,
+) {
     let k = T::constants();
     let n = src.len();
     let (nl, nh) = (n.div_ceil(2), n / 2);
     let Some(dst) = dst.get_mut(..n) else {
         return;
     };
+    let at = |i: usize| src.get(i).map_or_else(T::default, |&v| sample(v));
     if nh == 0 {
-        dst.copy_from_slice(src);
+        if let Some(d) = dst.first_mut() {
+            *d = at(0);
+        }
         return;
     }
-    let at = |i: usize| src.get(i).copied().unwrap_or_default();
     let s1 = |l: usize| lift_s1(at(2 * l), at(2 * odd_index(l, nh) + 1), k);
     let (low, high) = dst.split_at_mut(nl);
     let (pairs, _) = src.as_chunks::<2>();
@@ -163,6 +177,7 @@ pub(crate) fn forward_line<T: Lift>(src: &[T], dst: &mut [T]) {
         .zip(low.iter_mut())
         .zip(high.iter_mut())
     {
+        let (e, o) = (sample(e), sample(o));
         let s_next = lift_s1(e, o, k);
         let d_next = lift_d1(o, s_next, s, k);
         *hi = d;
@@ -182,9 +197,84 @@ pub(crate) fn forward_line<T: Lift>(src: &[T], dst: &mut [T]) {
     }
 }
 
+/// [`forward_line`] of 8-bit samples with the fusion's guard bits
+/// ([`Lift::from_guarded_byte`]), as [`forward_line_from`] with that conversion, but the
+/// inner pairs read two at a time from one word: one load for four samples.
+#[inline(always)]
+pub(crate) fn forward_line_bytes<T: Lift>(src: &[u8], dst: &mut [T]) {
+    let k = T::constants();
+    let n = src.len();
+    let (nl, nh) = (n.div_ceil(2), n / 2);
+    let Some(dst) = dst.get_mut(..n) else {
+        return;
+    };
+    let at = |i: usize| {
+        src.get(i)
+            .map_or_else(T::default, |&v| T::from_guarded_byte(v))
+    };
+    if nh == 0 {
+        if let Some(d) = dst.first_mut() {
+            *d = at(0);
+        }
+        return;
+    }
+    let s1 = |l: usize| lift_s1(at(2 * l), at(2 * odd_index(l, nh) + 1), k);
+    let (low, high) = dst.split_at_mut(nl);
+    let mut s = s1(0);
+    let mut d = lift_d1(at(1), s, s1(prev_index(0, nl)), k);
+    // Pairs 1, 2, … two per word: pair l + 1 sets d¹ of l and s² of l − 1 … as in
+    // `forward_line_from`, two steps per word.
+    let (quads, _) = from(src, 2).as_chunks::<4>();
+    let (low2, _) = low.as_chunks_mut::<2>();
+    let (high2, _) = high.as_chunks_mut::<2>();
+    let byte = |w: u32, i: u32| T::from_guarded_byte((w >> (8 * i)) as u8);
+    for ((q, lo), hi) in quads.iter().zip(low2.iter_mut()).zip(high2.iter_mut()) {
+        let w = u32::from_le_bytes(*q);
+        let (e0, o0, e1, o1) = (byte(w, 0), byte(w, 1), byte(w, 2), byte(w, 3));
+        let s_a = lift_s1(e0, o0, k);
+        let d_a = lift_d1(o0, s_a, s, k);
+        let s_b = lift_s1(e1, o1, k);
+        let d_b = lift_d1(o1, s_b, s_a, k);
+        *hi = [d, d_a];
+        *lo = [s - d_a, s_a - d_b];
+        (s, d) = (s_b, d_b);
+    }
+    // The pair a word did not cover, if any (pairs 1 + 2·quads … nh − 1).
+    let done = 2 * quads.len();
+    for l in done..nh - 1 {
+        let (e, o) = (at(2 * l + 2), at(2 * l + 3));
+        let s_next = lift_s1(e, o, k);
+        let d_next = lift_d1(o, s_next, s, k);
+        if let (Some(hi), Some(lo)) = (high.get_mut(l), low.get_mut(l)) {
+            *hi = d;
+            *lo = s - d_next;
+        }
+        (s, d) = (s_next, d_next);
+    }
+    // `s` and `d` are now the last pair's; its s² (and an odd length's last) read mirrored d¹.
+    if let Some(hi) = high.get_mut(nh - 1) {
+        *hi = d;
+    }
+    for l in nh - 1..nl {
+        let s_l = if l < nh { s } else { s1(l) };
+        let d_next = high.get(next_index(l, nh)).copied().unwrap_or_default();
+        if let Some(lo) = low.get_mut(l) {
+            *lo = s_l - d_next;
+        }
+    }
+}
+
 /// Inverse of [`forward_line`]: `src` holds the low then the high band, `dst` (as long)
 /// gets the samples, each saturated to `±out_bound`.
+#[inline(always)]
 pub(crate) fn inverse_line<T: Lift>(src: &[T], dst: &mut [T], out_bound: i32) {
+    inverse_line_into(src, dst, |v: T| v.saturate(out_bound));
+}
+
+/// Inverse of [`forward_line`] with each sample `v` stored as `put(v)`: `src` holds the
+/// low then the high band, `dst` (as long) gets the samples.
+#[inline(always)]
+pub(crate) fn inverse_line_into<T: Lift, O>(src: &[T], dst: &mut [O], put: impl Fn(T) -> O) {
     let k = T::constants();
     let n = src.len();
     let (nl, nh) = (n.div_ceil(2), n / 2);
@@ -198,7 +288,7 @@ pub(crate) fn inverse_line<T: Lift>(src: &[T], dst: &mut [T], out_bound: i32) {
     let (pairs, odd_end) = dst.as_chunks_mut::<2>();
     if nh == 0 {
         if let [last] = odd_end {
-            *last = lo(0).saturate(out_bound);
+            *last = put(lo(0));
         }
         return;
     }
@@ -210,8 +300,8 @@ pub(crate) fn inverse_line<T: Lift>(src: &[T], dst: &mut [T], out_bound: i32) {
     for ([e_out, o_out], ((&l_next, &h_next), &h_after)) in inner_pairs.iter_mut().zip(ahead) {
         let s_next = l_next + h_after;
         let o_next = unlift_odd(h_next, s_next, s, k);
-        *e_out = unlift_even(s, o, k).saturate(out_bound);
-        *o_out = o.saturate(out_bound);
+        *e_out = put(unlift_even(s, o, k));
+        *o_out = put(o);
         (s, o) = (s_next, o_next);
     }
     // The last pairs read mirrored neighbours; `s` and `o` are pair `inner`'s.
@@ -223,14 +313,14 @@ pub(crate) fn inverse_line<T: Lift>(src: &[T], dst: &mut [T], out_bound: i32) {
             } else {
                 o
             };
-            *e_out = unlift_even(s, o, k).saturate(out_bound);
-            *o_out = o.saturate(out_bound);
+            *e_out = put(unlift_even(s, o, k));
+            *o_out = put(o);
             (s, o) = (s_next, o_next);
         } else if let [last] = odd_end {
             // An odd length's last even sample reads a mirrored odd one.
             let m = odd_index(l, nh);
             let o_m = unlift_odd(hi(m), s1(m), s1(prev_index(m, nl)), k);
-            *last = unlift_even(s, o_m, k).saturate(out_bound);
+            *last = put(unlift_even(s, o_m, k));
         }
     }
 }
@@ -464,11 +554,11 @@ simd::kernel! {
 
 simd::kernel! {
     /// Inverse of [`forward_columns`], in place: each output sample is saturated to its
-    /// column's bound, and `done` runs on each row as soon as it is final. Even rows hold `s¹`
+    /// column's bound, and `done(y, row y)` runs on each row as soon as it is final. Even rows hold `s¹`
     /// and odd ones the unsaturated odd samples until the next row pair is known. The
     /// stages below are inlined: this is the Cortex-M7's hot loop, and the wider copies of
     /// [`simd::kernel!`] reach only inlined code.
-    pub(crate) fn inverse_columns<T: Lift, P: FnMut(usize, &mut [T]), D: FnMut(&mut [T])>(
+    pub(crate) fn inverse_columns<T: Lift, P: FnMut(usize, &mut [T]), D: FnMut(usize, &mut [T])>(
         buf: &mut [T],
         region: Dims,
         bounds: ColumnBounds,
@@ -484,7 +574,7 @@ simd::kernel! {
         if nh == 0 {
             if let Some([row]) = rows_at(buf, region, [0]) {
                 bounds.saturate(row);
-                done(row);
+                done(0, row);
             }
             return;
         }
@@ -502,7 +592,7 @@ simd::kernel! {
                 && let Some([o, s]) = rows_at(buf, region, [2 * m + 1, 2 * last])
             {
                 unlift_even_row(s, o, bounds, k);
-                done(s);
+                done(2 * last, s);
             }
         };
         // Pair l + 1's s¹ and odd sample, and pair l's output.
@@ -516,24 +606,24 @@ simd::kernel! {
                     return;
                 };
                 finish_pair_before_early(s, o, s_next, o_next, bounds, k);
-                done(s);
-                done(o);
+                done(2 * l, s);
+                done(2 * l + 1, o);
             } else {
                 let at = [2 * l, 2 * l + 1, 2 * l + 2, 2 * l + 3, 2 * l + 5];
                 let Some([s, o, s_next, o_next, d_after]) = rows_at(buf, region, at) else {
                     return;
                 };
                 finish_pair(s, o, s_next, o_next, d_after, bounds, k);
-                done(s);
-                done(o);
+                done(2 * l, s);
+                done(2 * l + 1, o);
             }
         }
         prepared.through(buf, region, n - 1);
         finish_last_even(buf, nh - 1, done);
         if let Some([s, o]) = rows_at(buf, region, [2 * nh - 2, 2 * nh - 1]) {
             finish_last_pair(s, o, bounds, k);
-            done(s);
-            done(o);
+            done(2 * nh - 2, s);
+            done(2 * nh - 1, o);
         }
     }
 }

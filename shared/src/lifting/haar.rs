@@ -10,25 +10,44 @@ use crate::{Dims, simd};
 
 /// Forward S-transform of one line: `src` holds the samples, `dst` (as long) gets the low
 /// band then the high band.
+#[inline(always)]
 pub(crate) fn forward_line<T: Lift>(src: &[T], dst: &mut [T]) {
+    forward_line_from(src, dst, |v| v);
+}
+
+/// [`forward_line`] of the samples `sample(src[i])` (`src` may hold 8-bit values, say).
+#[inline(always)]
+pub(crate) fn forward_line_from<S: Copy, T: Lift>(
+    src: &[S],
+    dst: &mut [T],
+    sample: impl Fn(S) -> T,
+) {
     let Some(dst) = dst.get_mut(..src.len()) else {
         return;
     };
     let (low, high) = dst.split_at_mut(src.len().div_ceil(2));
     let (pairs, odd_end) = src.as_chunks::<2>();
     for ((&[e, o], s), d) in pairs.iter().zip(low.iter_mut()).zip(high.iter_mut()) {
+        let (e, o) = (sample(e), sample(o));
         let diff = o - e;
         *d = diff;
         *s = e + diff.half();
     }
     if let ([last], Some(s)) = (odd_end, low.last_mut()) {
-        *s = *last;
+        *s = sample(*last);
     }
 }
 
 /// Inverse of [`forward_line`]: `src` holds the low then the high band, `dst` (as long)
 /// gets the samples, each saturated to `±out_bound`.
+#[inline(always)]
 pub(crate) fn inverse_line<T: Lift>(src: &[T], dst: &mut [T], out_bound: i32) {
+    inverse_line_into(src, dst, |v: T| v.saturate(out_bound));
+}
+
+/// Inverse of [`forward_line`] with each sample `v` stored as `put(v)`.
+#[inline(always)]
+pub(crate) fn inverse_line_into<T: Lift, O>(src: &[T], dst: &mut [O], put: impl Fn(T) -> O) {
     let Some(dst) = dst.get_mut(..src.len()) else {
         return;
     };
@@ -36,11 +55,11 @@ pub(crate) fn inverse_line<T: Lift>(src: &[T], dst: &mut [T], out_bound: i32) {
     let (pairs, odd_end) = dst.as_chunks_mut::<2>();
     for ([e, o], (&s, &d)) in pairs.iter_mut().zip(low.iter().zip(high)) {
         let even = s - d.half();
-        *e = even.saturate(out_bound);
-        *o = (d + even).saturate(out_bound);
+        *e = put(even);
+        *o = put(d + even);
     }
     if let ([last], Some(&s)) = (odd_end, low.last()) {
-        *last = s.saturate(out_bound);
+        *last = put(s);
     }
 }
 
@@ -66,8 +85,8 @@ pub(crate) fn forward_columns<T: Lift, F: FnMut(usize, &mut [T])>(
 
 simd::kernel! {
     /// Inverse of [`forward_columns`], in place, each output sample saturated to its column's
-    /// bound; `done` runs on each row once it is final.
-    pub(crate) fn inverse_columns<T: Lift, P: FnMut(usize, &mut [T]), D: FnMut(&mut [T])>(
+    /// bound; `done(y, row y)` runs on each row once it is final.
+    pub(crate) fn inverse_columns<T: Lift, P: FnMut(usize, &mut [T]), D: FnMut(usize, &mut [T])>(
         buf: &mut [T],
         region: Dims,
         bounds: ColumnBounds,
@@ -83,15 +102,15 @@ simd::kernel! {
             for (cols, b) in bounds.segments() {
                 inverse_rows(segment(s_row, &cols), segment(d_row, &cols), b);
             }
-            done(s_row);
-            done(d_row);
+            done(2 * l, s_row);
+            done(2 * l + 1, d_row);
         }
         prepared.through(buf, region, n.saturating_sub(1));
         if n % 2 == 1
             && let Some([last]) = rows_at(buf, region, [n - 1])
         {
             bounds.saturate(last);
-            done(last);
+            done(n - 1, last);
         }
     }
 }

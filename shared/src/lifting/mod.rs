@@ -22,6 +22,7 @@ mod db2;
 pub mod filter_bank;
 mod haar;
 
+use crate::fusion::GUARD_BITS;
 #[cfg(test)]
 use crate::geometry::Line;
 use crate::{Dims, Error, MAX_LEVELS, simd};
@@ -72,6 +73,12 @@ pub(crate) trait Lift:
     fn predict(s: Self, s_prev: Self, k: Self::Constants) -> Self;
     /// Saturates to `±bound` (the integer inverse's guard; floats pass unchanged).
     fn saturate(self, bound: i32) -> Self;
+    /// The sample of an 8-bit value with the fusion's guard bits
+    /// ([`crate::fusion::GUARD_BITS`]): `v·2^GUARD_BITS`.
+    fn from_guarded_byte(v: u8) -> Self;
+    /// A sample with guard bits back to 8 bits: rounded to nearest (halves up) and clamped
+    /// to `0..=255`.
+    fn to_byte(self) -> u8;
 }
 
 impl Lift for i32 {
@@ -98,11 +105,19 @@ impl Lift for i32 {
         // Not `clamp`: its `min ≤ max` check is a panic path; bounds are never negative.
         self.max(-bound).min(bound)
     }
+    #[inline(always)]
+    fn from_guarded_byte(v: u8) -> Self {
+        i32::from(v) << GUARD_BITS
+    }
+    #[inline(always)]
+    fn to_byte(self) -> u8 {
+        ((self + (1 << (GUARD_BITS - 1))) >> GUARD_BITS).clamp(0, 255) as u8
+    }
 }
 
 /// The float lifting: the integer steps without rounding, to the type's precision.
 macro_rules! float_lift {
-    ($t:ty, $sqrt3:expr) => {
+    ($t:ty, $sqrt3:expr, $floor:path) => {
         impl Lift for $t {
             const ROW_PASSES: bool = true;
             #[inline(always)]
@@ -126,12 +141,21 @@ macro_rules! float_lift {
             fn saturate(self, _bound: i32) -> Self {
                 self
             }
+            #[inline(always)]
+            fn from_guarded_byte(v: u8) -> Self {
+                <$t>::from(v) * <$t>::from(1u8 << GUARD_BITS)
+            }
+            #[inline(always)]
+            fn to_byte(self) -> u8 {
+                // `as` saturates (NaN to 0).
+                $floor(self / <$t>::from(1u8 << GUARD_BITS) + 0.5) as u8
+            }
         }
     };
 }
 
-float_lift!(f32, 1.732_050_8_f32);
-float_lift!(f64, 1.732_050_807_568_877_2_f64);
+float_lift!(f32, 1.732_050_8_f32, libm::floorf);
+float_lift!(f64, 1.732_050_807_568_877_2_f64, libm::floor);
 
 impl Wavelet {
     /// Forward lifting of one line: `src` holds the samples, `dst` (as long) gets the low
@@ -175,7 +199,7 @@ impl Wavelet {
         region: Dims,
         bounds: ColumnBounds,
         prepared: &mut RowsPrepared<'_, P>,
-        done: &mut impl FnMut(&mut [T]),
+        done: &mut impl FnMut(usize, &mut [T]),
     ) {
         match self {
             Wavelet::Haar => haar::inverse_columns(buf, region, bounds, prepared, done),
@@ -454,6 +478,50 @@ pub(crate) fn forward_level<T: Lift>(
     });
 }
 
+/// [`forward_level`] of an image of 8-bit samples with the fusion's guard bits: the row
+/// pass that fills row `k` of the `dims` region of `buf` reads row `k` of the `src_dims`
+/// region of `src` as `v·2^GUARD_BITS` ([`Lift::from_guarded_byte`]). Rows are lifted
+/// straight from the bytes, with no copy of the row in between (but floats' db2 rows,
+/// lifted in two passes: widened into `buf` first). Either way the values are those of [`forward_level`] on the
+/// widened image.
+pub(crate) fn forward_level_from_bytes<T: Lift>(
+    wavelet: Wavelet,
+    buf: &mut [T],
+    dims: Dims,
+    scratch: &mut [T],
+    (src, src_dims): (&[u8], Dims),
+) {
+    sweep_level(wavelet, buf, dims, |k, row| {
+        if let Some(bytes) = src_dims.row(src, k) {
+            forward_row_from_bytes(wavelet, bytes, row, scratch);
+        }
+    });
+}
+
+/// The row pass of [`forward_level_from_bytes`] on one row. A function of its own: inlined
+/// into the sweep, the lifting loop spilled more registers on the Cortex-M7
+/// (`tests/mcu-bench`).
+#[inline(never)]
+fn forward_row_from_bytes<T: Lift>(
+    wavelet: Wavelet,
+    bytes: &[u8],
+    row: &mut [T],
+    scratch: &mut [T],
+) {
+    match wavelet {
+        Wavelet::Haar => haar::forward_line_from(bytes, row, T::from_guarded_byte),
+        Wavelet::Db2 if !T::ROW_PASSES => db2::forward_line_bytes(bytes, row),
+        Wavelet::Db2 => {
+            for (d, &v) in row.iter_mut().zip(bytes) {
+                *d = T::from_guarded_byte(v);
+            }
+            if row.len() > 1 {
+                forward_row(wavelet, row, scratch);
+            }
+        }
+    }
+}
+
 /// [`forward_level`] that first shows each row of the region to `observe`:
 /// `observe(k, row k, scratch)` runs for `k = 0, 1, …` in order, each call before row `k`
 /// is transformed, with the level's scratch line to use as it likes (the row pass needs
@@ -633,7 +701,7 @@ fn inverse_columns<T: Lift>(
     bounds: ColumnPassBounds,
     coefficients: Coefficients,
     prepare: &mut impl FnMut(usize, &mut [T]),
-    done: &mut impl FnMut(&mut [T]),
+    done: &mut impl FnMut(usize, &mut [T]),
 ) {
     let h = dims.height();
     let mut prepared = RowsPrepared::new(prepare, buf, dims);
@@ -678,8 +746,52 @@ pub(crate) struct Saturation<B> {
     pub coefficients: Coefficients,
 }
 
+/// 8-bit rows an inverse transform's output goes to instead of its buffer: the `Dims`
+/// region of the bytes, as large as the transform's.
+pub(crate) type ByteRows<'o> = (&'o mut [u8], Dims);
+
+/// Row `row` of a level-1 inverse lifted back into `out`, each sample as
+/// [`Lift::to_byte`] makes it; `load_bounds` and `out_bound` as for [`inverse_row`].
+/// Rows whose loads need no saturation (but floats' db2, lifted in two passes) are lifted
+/// straight from `row` into `out` without the saturation to `±out_bound`: that is at least `MAX_SAMPLE`, and any
+/// value past it rounds to a byte past 255 or below 0 just as the saturated one does
+/// (the clamp of [`Lift::to_byte`]). Other rows are lifted in place first.
+#[inline(always)]
+fn inverse_row_to_bytes<T: Lift>(
+    wavelet: Wavelet,
+    row: &mut [T],
+    scratch: &mut [T],
+    load_bounds: Option<(i32, i32)>,
+    out_bound: i32,
+    out: &mut [u8],
+) {
+    const {
+        assert!(
+            (MAX_SAMPLE as i32 + (1 << (GUARD_BITS - 1))) >> GUARD_BITS >= 255,
+            "a sample past the bound must round to a byte past 255 too"
+        );
+    };
+    let direct = load_bounds.is_none() && out_bound >= MAX_SAMPLE as i32 && row.len() > 1;
+    match wavelet {
+        Wavelet::Haar if direct => haar::inverse_line_into(row, out, T::to_byte),
+        Wavelet::Db2 if direct && !T::ROW_PASSES => {
+            db2::inverse_line_into(row, out, T::to_byte);
+        }
+        _ => {
+            if row.len() > 1 {
+                inverse_row(wavelet, row, scratch, load_bounds, out_bound);
+            }
+            for (o, &v) in out.iter_mut().zip(row.iter()) {
+                *o = v.to_byte();
+            }
+        }
+    }
+}
+
 /// One inverse 2-D level (columns, then rows), saturating as `saturation` says for that
 /// level; `prepare(y, row y)` runs on each row of the region before the level reads it.
+/// With `out` the level's output rows go there as bytes ([`inverse_row_to_bytes`]), not
+/// back into `buf`.
 pub(crate) fn inverse_level<T: Lift>(
     wavelet: Wavelet,
     buf: &mut [T],
@@ -687,6 +799,7 @@ pub(crate) fn inverse_level<T: Lift>(
     scratch: &mut [T],
     saturation: Saturation<&LevelBounds>,
     prepare: &mut impl FnMut(usize, &mut [T]),
+    mut out: Option<ByteRows<'_>>,
 ) {
     let bounds = saturation.bounds;
     let (w, h) = (dims.width(), dims.height());
@@ -709,9 +822,16 @@ pub(crate) fn inverse_level<T: Lift>(
         // Each row is lifted back as soon as the column sweep has finished it, while it
         // is in cache. The column pass's output is already saturated to the row bands'
         // bounds: loading it saturates nothing more.
-        let mut row_pass = |row: &mut [T]| {
-            if w > 1 {
-                inverse_row(wavelet, row, scratch, None, bounds.input);
+        let mut row_pass = |k: usize, row: &mut [T]| match &mut out {
+            None => {
+                if w > 1 {
+                    inverse_row(wavelet, row, scratch, None, bounds.input);
+                }
+            }
+            Some((bytes, out_dims)) => {
+                if let Some(out_row) = out_dims.row_mut(bytes, k) {
+                    inverse_row_to_bytes(wavelet, row, scratch, None, bounds.input, out_row);
+                }
             }
         };
         inverse_columns(
@@ -725,14 +845,22 @@ pub(crate) fn inverse_level<T: Lift>(
         );
     } else if let Some(row) = dims.row_mut(buf, 0) {
         prepare(0, row);
-        if w == 1 {
-            return;
-        }
         // Without a column pass loads always saturate: a one-row level's low band holds
         // the deeper level's reconstruction, which fused coefficients can push past the
         // row-low bound (up to LL's).
         let load_bounds = Some((bounds.row_low, bounds.row_high));
-        inverse_row(wavelet, row, scratch, load_bounds, bounds.input);
+        match out {
+            None => {
+                if w > 1 {
+                    inverse_row(wavelet, row, scratch, load_bounds, bounds.input);
+                }
+            }
+            Some((bytes, out_dims)) => {
+                if let Some(out_row) = out_dims.row_mut(bytes, 0) {
+                    inverse_row_to_bytes(wavelet, row, scratch, load_bounds, bounds.input, out_row);
+                }
+            }
+        }
     }
 }
 
@@ -756,7 +884,15 @@ pub fn inverse_1d(wavelet: Wavelet, line: &mut [i32], scratch: &mut [i32]) -> Re
         bounds,
         coefficients: Coefficients::Any,
     };
-    inverse_level(wavelet, line, dims, scratch, saturation, &mut |_, _| {});
+    inverse_level(
+        wavelet,
+        line,
+        dims,
+        scratch,
+        saturation,
+        &mut |_, _| {},
+        None,
+    );
     Ok(())
 }
 
@@ -821,6 +957,35 @@ pub(crate) fn inverse_levels<T: Lift>(
     saturation: Saturation<&[LevelBounds; MAX_LEVELS as usize]>,
     prepare: &mut impl FnMut(u8, usize, &mut [T]),
 ) {
+    let hooks = RowHooks { prepare, out: None };
+    inverse_levels_into(wavelet, buf, dims, levels, scratch, saturation, hooks);
+}
+
+/// What an inverse transform does besides lifting: `prepare(level, y, row y)` runs on each
+/// row of each level's region before that level reads it, and with `out` the result goes
+/// there as bytes ([`inverse_row_to_bytes`]), `buf` left holding what level 1's column
+/// pass made.
+pub(crate) struct RowHooks<'o, P> {
+    /// The preparation of each row.
+    pub prepare: P,
+    /// Where the result goes instead of `buf`.
+    pub out: Option<ByteRows<'o>>,
+}
+
+/// [`inverse_levels`] with its rows' [`RowHooks`].
+pub(crate) fn inverse_levels_into<T: Lift, P: FnMut(u8, usize, &mut [T])>(
+    wavelet: Wavelet,
+    buf: &mut [T],
+    dims: Dims,
+    levels: u8,
+    scratch: &mut [T],
+    saturation: Saturation<&[LevelBounds; MAX_LEVELS as usize]>,
+    hooks: RowHooks<'_, P>,
+) {
+    let RowHooks {
+        mut prepare,
+        mut out,
+    } = hooks;
     let sizes = level_sizes(dims);
     let levels = sizes.iter().zip(saturation.bounds).zip(1..=levels);
     for ((&d, bounds), level) in levels.rev() {
@@ -829,6 +994,7 @@ pub(crate) fn inverse_levels<T: Lift>(
             bounds,
             coefficients: saturation.coefficients,
         };
+        let level_out = if level == 1 { out.take() } else { None };
         inverse_level(
             wavelet,
             buf,
@@ -836,6 +1002,7 @@ pub(crate) fn inverse_levels<T: Lift>(
             scratch,
             level_saturation,
             &mut prepare_level,
+            level_out,
         );
     }
 }
@@ -1030,10 +1197,26 @@ mod tests {
             row.copy_from_slice(&coefficients[k * stride..k * stride + w]);
         };
         let mut prepared = RowsPrepared::new(&mut fill, &mut inv, region);
-        let mut rows_seen = 0;
-        let mut count = |_: &mut [T]| rows_seen += 1;
+        // Each finished row is handed on once, with its own index.
+        let mut rows_seen = Vec::new();
+        let mut count = |k: usize, row: &mut [T]| rows_seen.push((k, row.as_ptr() as usize));
         wavelet.inverse_columns(&mut inv, region, bounds, &mut prepared, &mut count);
-        assert_eq!(rows_seen, n, "inverse row hook calls, {wavelet:?}, n {n}");
+        let base = inv.as_ptr() as usize;
+        let row_size = stride * core::mem::size_of::<T>();
+        for &(k, at) in &rows_seen {
+            assert_eq!(
+                at,
+                base + k * row_size,
+                "row {k} handed on, {wavelet:?}, n {n}"
+            );
+        }
+        let mut finished: Vec<usize> = rows_seen.iter().map(|&(k, _)| k).collect();
+        finished.sort_unstable();
+        assert_eq!(
+            finished,
+            (0..n).collect::<Vec<_>>(),
+            "inverse row hook calls, {wavelet:?}, n {n}"
+        );
         prepared_rows.sort_unstable();
         assert_eq!(
             prepared_rows,
@@ -1087,6 +1270,76 @@ mod tests {
                 in_place, expect,
                 "inverse columns, {wavelet:?}, n {n}, column {j}"
             );
+        }
+    }
+
+    /// The byte-reading row passes and the byte-writing inverse rows give the values of
+    /// the plain ones on the widened samples (and their rounding), for every length to
+    /// 70, both wavelets, random bytes and the extremes (all 0, all 255, 0/255
+    /// alternating either way, a lone 255).
+    #[test]
+    fn byte_rows_match_the_widened_rows() {
+        let mut state = 0x9E37_79B9u32;
+        for n in 1..=70usize {
+            for kind in 0..6 {
+                let bytes: Vec<u8> = (0..n)
+                    .map(|i| match kind {
+                        0 => 0,
+                        1 => 255,
+                        2 => [0, 255][i % 2],
+                        3 => [255, 0][i % 2],
+                        4 => u8::from(i == n / 2) * 255,
+                        _ => {
+                            state ^= state << 13;
+                            state ^= state >> 17;
+                            state ^= state << 5;
+                            (state >> 24) as u8
+                        }
+                    })
+                    .collect();
+                let wide: Vec<i32> = bytes.iter().map(|&v| i32::from(v) << GUARD_BITS).collect();
+                for wavelet in [Wavelet::Haar, Wavelet::Db2] {
+                    let what = std::format!("{wavelet:?} n {n} kind {kind}");
+                    let mut want = vec![0; n];
+                    wavelet.forward_line(&wide, &mut want);
+                    let mut got = vec![0; n];
+                    match wavelet {
+                        Wavelet::Haar => {
+                            haar::forward_line_from(&bytes, &mut got, i32::from_guarded_byte)
+                        }
+                        Wavelet::Db2 => db2::forward_line_bytes(&bytes, &mut got),
+                    }
+                    assert_eq!(got, want, "forward {what}");
+                    let mut from = vec![0; n];
+                    db2::forward_line_from(&bytes, &mut from, i32::from_guarded_byte);
+                    if wavelet == Wavelet::Db2 {
+                        assert_eq!(from, want, "forward_line_from {what}");
+                    }
+                    // The inverse of those coefficients, and of coefficients pushed past
+                    // the samples' range (so the dropped saturation would matter).
+                    for scale in [1, 3, -3] {
+                        let coeffs: Vec<i32> = want.iter().map(|&v| v * scale).collect();
+                        let mut back = vec![0; n];
+                        wavelet.inverse_line(&coeffs, &mut back, MAX_SAMPLE as i32);
+                        let rounded: Vec<u8> = back.iter().map(|&v| v.to_byte()).collect();
+                        let mut out = vec![0u8; n];
+                        let mut row = coeffs.clone();
+                        let mut scratch = vec![0; n];
+                        inverse_row_to_bytes(
+                            wavelet,
+                            &mut row,
+                            &mut scratch,
+                            None,
+                            MAX_SAMPLE as i32,
+                            &mut out,
+                        );
+                        assert_eq!(out, rounded, "inverse ×{scale} {what}");
+                        if scale == 1 {
+                            assert_eq!(out, bytes, "round trip {what}");
+                        }
+                    }
+                }
+            }
         }
     }
 
