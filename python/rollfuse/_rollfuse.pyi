@@ -32,7 +32,8 @@ def fuse(
     out_dtype: OutDtype = "float32",
 ) -> Tuple[npt.NDArray[Any], npt.NDArray[np.float64]]:
     """Fuses frames into one image as ``rollfuse fuse --mode mosaic``; returns
-    (image, offsets), offsets (N, 2) rows and columns, NaN for frames left out."""
+    (image, offsets), offsets (N, 2) rows and columns, NaN for frames left out. A whole
+    roll is ``fuse_roll``'s."""
 
 class Geometry(TypedDict, total=False):
     roller_radius_mm: float

@@ -236,7 +236,8 @@ fn warn_all(py: Python<'_>, warnings: &[String]) -> PyResult<()> {
     Ok(())
 }
 
-/// Fuses a sequence of frames into one image, as `rollfuse fuse --mode mosaic` does.
+/// Fuses a sequence of frames into one image, as `rollfuse fuse --mode mosaic` does (a
+/// whole roll, longer than a frame, is `fuse_roll`'s: fused over the contact window).
 ///
 /// frames: an array of shape (N, H, W) or (N, H, W, 3), or a list of (H, W) / (H, W, 3)
 ///     arrays; uint8, uint16 (scaled by 255/65535) or float32/float64 on the 0–255 scale.
