@@ -145,6 +145,169 @@ impl AboveMax {
     }
 }
 
+/// The larger of `max` and the largest `|∇²I|` over the pixels [`quad_pixels`] covers in
+/// every row of an 8-bit image of `width` by `height ≥ 2` (`img` exactly that long;
+/// rows mirrored at the top and bottom, as [`crate::saliency::row_and_neighbours`] gives
+/// them), walking each column of groups of four down the image.
+///
+/// Walking down a column, a row's two words (from `x − 1` and from `x + 1`, as in
+/// [`laplacian_quad`]) are read once and serve all three roles: the row's own horizontal
+/// terms and centres, and the vertical neighbours of the rows above and below (its lanes
+/// of pixels `x, x + 2` and `x + 1, x + 3`). So a group costs two loads, where a row walk
+/// reads four words; and the test against the maximum so far needs no bias: per lane
+/// `t = K + L` and `u = K − L` with `K = 2¹⁵ − 1 − max` reach bit 15 exactly when
+/// `L > max` or `−L > max` (every value stays in `0..2¹⁶`).
+// Rows are `width` long and every group's six bytes `x − 1 .. x + 5` lie inside one
+// (`quad_pixels`); the chunks below are cut accordingly.
+#[inline(never)]
+pub(crate) fn column_laplacian_max(img: &[u8], width: usize, height: usize, max: u32) -> u32 {
+    let mut max = max;
+    if height < 2 || img.len() != width * height {
+        return max;
+    }
+    let quads = quad_pixels(width).len() / 4;
+    for off in (0..quads).map(|q| 4 * q) {
+        let mut from = 0;
+        while let Some(y) = first_flagged_row_of(img, width, off, lane_threshold(max), from) {
+            max = group_max(img, width, off, y, max);
+            from = y + 1;
+        }
+    }
+    max
+}
+
+/// The larger of `max` and the largest `|∇²I|` of the pixels in column `x` of an 8-bit
+/// image of `width` by `height ≥ 2` (`img` exactly that long; mirrored at every edge),
+/// walking down the column: for the pixels [`laplacian_quads`] leaves out
+/// ([`single_pixels`]).
+pub(crate) fn column_pixel_max(img: &[u8], width: usize, x: usize, max: u32) -> u32 {
+    let (left, right) = (mirror(x as isize - 1, width), mirror(x as isize + 1, width));
+    let at = |row: &[u8], i: usize| row.get(i).map_or(0, |&v| u32::from(v));
+    // A row's centre and the sum of its left and right neighbours.
+    let pixel = |row: &[u8]| (at(row, x), at(row, left) + at(row, right));
+    let mut rows = img.chunks_exact(width.max(1));
+    let (Some(first), Some(second)) = (rows.next(), rows.next()) else {
+        return max;
+    };
+    // Row 0's upper neighbour is row 1.
+    let (mut up, (mut centre, mut sides)) = (at(second, x), pixel(first));
+    let mut max = max;
+    for row in img.chunks_exact(width.max(1)).skip(1) {
+        let (c, s) = pixel(row);
+        max = max.max((4 * centre).abs_diff(sides + up + c));
+        (up, centre, sides) = (centre, c, s);
+    }
+    // The last row's lower neighbour is row h − 2, its upper one.
+    max.max((4 * centre).abs_diff(sides + 2 * up))
+}
+
+/// The lanes of a row's group from its six bytes `x − 1 .. x + 5` (from `off`):
+/// `[(x − 1, x + 1), (x, x + 2), (x + 1, x + 3), (x + 2, x + 4)]`; `None` past the row.
+#[inline(always)]
+fn group_lanes(row: &[u8], off: usize) -> Option<[u32; 4]> {
+    let b = row.get(off..)?.first_chunk::<6>()?;
+    let word = |w: Option<&[u8; 4]>| w.map_or(0, |w| u32::from_le_bytes(*w));
+    let (left_e, centre_e) = lanes(word(b.first_chunk::<4>()));
+    let (centre_o, right_o) = lanes(word(b.last_chunk::<4>()));
+    Some([left_e, centre_e, centre_o, right_o])
+}
+
+/// The larger of `max` and the largest `|∇²I|` of the group at `off` of row `y` (rows
+/// mirrored at the top and bottom).
+#[inline(never)]
+fn group_max(img: &[u8], width: usize, off: usize, y: usize, max: u32) -> u32 {
+    let height = img.len() / width.max(1);
+    let row = |y: isize| img.get(mirror(y, height) * width..).unwrap_or_default();
+    let y = y as isize;
+    let rows = [row(y - 1), row(y), row(y + 1)].map(|r| r.get(..width).unwrap_or_default());
+    (off + 1..off + 5)
+        .filter_map(|x| laplacian_at(rows, x))
+        .fold(max, |max, v| max.max(v.abs_diff(LAPLACIAN_BIAS)))
+}
+
+/// [`first_flagged_row`] with the width a compile-time constant for the rows of the
+/// camera's frame at each downsampling (320, 160 and 80 pixels).
+fn first_flagged_row_of(
+    img: &[u8],
+    width: usize,
+    off: usize,
+    k: u32,
+    from: usize,
+) -> Option<usize> {
+    match width {
+        320 => first_flagged_row::<320>(img, width, off, k, from),
+        160 => first_flagged_row::<160>(img, width, off, k, from),
+        80 => first_flagged_row::<80>(img, width, off, k, from),
+        _ => first_flagged_row::<0>(img, width, off, k, from),
+    }
+}
+
+/// Walks the groups at `off` of centre rows `from ..` of an image of `width` (at least two
+/// rows, mirrored at the top and bottom) down to the last row, and stops at the first
+/// whose test against `k` ([`lane_threshold`]) flags a lane: that row, or `None`.
+///
+/// The hot loop holds only the walk: the caller updates the maximum ([`group_max`]) and
+/// goes on from the next row.
+#[inline(never)]
+fn first_flagged_row<const WIDTH: usize>(
+    img: &[u8],
+    width: usize,
+    off: usize,
+    k: u32,
+    from: usize,
+) -> Option<usize> {
+    // A width known at compile time steps down the column by an immediate: one register
+    // fewer in the walk.
+    let width = if WIDTH == 0 { width } else { WIDTH };
+    let height = img.len() / width.max(1);
+    let row = |y: usize| img.get(y * width..(y + 1) * width);
+    let up = row(if from == 0 { 1 } else { from - 1 })?;
+    let [_, ue, uo, _] = group_lanes(up, off)?;
+    let [le, ce, co, ro] = group_lanes(row(from)?, off)?;
+    // The centre row's pixels (even lanes `ce`, odd `co`), and `K + 4·centre` less the
+    // sums of their neighbours but the one below: `t` of [`lane_flags`] but for it.
+    let (mut ce, mut co) = (ce, co);
+    let (mut part_e, mut part_o) = (
+        k + (ce << 2) - (le + co + ue),
+        k + (co << 2) - (ce + ro + uo),
+    );
+    let mut rows = img.get((from + 1) * width..)?.chunks_exact(width);
+    for next in &mut rows {
+        let Some([nle, nce, nco, nro]) = group_lanes(next, off) else {
+            break;
+        };
+        if lane_flags_from_t(k, [part_e - nce, part_o - nco]) != 0 {
+            // `next` is the row below the flagged one.
+            return Some(height - rows.len() - 2);
+        }
+        (part_e, part_o) = (
+            k + (nce << 2) - nle - nco - ce,
+            k + (nco << 2) - nce - nro - co,
+        );
+        (ce, co) = (nce, nco);
+    }
+    // The last row's lower neighbour is row h − 2.
+    let [_, de, d_o, _] = group_lanes(row(height.checked_sub(2)?)?, off)?;
+    (lane_flags_from_t(k, [part_e - de, part_o - d_o]) != 0).then_some(height - 1)
+}
+
+/// `2¹⁵ − 1 − max` in both lanes (`max` taken as at most 1020, the largest `|∇²I|` of
+/// 8-bit samples).
+#[inline(always)]
+fn lane_threshold(max: u32) -> u32 {
+    (0x7FFF - max.min(1020)) * 0x0001_0001
+}
+
+/// Nonzero when a lane of `t = K + L` (`L = 4·centre − sum of neighbours` of the even
+/// and the odd pixels, two per word; `K` = `k` from [`lane_threshold`]) has `|L|` above
+/// the maximum `k` was made for: `t` or `u = 2K − t = K − L` reaches bit 15.
+// Per lane 4·centre ≤ 1020 and the sum ≤ 1020, K ≥ 2¹⁵ − 1021: nothing leaves 0..2¹⁶.
+#[inline(always)]
+fn lane_flags_from_t(k: u32, [t_e, t_o]: [u32; 2]) -> u32 {
+    let (u_e, u_o) = (2 * k - t_e, 2 * k - t_o);
+    (t_e | u_e | t_o | u_o) & LANE_SIGNS
+}
+
 /// Sets `dst[i] = src[i] << SHIFT` (`SHIFT` at most 8) over their common length, four
 /// samples per word read.
 #[inline(always)]

@@ -23,7 +23,8 @@
 
 use crate::geometry::mirror;
 use crate::packed::{
-    AboveMax, LAPLACIAN_BIAS, laplacian_at, laplacian_quads, quad_pixels, single_pixels, unpack,
+    AboveMax, LAPLACIAN_BIAS, column_laplacian_max, column_pixel_max, laplacian_at,
+    laplacian_quads, quad_pixels, single_pixels, unpack,
 };
 use crate::{Dims, Wavelet, simd};
 use fixed::types::{U1F15, U8F24};
@@ -256,11 +257,37 @@ pub fn laplacian_max_u8(buf: &[u8], dims: Dims) -> u32 {
     if dims.check_buffer("image", buf.len()).is_err() {
         return 0;
     }
+    if cfg!(target_arch = "x86_64") {
+        laplacian_max_u8_by_rows(buf, dims)
+    } else {
+        laplacian_max_u8_by_columns(buf, dims)
+    }
+}
+
+/// [`laplacian_max_u8`] row by row ([`row_laplacian_max_u8`]): on x86-64 hosts, whose
+/// wide units test a whole row in a few vector instructions, and for one-row images.
+fn laplacian_max_u8_by_rows(buf: &[u8], dims: Dims) -> u32 {
     (0..dims.height())
         .filter_map(|y| row_and_neighbours(buf, dims, y))
         .fold(0, |max, (up, mid, down)| {
             row_laplacian_max_u8([up, mid, down], max)
         })
+}
+
+/// [`laplacian_max_u8`] by columns of groups of four ([`column_laplacian_max`]: two
+/// word loads per group where a row walk has four), then the pixels the groups leave
+/// out ([`single_pixels`]) column by column too: the same maximum on the Cortex-M7 in two thirds
+/// of the instructions.
+fn laplacian_max_u8_by_columns(buf: &[u8], dims: Dims) -> u32 {
+    let (w, h) = (dims.width(), dims.height());
+    let Some(img) = buf.get(..w * h) else {
+        return 0;
+    };
+    if h < 2 {
+        return laplacian_max_u8_by_rows(img, dims);
+    }
+    let max = column_laplacian_max(img, w, h, 0);
+    single_pixels(w).fold(max, |max, x| column_pixel_max(img, w, x, max))
 }
 
 /// The larger of `max` and the largest `|∇²I|` of row `mid`, four pixels at a time, with
@@ -651,6 +678,54 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The column walk's maximum (the Cortex-M7's) is the row walk's (the x86-64 host's)
+    /// and the plain one, on random, flat, extreme and checkered images of every width up
+    /// to 40 and of the camera's widths (whose walks have the width built in), 1 to 7
+    /// rows and more; and from random images whose maximum grows often along the walk.
+    #[test]
+    fn column_walk_finds_the_row_walks_maximum() {
+        let mut seed = 12_345u32;
+        let mut next = move || {
+            seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+            (seed >> 16) as u8
+        };
+        let widths = (1..=40).chain([79, 80, 81, 159, 160, 161, 320]);
+        for w in widths {
+            for h in [1, 2, 3, 4, 5, 7, 16] {
+                for pattern in 0..7 {
+                    let bytes: Vec<u8> = (0..w * h)
+                        .map(|i| {
+                            let (x, y) = (i % w, i / w);
+                            match pattern {
+                                0 => 0,
+                                1 => 255,
+                                2 => [0, 255][(x + y) % 2],
+                                3 => [0, 255][(x / 2 + y) % 2],
+                                4 => [255, 0][x % 2],
+                                // Growing noise: the maximum rises row after row.
+                                5 => ((u32::from(next()) * (y as u32 + 1)) / h as u32) as u8,
+                                _ => next(),
+                            }
+                        })
+                        .collect();
+                    let dims = Dims::new(w, h).unwrap();
+                    let wide: Vec<i32> = bytes.iter().map(|&v| i32::from(v)).collect();
+                    let plain = laplacian_max(&wide, dims).unwrap();
+                    let what = std::format!("{w}×{h} pattern {pattern}");
+                    assert_eq!(laplacian_max_u8_by_rows(&bytes, dims), plain, "{what}");
+                    assert_eq!(laplacian_max_u8_by_columns(&bytes, dims), plain, "{what}");
+                    assert_eq!(laplacian_max_u8(&bytes, dims), plain, "{what}");
+                }
+            }
+        }
+        // Past the region's end the buffer is not read; a short buffer gives 0.
+        let dims = Dims::new(8, 3).unwrap();
+        let mut bytes = std::vec![7u8; 24];
+        bytes.extend([0, 255, 0, 255]);
+        assert_eq!(laplacian_max_u8(&bytes, dims), 0);
+        assert_eq!(laplacian_max_u8(&bytes[..23], dims), 0);
     }
 
     #[test]
