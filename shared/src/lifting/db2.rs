@@ -221,24 +221,45 @@ pub(crate) fn forward_line_bytes<T: Lift>(src: &[u8], dst: &mut [T]) {
     let s1 = |l: usize| lift_s1(at(2 * l), at(2 * odd_index(l, nh) + 1), k);
     let (low, high) = dst.split_at_mut(nl);
     let mut s = s1(0);
-    let mut d = lift_d1(at(1), s, s1(prev_index(0, nl)), k);
-    // Pairs 1, 2, … two per word: pair l + 1 sets d¹ of l and s² of l − 1 … as in
-    // `forward_line_from`, two steps per word.
+    let d0 = lift_d1(at(1), s, s1(prev_index(0, nl)), k);
+    let Some((high_first, high_rest)) = high.split_first_mut() else {
+        return;
+    };
+    *high_first = d0;
+    // Pairs 1, 2, … two per word: pair l + 1 sets d¹ of l + 1 and s² of l … as in
+    // `forward_line_from`, two steps per word. Each d¹ is stored as soon as it is made
+    // (the high band from pair 1 on), so only s¹ is carried from word to word.
     let (quads, _) = from(src, 2).as_chunks::<4>();
     let (low2, _) = low.as_chunks_mut::<2>();
-    let (high2, _) = high.as_chunks_mut::<2>();
+    let (high2, _) = high_rest.as_chunks_mut::<2>();
     let byte = |w: u32, i: u32| T::from_guarded_byte((w >> (8 * i)) as u8);
-    for ((q, lo), hi) in quads.iter().zip(low2.iter_mut()).zip(high2.iter_mut()) {
+    // The three cut to one length and indexed: the loop keeps one counter for all three
+    // (a zip of three kept three pointers and two counters, and spilled them).
+    let words = quads.len().min(low2.len()).min(high2.len());
+    let (Some(quads), Some(low2), Some(high2)) = (
+        quads.get(..words),
+        low2.get_mut(..words),
+        high2.get_mut(..words),
+    ) else {
+        return;
+    };
+    for i in 0..words {
+        let (Some(q), Some(lo), Some(hi)) = (quads.get(i), low2.get_mut(i), high2.get_mut(i))
+        else {
+            break;
+        };
         let w = u32::from_le_bytes(*q);
         let (e0, o0, e1, o1) = (byte(w, 0), byte(w, 1), byte(w, 2), byte(w, 3));
         let s_a = lift_s1(e0, o0, k);
         let d_a = lift_d1(o0, s_a, s, k);
         let s_b = lift_s1(e1, o1, k);
         let d_b = lift_d1(o1, s_b, s_a, k);
-        *hi = [d, d_a];
+        *hi = [d_a, d_b];
         *lo = [s - d_a, s_a - d_b];
-        (s, d) = (s_b, d_b);
+        s = s_b;
     }
+    // d¹ of the last pair the words covered (pair 0 if none), read back.
+    let mut d = high.get(2 * quads.len()).copied().unwrap_or(d0);
     // The pair a word did not cover, if any (pairs 1 + 2·quads … nh − 1).
     let done = 2 * quads.len();
     for l in done..nh - 1 {

@@ -1275,12 +1275,12 @@ mod tests {
 
     /// The byte-reading row passes and the byte-writing inverse rows give the values of
     /// the plain ones on the widened samples (and their rounding), for every length to
-    /// 70, both wavelets, random bytes and the extremes (all 0, all 255, 0/255
-    /// alternating either way, a lone 255).
+    /// 70 and the camera's row lengths, both wavelets, random bytes and the extremes (all
+    /// 0, all 255, 0/255 alternating either way, a lone 255).
     #[test]
     fn byte_rows_match_the_widened_rows() {
         let mut state = 0x9E37_79B9u32;
-        for n in 1..=70usize {
+        for n in (1..=70usize).chain([79, 80, 81, 159, 160, 161, 319, 320]) {
             for kind in 0..6 {
                 let bytes: Vec<u8> = (0..n)
                     .map(|i| match kind {
