@@ -557,17 +557,22 @@ simd::kernel! {
         with_s1: bool,
         k: T::Constants,
     ) {
+        // Each lane's three samples are read before any is written: inlined (the
+        // Cortex-M7), the rows are slices of one buffer to the compiler, which reloaded
+        // a sample after every store to another row.
         let lanes = s_prev.iter_mut().zip(s.iter_mut()).zip(o.iter_mut());
         if with_s1 {
             for ((sp, s), o) in lanes {
-                *s = lift_s1(*s, *o, k);
-                *o = lift_d1(*o, *s, *sp, k);
-                *sp -= *o;
+                let (sp_v, s_v, o_v) = (*sp, *s, *o);
+                let s1 = lift_s1(s_v, o_v, k);
+                let d1 = lift_d1(o_v, s1, sp_v, k);
+                (*s, *o, *sp) = (s1, d1, sp_v - d1);
             }
         } else {
             for ((sp, s), o) in lanes {
-                *o = lift_d1(*o, *s, *sp, k);
-                *sp -= *o;
+                let (sp_v, s_v, o_v) = (*sp, *s, *o);
+                let d1 = lift_d1(o_v, s_v, sp_v, k);
+                (*o, *sp) = (d1, sp_v - d1);
             }
         }
     }
