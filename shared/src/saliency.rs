@@ -524,6 +524,78 @@ pub(crate) fn saliency_row_u8(how: &ByteSaliency<'_>, rows: [&[u8]; 3], out: &mu
     }
 }
 
+/// Row `mid`'s saliencies by `table` (see [`saliency_row_u8`]) taken straight into a row
+/// of window sums of phase 1 (entry 0 pixel 0 alone, entry m ≥ 1 pixels 2m − 1 and 2m:
+/// the db2 layout, `crate::fusion::WindowLayout`): set (`set`, the map row's first pixel
+/// row; entries no pixel reaches zeroed) or added to. Each group of four pixels of
+/// [`laplacian_quads`] (pixels 1 + 4q … 4 + 4q) fills entries 1 + 2q and 2 + 2q, so the
+/// saliencies are never stored: the same sums, bit for bit, as [`saliency_row_u8`] into a
+/// line and that line taken into the map.
+#[inline(always)]
+pub(crate) fn saliency_windows_u8(
+    table: &LaplacianTable<'_>,
+    rows: [&[u8]; 3],
+    map_row: &mut [i32],
+    set: bool,
+) {
+    if set {
+        saliency_windows_u8_as::<true>(table, rows, map_row);
+    } else {
+        saliency_windows_u8_as::<false>(table, rows, map_row);
+    }
+}
+
+/// [`saliency_windows_u8`], setting (`SET`) or adding.
+#[inline(always)]
+fn saliency_windows_u8_as<const SET: bool>(
+    table: &LaplacianTable<'_>,
+    rows: [&[u8]; 3],
+    map_row: &mut [i32],
+) {
+    let put = |acc: &mut i32, v: i32| {
+        if SET {
+            *acc = v;
+        } else {
+            *acc += v;
+        }
+    };
+    let f = |v: u32| table.saliency(v);
+    let w = rows[1].len();
+    if let Some(entries) = map_row.get_mut(1..) {
+        for (acc, [even, odd]) in entries
+            .as_chunks_mut::<2>()
+            .0
+            .iter_mut()
+            .zip(laplacian_quads(rows))
+        {
+            let ([e0, e1], [o0, o1]) = (unpack(even), unpack(odd));
+            // As the line's pixels were taken: the pair's first set or added, its second
+            // added.
+            let (a, b) = (f(e0), f(e1));
+            let (mut v0, mut v1) = (acc[0], acc[1]);
+            put(&mut v0, a);
+            put(&mut v1, b);
+            *acc = [v0 + f(o0), v1 + f(o1)];
+        }
+    }
+    for x in single_pixels(w) {
+        if let (Some(acc), Some(v)) = (map_row.get_mut(x.div_ceil(2)), laplacian_at(rows, x)) {
+            // Pixel 0 and every odd pixel open their entry; even ones x ≥ 2 close it.
+            if x == 0 || x % 2 == 1 {
+                put(acc, f(v));
+            } else {
+                *acc += f(v);
+            }
+        }
+    }
+    if SET {
+        // Entries past pixel w − 1's (entry ⌈(w − 1)/2⌉).
+        if let Some(past) = map_row.get_mut(w.saturating_sub(1).div_ceil(2) + 1..) {
+            past.fill(0);
+        }
+    }
+}
+
 /// Sets `out[x] = f(biased Laplacian of pixel x)` for every pixel of row `mid`; nothing
 /// past `out`'s end.
 #[inline(always)]

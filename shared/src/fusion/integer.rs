@@ -10,7 +10,7 @@ use crate::lifting::{self, LevelBounds, bounds::level_bounds};
 use crate::packed::widen_shifted;
 use crate::saliency::{
     self, ByteSaliency, LaplacianTable, Normalizer, SaliencyNorm, laplacian_max_u8,
-    row_and_neighbours, saliency_row_u8,
+    row_and_neighbours, saliency_row_u8, saliency_windows_u8,
 };
 use crate::{Dims, Error, MAX_LEVELS, Wavelet};
 
@@ -324,13 +324,27 @@ fn first_level_maps(
     let [(a, a_dims), (b, b_dims)] = images;
     let mut map_of = |(img, img_dims), how: Option<&ByteSaliency<'_>>, map| {
         let mut map = WindowMap::new(map, layout, dims);
-        if let Some(how) = how {
-            for y in 0..dims.height() {
-                if let Some((up, mid, down)) = row_and_neighbours(img, img_dims, y) {
-                    saliency_row_u8(how, [up, mid, down], line);
-                    map.take(y, line);
+        match how {
+            // db2's windows (phase 1) line up with the groups of four: the saliencies go
+            // straight into the map, with no line between.
+            Some(ByteSaliency::Table(table)) if layout.phase == 1 => {
+                for y in 0..dims.height() {
+                    if let Some((up, mid, down)) = row_and_neighbours(img, img_dims, y) {
+                        map.take_with(y, |row, first| {
+                            saliency_windows_u8(table, [up, mid, down], row, first);
+                        });
+                    }
                 }
             }
+            Some(how) => {
+                for y in 0..dims.height() {
+                    if let Some((up, mid, down)) = row_and_neighbours(img, img_dims, y) {
+                        saliency_row_u8(how, [up, mid, down], line);
+                        map.take(y, line);
+                    }
+                }
+            }
+            None => {}
         }
         map.finish(dims);
     };
@@ -362,8 +376,71 @@ fn byte_saliency(
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
     use crate::lifting::MAX_SAMPLE;
+
+    /// Level 1's saliencies taken straight into db2's window map give the map of the
+    /// line-then-take path, bit for bit (every entry, the zeroed ones included), on
+    /// random, flat, extreme, checkered and striped images of every width up to 40 and
+    /// the camera's, 1 to 7 rows and 16, over a map holding stale values.
+    #[test]
+    fn saliency_windows_match_the_line_then_take_path() {
+        let mut seed = 4_242u32;
+        let mut next = move || {
+            seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+            (seed >> 16) as u8
+        };
+        let mut entries = [0; TABLE_WORDS];
+        let layout = WindowLayout::of(Wavelet::Db2);
+        for w in (1..=40).chain([79, 80, 81, 159, 160, 161, 320]) {
+            for h in [1, 2, 3, 4, 5, 7, 16] {
+                for pattern in 0..6 {
+                    let img: std::vec::Vec<u8> = (0..w * h)
+                        .map(|i| {
+                            let (x, y) = (i % w, i / w);
+                            match pattern {
+                                0 => 0,
+                                1 => 255,
+                                2 => [0, 255][(x + y) % 2],
+                                3 => [255, 0][x % 2],
+                                4 => [0, 255][y % 2],
+                                _ => next(),
+                            }
+                        })
+                        .collect();
+                    let dims = Dims::new(w, h).unwrap();
+                    let max = laplacian_max_u8(&img, dims).max(1) << GUARD_BITS;
+                    let table =
+                        LaplacianTable::fill(&mut entries, Normalizer::new(max), GUARD_BITS);
+                    let how = ByteSaliency::Table(table);
+                    let (mw, mh) = layout.map_dims(dims);
+                    let mut want = std::vec![0x5A5A_5A5A; mw * mh];
+                    let mut got = want.clone();
+                    let mut line = std::vec![0; w];
+                    let mut map = WindowMap::new(&mut want, layout, dims);
+                    for y in 0..h {
+                        let (up, mid, down) = row_and_neighbours(&img, dims, y).unwrap();
+                        saliency_row_u8(&how, [up, mid, down], &mut line);
+                        map.take(y, &line);
+                    }
+                    map.finish(dims);
+                    let ByteSaliency::Table(table) = &how else {
+                        unreachable!()
+                    };
+                    let mut map = WindowMap::new(&mut got, layout, dims);
+                    for y in 0..h {
+                        let (up, mid, down) = row_and_neighbours(&img, dims, y).unwrap();
+                        map.take_with(y, |row, first| {
+                            saliency_windows_u8(table, [up, mid, down], row, first);
+                        });
+                    }
+                    map.finish(dims);
+                    assert_eq!(got, want, "{w}×{h} pattern {pattern}");
+                }
+            }
+        }
+    }
 
     /// `blend` and `mix` take `(a − b)·4` into a 32-bit product: every band's
     /// difference of two coefficients, at most twice its bound, must stay below 2²⁹.

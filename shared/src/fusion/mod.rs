@@ -435,6 +435,20 @@ impl<'m, T: Arith> WindowMap<'m, T> {
         }
     }
 
+    /// Hands `fill` the map row that pixel row `y` goes into, and whether `y` is its first
+    /// pixel row (then `fill` sets the row's sums, else adds to them), as [`Self::take`]
+    /// does with a row of saliency; nothing if the map is too short.
+    #[inline(always)]
+    fn take_with(&mut self, y: usize, fill: impl FnOnce(&mut [T], bool)) {
+        self.taken = true;
+        let phase = self.layout.phase;
+        let m = (y + phase) / 2;
+        let first = y == 0 || (y + phase).is_multiple_of(2);
+        if let Some(map_row) = self.map.get_mut(m * self.width..(m + 1) * self.width) {
+            fill(map_row, first);
+        }
+    }
+
     /// Takes in row `y` of saliency. Each map row is set by its first pixel row and added
     /// to by its second, so the map is not cleared first (a pass over it).
     #[inline(always)]
