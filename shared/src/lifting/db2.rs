@@ -49,10 +49,28 @@ pub(crate) const CONSTANTS: Constants = Constants {
     b: -287_708_255,
 };
 
+/// `R(√3·o)` ([`Constants::sqrt3_times`]) of every 8-bit value with the fusion's guard
+/// bits, `o = v·2^GUARD_BITS`: the row pass from bytes looks it up (one load where the
+/// product took three instructions and a register for the constant).
+pub(crate) const SQRT3_OF_GUARDED_BYTES: [i32; 256] = sqrt3_of_guarded_bytes();
+
+// `table[v]` with `v < 256` by the loop guard, in const evaluation only.
+#[allow(clippy::indexing_slicing)]
+const fn sqrt3_of_guarded_bytes() -> [i32; 256] {
+    let mut table = [0; 256];
+    let mut v = 0;
+    while v < 256 {
+        let o = (v as i32) << crate::fusion::GUARD_BITS;
+        table[v] = 2 * o - round_q(CONSTANTS.two_minus_sqrt3 as i64 * o as i64);
+        v += 1;
+    }
+    table
+}
+
 /// Rounds a Q32 value to the nearest integer, halves upward: of a single product, one
 /// `SMMULR` on the Cortex-M7.
 #[inline(always)]
-fn round_q(v: i64) -> i32 {
+const fn round_q(v: i64) -> i32 {
     ((v + (1 << (Q - 1))) >> Q) as i32
 }
 
@@ -233,6 +251,8 @@ pub(crate) fn forward_line_bytes<T: Lift>(src: &[u8], dst: &mut [T]) {
     let (low2, _) = low.as_chunks_mut::<2>();
     let (high2, _) = high_rest.as_chunks_mut::<2>();
     let byte = |w: u32, i: u32| T::from_guarded_byte((w >> (8 * i)) as u8);
+    // `e + R(√3·o)` with the product looked up from the odd byte.
+    let s1_of = |e: T, w: u32, i: u32| e + T::sqrt3_of_guarded_byte((w >> (8 * i)) as u8, k);
     // The three cut to one length and indexed: the loop keeps one counter for all three
     // (a zip of three kept three pointers and two counters, and spilled them).
     let words = quads.len().min(low2.len()).min(high2.len());
@@ -250,9 +270,9 @@ pub(crate) fn forward_line_bytes<T: Lift>(src: &[u8], dst: &mut [T]) {
         };
         let w = u32::from_le_bytes(*q);
         let (e0, o0, e1, o1) = (byte(w, 0), byte(w, 1), byte(w, 2), byte(w, 3));
-        let s_a = lift_s1(e0, o0, k);
+        let s_a = s1_of(e0, w, 1);
         let d_a = lift_d1(o0, s_a, s, k);
-        let s_b = lift_s1(e1, o1, k);
+        let s_b = s1_of(e1, w, 3);
         let d_b = lift_d1(o1, s_b, s_a, k);
         *hi = [d_a, d_b];
         *lo = [s - d_a, s_a - d_b];
@@ -889,6 +909,19 @@ pub(crate) fn inverse<T: Lift>(low: &mut [T], high: &mut [T], width: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The looked-up `R(√3·o)` of every 8-bit value with the guard bits is the product's.
+    #[test]
+    fn sqrt3_table_holds_the_products() {
+        for v in 0..=255u8 {
+            let o = i32::from(v) << crate::fusion::GUARD_BITS;
+            assert_eq!(
+                SQRT3_OF_GUARDED_BYTES[usize::from(v)],
+                CONSTANTS.sqrt3_times(o)
+            );
+            assert_eq!(i32::sqrt3_of_guarded_byte(v, CONSTANTS), o.sqrt3(CONSTANTS));
+        }
+    }
 
     #[test]
     fn constants_are_the_rounded_q32_values() {

@@ -76,6 +76,12 @@ pub(crate) trait Lift:
     /// The sample of an 8-bit value with the fusion's guard bits
     /// ([`crate::fusion::GUARD_BITS`]): `v·2^GUARD_BITS`.
     fn from_guarded_byte(v: u8) -> Self;
+    /// db2's first update term of an 8-bit value with the guard bits:
+    /// `Self::from_guarded_byte(v).sqrt3(k)` (the integer lifting looks it up).
+    #[inline(always)]
+    fn sqrt3_of_guarded_byte(v: u8, k: Self::Constants) -> Self {
+        Self::from_guarded_byte(v).sqrt3(k)
+    }
     /// A sample with guard bits back to 8 bits: rounded to nearest (halves up) and clamped
     /// to `0..=255`.
     fn to_byte(self) -> u8;
@@ -108,6 +114,14 @@ impl Lift for i32 {
     #[inline(always)]
     fn from_guarded_byte(v: u8) -> Self {
         i32::from(v) << GUARD_BITS
+    }
+    #[inline(always)]
+    fn sqrt3_of_guarded_byte(v: u8, _: db2::Constants) -> Self {
+        // A `u8` index is always inside the 256 entries: no check is left.
+        db2::SQRT3_OF_GUARDED_BYTES
+            .get(usize::from(v))
+            .copied()
+            .unwrap_or_default()
     }
     #[inline(always)]
     fn to_byte(self) -> u8 {
