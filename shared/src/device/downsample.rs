@@ -127,6 +127,107 @@ fn yuyv_luma_row(out: &mut [u8], row: &[u8]) {
     }
 }
 
+/// [`yuyv_luma_row`] that also returns the row's sum of luma: the lanes of luma the
+/// conversion has in hand are added up as they pass (two additions per four pixels, where
+/// a separate [`crate::packed::row_sum`] pass read the row again).
+#[inline(always)]
+fn yuyv_luma_row_sum(out: &mut [u8], row: &[u8]) -> u32 {
+    let (out4, out_rest) = out.as_chunks_mut::<4>();
+    let (groups, _) = row.as_chunks::<4>();
+    let (pairs, single) = groups.as_chunks::<2>();
+    let mut total = 0;
+    // A lane gains at most 2·255 per group of four pixels: 128 groups keep it below 2¹⁶.
+    for (out4, pairs) in out4.chunks_mut(128).zip(pairs.chunks(128)) {
+        let mut acc = 0u32;
+        for (o, [a, b]) in out4.iter_mut().zip(pairs) {
+            let a = u32::from_le_bytes(*a) & 0x00FF_00FF;
+            let b = u32::from_le_bytes(*b) & 0x00FF_00FF;
+            acc += a + b;
+            let (lo, hi) = ((a | a >> 8) & 0xFFFF, (b | b >> 8) << 16);
+            *o = (lo | hi).to_le_bytes();
+        }
+        total += (acc & 0xFFFF) + (acc >> 16);
+    }
+    let done = 4 * out4.len();
+    let tail = single
+        .iter()
+        .flatten()
+        .chain(row.get(2 * done + 4 * single.len()..).unwrap_or(&[]));
+    for (o, &y) in out_rest.iter_mut().zip(tail.step_by(2)) {
+        *o = y;
+        total += u32::from(y);
+    }
+    total
+}
+
+/// [`downsample_rows`] that also writes the band's row profile, as
+/// [`super::refine::row_profile`] of the band would (`dims.height() − 1` first
+/// differences of the row sums into `profile`): at 1× from YUYV the sums are taken during
+/// the conversion, otherwise by that function after it.
+pub fn downsample_rows_profiled(
+    src: &[u8],
+    format: PixelFormat,
+    (width, height): (usize, usize),
+    factor: usize,
+    rows: core::ops::Range<usize>,
+    out: &mut [u8],
+    profile: &mut [i32],
+) -> Result<Dims, Error> {
+    if factor != 1 || format != PixelFormat::Yuyv {
+        return band_then_profile(src, format, (width, height), factor, rows, out, profile);
+    }
+    // The checks of `downsample_rows`, whose 1× pass this is.
+    let full = downsampled_dims(width, height, factor)?;
+    if rows.end > full.height() {
+        return Err(Error::InvalidParameter { name: "rows" });
+    }
+    let dims = Dims::new(full.width(), rows.end.saturating_sub(rows.start))?;
+    let row_bytes = width * format.bytes_per_pixel();
+    let needed = row_bytes * height;
+    if src.len() < needed {
+        return Err(Error::BufferTooSmall {
+            which: "camera frame",
+            needed,
+            got: src.len(),
+        });
+    }
+    dims.check_buffer("downsampled frame", out.len())?;
+    let camera_rows = src
+        .chunks_exact(row_bytes)
+        .skip(rows.start)
+        .take(rows.len());
+    let mut previous = None;
+    let mut diffs = profile.iter_mut();
+    for (row, out_row) in camera_rows.zip(out.chunks_exact_mut(dims.width())) {
+        // A row of bytes sums to far below 2³¹.
+        let sum = yuyv_luma_row_sum(out_row, row) as i32;
+        if let Some(p) = previous
+            && let Some(d) = diffs.next()
+        {
+            *d = sum - p;
+        }
+        previous = Some(sum);
+    }
+    Ok(dims)
+}
+
+/// [`downsample_rows`], then [`super::refine::row_profile`] of the band. Not inlined:
+/// the two calls as they were before the profile was fused into the 1× pass.
+#[inline(never)]
+fn band_then_profile(
+    src: &[u8],
+    format: PixelFormat,
+    size: (usize, usize),
+    factor: usize,
+    rows: core::ops::Range<usize>,
+    out: &mut [u8],
+    profile: &mut [i32],
+) -> Result<Dims, Error> {
+    let dims = downsample_rows(src, format, size, factor, rows, out)?;
+    super::refine::row_profile(out, dims, profile);
+    Ok(dims)
+}
+
 /// One output row at full resolution: each pixel's luma, with no sums kept (the general
 /// path's per-box sums cost about 15 instructions a pixel on the Cortex-M7 at 1×).
 #[inline(always)]
@@ -278,6 +379,106 @@ mod tests {
             yuyv_luma_row(&mut out, &row);
             let want: Vec<u8> = row.iter().step_by(2).copied().collect();
             assert_eq!(out, want, "width {width}");
+        }
+    }
+
+    /// The band and profile of `downsample_rows_profiled` are those of `downsample_rows`
+    /// and `row_profile`, for every format and factor, on random, flat (0 and 255) and
+    /// checkered frames 1, 2, 3, 5, 150 and 1030 pixels wide (past one block of 512
+    /// pixels of the summed conversion) and 1 to 9 rows high, over every band.
+    #[test]
+    fn profiled_bands_match_the_band_then_its_profile() {
+        use crate::device::refine::row_profile;
+        let mut x = 0x2545_f491u32;
+        for (w, h) in [(1, 1), (1, 4), (2, 3), (3, 9), (5, 2), (150, 5), (1030, 3)] {
+            for pattern in 0..4 {
+                let src: std::vec::Vec<u8> = (0..w * h * 2)
+                    .map(|i| match pattern {
+                        0 => 0,
+                        1 => 255,
+                        2 => [0, 255][(i / 2 + i / (2 * w)) % 2],
+                        _ => {
+                            x ^= x << 13;
+                            x ^= x >> 17;
+                            x ^= x << 5;
+                            (x >> 24) as u8
+                        }
+                    })
+                    .collect();
+                for format in [PixelFormat::Gray8, PixelFormat::Yuyv, PixelFormat::Rgb565] {
+                    for factor in [1, 2, 4] {
+                        let Ok(d) = downsampled_dims(w, h, factor) else {
+                            continue;
+                        };
+                        for start in 0..d.height() {
+                            for end in start + 1..=d.height() {
+                                let n = d.width() * (end - start);
+                                let mut want = std::vec![0xa5u8; n + 3];
+                                let mut got = want.clone();
+                                let mut want_p = std::vec![-7; end - start + 2];
+                                let mut got_p = want_p.clone();
+                                let fr = (w, h);
+                                let wd = downsample_rows(
+                                    &src,
+                                    format,
+                                    fr,
+                                    factor,
+                                    start..end,
+                                    &mut want,
+                                )
+                                .unwrap();
+                                row_profile(&want, wd, &mut want_p);
+                                let gd = downsample_rows_profiled(
+                                    &src,
+                                    format,
+                                    fr,
+                                    factor,
+                                    start..end,
+                                    &mut got,
+                                    &mut got_p,
+                                )
+                                .unwrap();
+                                let what = std::format!(
+                                    "{w}×{h} {format:?} ×{factor} {start}..{end} pattern {pattern}"
+                                );
+                                assert_eq!(gd, wd, "{what}");
+                                assert_eq!(got, want, "{what}");
+                                assert_eq!(got_p, want_p, "{what}");
+                            }
+                        }
+                        // The same refusals.
+                        let mut band = std::vec![0u8; w * h];
+                        let mut p = std::vec![0; h];
+                        let rows = 0..d.height() + 1;
+                        assert_eq!(
+                            downsample_rows_profiled(
+                                &src,
+                                format,
+                                (w, h),
+                                factor,
+                                rows.clone(),
+                                &mut band,
+                                &mut p
+                            ),
+                            downsample_rows(&src, format, (w, h), factor, rows, &mut band)
+                        );
+                        let short = &src[..src.len() / 2 / format.bytes_per_pixel().max(1)];
+                        let all = 0..d.height();
+                        assert_eq!(
+                            downsample_rows_profiled(
+                                short,
+                                format,
+                                (w, h),
+                                factor,
+                                all.clone(),
+                                &mut band,
+                                &mut p
+                            ),
+                            downsample_rows(short, format, (w, h), factor, all, &mut band)
+                        );
+                    }
+                }
+            }
         }
     }
 

@@ -21,8 +21,8 @@
 //!
 //! Memory is the caller's ([`PipelineBuffers`]), sized by [`PipelineConfig::memory`].
 
-use super::downsample::{downsample_rows, downsampled_dims};
-use super::refine::{refine_shift, row_profile};
+use super::downsample::{downsample_rows_profiled, downsampled_dims};
+use super::refine::refine_shift;
 use crate::float;
 use crate::fusion::{LlWeight, U8Pair, U8Work, fuse_scratch_words, fuse_u8};
 use crate::protocol::{DeviceConfig, NakReason, NormMode, PixelFormat, Tile, WaveletId};
@@ -426,16 +426,8 @@ impl<'a> Pipeline<'a> {
         let cfg = self.cfg;
         let schedule = cfg.schedule();
         let window = schedule.window_top..schedule.window_top + schedule.window_rows;
-        let dims = downsample_rows(
-            camera,
-            cfg.sensor.format,
-            (cfg.sensor.width, cfg.sensor.height),
-            cfg.downsample,
-            window,
-            self.bufs.frame,
-        )
-        .map_err(FrameError::Size)?;
-        let h = dims.height();
+        // The band's height: `downsample_rows_profiled` checks it fits the frame.
+        let h = window.len();
         let f = cfg.downsample as u64;
         let p = h - 1;
         // `new` checked the profiles hold two of `p` words (`cfg.memory()`).
@@ -455,7 +447,17 @@ impl<'a> Pipeline<'a> {
         } else {
             (&*second, first)
         };
-        row_profile(self.bufs.frame, dims, current);
+        // The band and its row profile, the profile's sums taken while converting at 1×.
+        let dims = downsample_rows_profiled(
+            camera,
+            cfg.sensor.format,
+            (cfg.sensor.width, cfg.sensor.height),
+            cfg.downsample,
+            window,
+            self.bufs.frame,
+            current,
+        )
+        .map_err(FrameError::Size)?;
         let (offset, shift) = match self.last {
             None => (0, 0),
             Some((offset, commanded_at)) => {
