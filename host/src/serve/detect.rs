@@ -96,20 +96,20 @@ impl Drop for LiveDetector {
 
 /// The detector walking down the strip: each window's own rows are those whose defects
 /// it reports, with context rows either side so a defect on the edge is seen whole.
-struct Windows {
+pub(super) struct Windows {
     detector: Detector,
     /// The first strip row not yet reported on.
     next: Option<u64>,
 }
 
 /// A window: rows `own` reported on, rows `seen` given to the detector.
-struct Window {
-    own: std::ops::Range<u64>,
-    seen: std::ops::Range<u64>,
+pub(super) struct Window {
+    pub(super) own: std::ops::Range<u64>,
+    pub(super) seen: std::ops::Range<u64>,
 }
 
 impl Windows {
-    fn new(detector: Detector) -> Self {
+    pub(super) fn new(detector: Detector) -> Self {
         Self {
             detector,
             next: None,
@@ -137,30 +137,46 @@ impl Windows {
 
     /// The next window whose rows are all in (or the rest of the strip once it has
     /// ended), passing over rows the server no longer keeps.
-    fn next_window(&mut self, shared: &Shared, upsample: usize, last: bool) -> Option<Window> {
-        let span = lock(&shared.ring).span()?;
+    pub(super) fn next_window(
+        &mut self,
+        shared: &Shared,
+        upsample: usize,
+        last: bool,
+    ) -> Option<Window> {
+        let ring = lock(&shared.ring);
+        let span = ring.span()?;
         let context = (TILE_OVERLAP / upsample / 2) as u64;
         let own_rows = (TILE_ROWS / upsample) as u64 - 2 * context;
-        let next = *self.next.get_or_insert(span.start);
+        let mut next = *self.next.get_or_insert(span.start);
         if next < span.start {
             lock(&shared.findings).status.rows_skipped += span.start - next;
-            self.next = Some(span.start);
-            return self.next_window(shared, upsample, last);
+            next = span.start;
         }
-        let own_end = next + own_rows;
-        let ready = span.end >= own_end + context;
+        // Rows of tiles that never came (a jump of the belt index) are no strip to check:
+        // a window ends where its run of tiles does, and the next starts at the next tile.
+        next = ring.kept_row_from(next).map_or(next, |k| k.max(next));
+        self.next = Some(next);
+        let run_end = ring.kept_run_end(next)?;
+        drop(ring);
+        let own_end = (next + own_rows).min(run_end);
+        let ready = span.end >= own_end + context || own_end == run_end && run_end < span.end;
         if !(ready || last && span.end > next) {
             return None;
         }
-        let own = next..own_end.min(span.end);
+        let own = next..own_end;
         let seen =
-            own.start.saturating_sub(context).max(span.start)..(own.end + context).min(span.end);
+            own.start.saturating_sub(context).max(span.start)..(own.end + context).min(run_end);
         Some(Window { own, seen })
+    }
+
+    /// Marks a window's own rows as reported on.
+    pub(super) fn done(&mut self, w: &Window) {
+        self.next = Some(w.own.end);
     }
 
     /// Runs the detector on a window and hands its boxes on.
     fn check(&mut self, shared: &Shared, w: Window, upsample: usize) {
-        self.next = Some(w.own.end);
+        self.done(&w);
         let Some((width, start, rows, pixels)) = lock(&shared.ring).rows(w.seen.clone()) else {
             return;
         };

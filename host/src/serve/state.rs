@@ -85,6 +85,27 @@ impl TileRing {
         Some(u64::from(first) * height as u64..(u64::from(last) + 1) * height as u64)
     }
 
+    /// The first belt row at or after `row` that a kept tile holds.
+    pub fn kept_row_from(&self, row: u64) -> Option<u64> {
+        let height = self.size?.1 as u64;
+        let (&index, _) = self.tiles.range((row / height) as u32..).next()?;
+        Some((u64::from(index) * height).max(row))
+    }
+
+    /// The end (first row past it) of the run of consecutive kept tiles that holds `row`.
+    pub fn kept_run_end(&self, row: u64) -> Option<u64> {
+        let height = self.size?.1 as u64;
+        let mut last = u32::try_from(row / height).ok()?;
+        self.tiles.get(&last)?;
+        for (&index, _) in self.tiles.range(last.checked_add(1)?..) {
+            if index != last + 1 {
+                break;
+            }
+            last = index;
+        }
+        Some((u64::from(last) + 1) * height)
+    }
+
     /// Belt rows `rows` of the strip (clipped to what is kept), missing tiles black: width,
     /// the first row given, its height and pixels. None before the first tile.
     pub fn rows(&self, rows: std::ops::Range<u64>) -> Option<(usize, u64, usize, Vec<u8>)> {

@@ -29,7 +29,7 @@ impl Write for HeldClient {
     }
 }
 
-fn shared() -> Arc<Shared> {
+pub(super) fn shared() -> Arc<Shared> {
     Arc::new(Shared {
         started: std::time::Instant::now(),
         token: None,
@@ -115,4 +115,32 @@ fn a_stuck_client_skips_rows_and_never_holds_up_the_watcher() {
         (u64::from(total)..u64::from(total) + 10).collect::<Vec<_>>()
     );
     assert_eq!(lock(&shared.ring).tiles.len() as u32, total + 10);
+}
+
+#[test]
+fn the_detector_walks_every_kept_row_once_and_steps_over_a_jump() {
+    let shared = shared();
+    {
+        let mut ring = lock(&shared.ring);
+        // 20 tiles, then the belt index jumps by 980 tiles, then 20 more.
+        for index in (0..20).chain(1000..1020) {
+            ring.push(index, (8, 16), &[7; 8 * 16]);
+        }
+    }
+    let detector = crate::detect::Detector::built_in().unwrap();
+    let mut windows = super::detect::Windows::new(detector);
+    let mut owns = Vec::new();
+    for last in [false, true] {
+        while let Some(w) = windows.next_window(&shared, 2, last) {
+            assert!(w.seen.start <= w.own.start && w.own.end <= w.seen.end);
+            owns.push(w.own.clone());
+            windows.done(&w);
+        }
+    }
+    // Every row of a kept tile is in exactly one window's own rows, and no window is
+    // spent on the rows of the tiles that never came.
+    let kept: Vec<u64> = (0..320).chain(16_000..16_320).collect();
+    let covered: Vec<u64> = owns.iter().flat_map(|o| o.clone()).collect();
+    assert_eq!(covered, kept, "{owns:?}");
+    assert_eq!(lock(&shared.findings).status.rows_skipped, 0);
 }
