@@ -632,36 +632,53 @@ pub fn weight(s1: u32, s2: u32) -> U1F15 {
     let (a, b) = if (s1 | s2) < 1 << 30 {
         halve_to_17_bits(s1, s2, s1 + s2)
     } else {
-        let total = u64::from(s1) + u64::from(s2);
-        // At least the halvings that bring `total` below 2³¹, then as for small sums.
-        let skip = (64 - total.leading_zeros()).saturating_sub(31);
-        let (a, b) = (s1 >> skip, s2 >> skip);
-        halve_to_17_bits(a, b, a + b)
+        halve_large(s1, s2)
     };
     let t = a + b;
     if t == 0 {
         return U1F15::from_bits(1 << 14);
     }
     // (a·2¹⁵ + t/2) / t: in one 32-bit division while a·2¹⁵ + t/2 < 2³² (a < 2¹⁷ − 3, as
-    // t ≤ 2¹⁷); otherwise as q₁·2⁷ + (r₁·2⁷ + t/2) / t with q₁, r₁ = divmod(a·2⁸, t), where
-    // a ≤ 2¹⁷ keeps a·2⁸ and r₁·2⁷ within 32 bits.
+    // t ≤ 2¹⁷); otherwise in two ([`divide_large`]).
     let w = if a < (1 << 17) - 3 {
         ((a << 15) + t / 2) / t
     } else {
-        let (q1, r1) = ((a << 8) / t, (a << 8) % t);
-        (q1 << 7) + ((r1 << 7) + t / 2) / t
+        divide_large(a, t)
     };
-    U1F15::from_bits(w.min(1 << 15) as u16)
+    // a ≤ t, so w ≤ (t·2¹⁵ + t/2) / t < 2¹⁵ + 1: at most 2¹⁵, no clamp needed.
+    debug_assert!(w <= 1 << 15);
+    U1F15::from_bits(w as u16)
 }
 
-/// Halves `a` and `b` (whose sum is `total`, below 2³¹) together, the fewest times that
-/// bring their sum to 2¹⁷ or below.
+/// [`weight`]'s halving of sums of which one is 2³⁰ or more: at least the halvings that
+/// bring their total below 2³¹, then as for small sums.
+#[cold]
+#[inline(never)]
+fn halve_large(s1: u32, s2: u32) -> (u32, u32) {
+    let total = u64::from(s1) + u64::from(s2);
+    let skip = (64 - total.leading_zeros()).saturating_sub(31);
+    let (a, b) = (s1 >> skip, s2 >> skip);
+    halve_to_17_bits(a, b, a + b)
+}
+
+/// `(a·2¹⁵ + t/2) / t` for `2¹⁷ − 3 ≤ a ≤ t ≤ 2¹⁷`, as `q₁·2⁷ + (r₁·2⁷ + t/2) / t` with
+/// `q₁, r₁ = divmod(a·2⁸, t)`: `a ≤ 2¹⁷` keeps `a·2⁸` and `r₁·2⁷` within 32 bits.
+#[cold]
+#[inline(never)]
+fn divide_large(a: u32, t: u32) -> u32 {
+    let (q1, r1) = ((a << 8) / t, (a << 8) % t);
+    (q1 << 7) + ((r1 << 7) + t / 2) / t
+}
+
+/// Halves `a` and `b` (whose sum is `total`) together, the fewest times that bring their
+/// sum to 2¹⁷ or below.
 #[inline(always)]
 fn halve_to_17_bits(a: u32, b: u32, total: u32) -> (u32, u32) {
-    // The halvings that bring `total` below 2¹⁸, then one more if the halved sum is still
-    // above 2¹⁷ (once is enough: it is below 2¹⁸, and halving each part halves the sum at
-    // least).
-    let skip = (32 - total.leading_zeros()).saturating_sub(18);
+    // The halvings that bring `total` below 2¹⁸ (its bit length less 18, none below
+    // 2¹⁸: the bit 2¹⁷ or'ed in makes that length at least 18 with no select), then one
+    // more if the halved sum is still above 2¹⁷ (once is enough: it is below 2¹⁸, and
+    // halving each part halves the sum at least).
+    let skip = 14 - (total | 1 << 17).leading_zeros();
     let (a, b) = (a >> skip, b >> skip);
     if a + b > 1 << 17 {
         (a >> 1, b >> 1)
@@ -825,6 +842,95 @@ mod tests {
             b >>= 1;
         }
         (((a << 15) + (a + b) / 2) / (a + b)).min(1 << 15) as u16
+    }
+
+    /// [`weight`] as it was before its halving took the bit length with no select, its
+    /// rare paths went out of line and its clamp went: the reference for bit identity.
+    fn weight_before(s1: u32, s2: u32) -> u16 {
+        fn halve(a: u32, b: u32, total: u32) -> (u32, u32) {
+            let skip = (32 - total.leading_zeros()).saturating_sub(18);
+            let (a, b) = (a >> skip, b >> skip);
+            if a + b > 1 << 17 {
+                (a >> 1, b >> 1)
+            } else {
+                (a, b)
+            }
+        }
+        let (a, b) = if (s1 | s2) < 1 << 30 {
+            halve(s1, s2, s1 + s2)
+        } else {
+            let total = u64::from(s1) + u64::from(s2);
+            let skip = (64 - total.leading_zeros()).saturating_sub(31);
+            let (a, b) = (s1 >> skip, s2 >> skip);
+            halve(a, b, a + b)
+        };
+        let t = a + b;
+        if t == 0 {
+            return 1 << 14;
+        }
+        let w = if a < (1 << 17) - 3 {
+            ((a << 15) + t / 2) / t
+        } else {
+            let (q1, r1) = ((a << 8) / t, (a << 8) % t);
+            (q1 << 7) + ((r1 << 7) + t / 2) / t
+        };
+        w.min(1 << 15) as u16
+    }
+
+    /// [`weight`] gives the bits of its former formulation: every pair of small sums, the
+    /// edges of every halving step and of both fast paths both ways round, all-zero and
+    /// all-maximal sums, and a million pseudo-random pairs over the whole range and over
+    /// the fusion's (below 2²⁸).
+    #[test]
+    fn weight_matches_its_former_formulation() {
+        let check = |a: u32, b: u32| {
+            assert_eq!(weight(a, b).to_bits(), weight_before(a, b), "{a} {b}");
+        };
+        for a in 0..300 {
+            for b in 0..300 {
+                check(a, b);
+            }
+        }
+        let mut edges = std::vec::Vec::new();
+        for k in 0..32 {
+            for d in 0..6u32 {
+                edges.push((1u32 << k).wrapping_sub(d));
+                edges.push((1u32 << k).wrapping_add(d));
+                edges.push(((1u64 << (k + 1)) - 1) as u32);
+            }
+        }
+        edges.extend([
+            0,
+            1,
+            2,
+            3,
+            255,
+            1 << 28,
+            (1 << 28) - 1,
+            u32::MAX,
+            u32::MAX - 1,
+        ]);
+        for &a in &edges {
+            for &b in &edges {
+                check(a, b);
+            }
+        }
+        let mut x = 0x9e37_79b9u32;
+        let mut next = move || {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            x
+        };
+        for _ in 0..1_000_000 {
+            let (a, b) = (next(), next());
+            check(a, b);
+            check(a >> (b % 32), b >> (a % 32));
+            check(a >> 4, b >> 4);
+            // Nearly equal and far apart, as flat and edge windows give.
+            check(a >> 4, (a >> 4) + (b % 64));
+            check(a >> 4, b >> 24);
+        }
     }
 
     #[test]
