@@ -674,7 +674,9 @@ fn window_row<T: Arith, const SET: bool>(map_row: &mut [T], srow: &[T], phase: u
 }
 
 simd::kernel! {
-    /// Turns image A's map of saliency sums into `W₁` per window, with image B's.
+    /// Turns image A's map of saliency sums into `W₁` per window, with image B's. Out of
+    /// line: inlined into the level's step, its loop reloaded spilled pointers.
+    #[inline(never)]
     fn weight_map<T: Arith>(map_a: &mut [T], map_b: &[T]) {
         for (s1, &s2) in map_a.iter_mut().zip(map_b) {
             *s1 = T::weight(*s1, s2);
