@@ -628,11 +628,11 @@ fn map_laplacian_row_u8(rows: [&[u8]; 3], out: &mut [i32], f: impl Fn(u32) -> i3
 /// some hundred instructions on the Cortex-M7, once per window.
 pub fn weight(s1: u32, s2: u32) -> U1F15 {
     // The fusion's window sums stay below 2²⁸ (four saliencies of at most 1.72·2²⁴): their
-    // sum fits in 32 bits and takes the short path; other callers take the general one.
-    let (a, b) = if (s1 | s2) < 1 << 30 {
-        halve_to_17_bits(s1, s2, s1 + s2)
-    } else {
-        halve_large(s1, s2)
+    // sum fits in 32 bits and takes the short path; other callers whose sum does not
+    // take the general one. Both halve the fewest times that bring the sum to 2¹⁷.
+    let (a, b) = match s1.overflowing_add(s2) {
+        (total, false) => halve_to_17_bits(s1, s2, total),
+        (_, true) => halve_large(s1, s2),
     };
     let t = a + b;
     if t == 0 {
@@ -650,7 +650,7 @@ pub fn weight(s1: u32, s2: u32) -> U1F15 {
     U1F15::from_bits(w as u16)
 }
 
-/// [`weight`]'s halving of sums of which one is 2³⁰ or more: at least the halvings that
+/// [`weight`]'s halving of sums whose total overflows 32 bits: at least the halvings that
 /// bring their total below 2³¹, then as for small sums.
 #[cold]
 #[inline(never)]
@@ -845,7 +845,8 @@ mod tests {
     }
 
     /// [`weight`] as it was before its halving took the bit length with no select, its
-    /// rare paths went out of line and its clamp went: the reference for bit identity.
+    /// rare paths went out of line, its clamp went and its short path came to take every
+    /// sum that fits 32 bits: the reference for bit identity.
     fn weight_before(s1: u32, s2: u32) -> u16 {
         fn halve(a: u32, b: u32, total: u32) -> (u32, u32) {
             let skip = (32 - total.leading_zeros()).saturating_sub(18);
