@@ -4,6 +4,17 @@
 export RAYON_NUM_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
 
 # min_of BEST NEW: the smaller of two times in seconds (BEST may be empty: none yet).
+# ROUNDS from the environment (default 5), checked: a whole number from 1 up; exits the
+# calling script with 2 and a message otherwise (rounds=$(bench_rounds), under set -e).
+bench_rounds() {
+    local rounds="${ROUNDS:-5}"
+    if ! [[ "$rounds" =~ ^[1-9][0-9]*$ ]]; then
+        echo "$(basename "$0"): ROUNDS must be a whole number from 1 up, not '$rounds'" >&2
+        exit 2
+    fi
+    echo "$rounds"
+}
+
 min_of() {
     if [ -z "$1" ] || (( $(echo "$2 < $1" | bc -l) )); then echo "$2"; else echo "$1"; fi
 }

@@ -8,18 +8,14 @@
 #   pip install PyWavelets numpy pillow
 #   bash host/bench/compare.sh            # ROUNDS=9 bash host/bench/compare.sh
 set -euo pipefail
-rounds="${ROUNDS:-5}"
-if ! [[ "$rounds" =~ ^[1-9][0-9]*$ ]]; then
-    echo "compare.sh: ROUNDS must be a whole number from 1 up, not '$rounds'" >&2
-    exit 2
-fi
 cd "$(dirname "$0")/../.."
+source host/bench/common.sh
+rounds=$(bench_rounds)
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 
 cargo build --release -q -p rollfuse
 bin=target/release/rollfuse
-source host/bench/common.sh
 letters_1280 "$bin" "$work"
 frames=("$work"/frames/frame_000{0..5}.png)
 best_rust=""

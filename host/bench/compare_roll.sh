@@ -9,17 +9,13 @@
 #   pip install PyWavelets numpy pillow
 #   bash host/bench/compare_roll.sh          # ROUNDS=9 bash host/bench/compare_roll.sh
 set -euo pipefail
-rounds="${ROUNDS:-5}"
-if ! [[ "$rounds" =~ ^[1-9][0-9]*$ ]]; then
-    echo "compare_roll.sh: ROUNDS must be a whole number from 1 up, not '$rounds'" >&2
-    exit 2
-fi
 cd "$(dirname "$0")/../.."
+source host/bench/common.sh
+rounds=$(bench_rounds)
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 cargo build --release -q -p rollfuse
 bin="$PWD/target/release/rollfuse"
-source host/bench/common.sh
 pin=()
 command -v taskset > /dev/null && pin=(taskset -c 0)
 

@@ -7,12 +7,9 @@
 #
 #   bash python/bench/speed.sh            # ROUNDS=9 bash python/bench/speed.sh
 set -euo pipefail
-rounds="${ROUNDS:-5}"
-if ! [[ "$rounds" =~ ^[1-9][0-9]*$ ]]; then
-    echo "speed.sh: ROUNDS must be a whole number from 1 up, not '$rounds'" >&2
-    exit 2
-fi
 cd "$(dirname "$0")/../.."
+source host/bench/common.sh
+rounds=$(bench_rounds)
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 
@@ -23,7 +20,6 @@ py="$work/venv/bin/python"
 "$work/venv/bin/pip" install -q numpy pillow PyWavelets
 CARGO_TARGET_DIR="$PWD/target" MATURIN_PEP517_ARGS="--strip" "$work/venv/bin/pip" install -q ./python
 
-source host/bench/common.sh
 letters_1280 "$bin" "$work"
 frames=("$work"/frames/frame_000{0..5}.png)
 best_cli="" best_module="" best_ref=""
