@@ -53,3 +53,13 @@ pub use fusion::{Ablation, CyclicFuser, FuseConfig, LlWeighting};
 pub use geometry::{Dims, MAX_DIMENSION, MAX_LEVELS};
 pub use lifting::Wavelet;
 pub use saliency::SaliencyNorm;
+
+/// A deterministic byte generator for tests: a linear congruential generator seeded with
+/// `seed`, each call the next byte (bits 16–23 of the state).
+#[cfg(test)]
+pub(crate) fn test_bytes(mut seed: u32) -> impl FnMut() -> u8 {
+    move || {
+        seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+        (seed >> 16) as u8
+    }
+}

@@ -415,7 +415,7 @@ mod tests {
     /// and the single pixels together cover each pixel once, with the plain value.
     #[test]
     fn quads_and_singles_give_every_pixels_laplacian() {
-        let mut seed = 7u32;
+        let mut next = crate::test_bytes(7);
         for w in 1..=40 {
             for pattern in 0..6 {
                 let mut row = || -> Vec<u8> {
@@ -430,10 +430,7 @@ mod tests {
                                     0
                                 }
                             }
-                            _ => {
-                                seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
-                                (seed >> 16) as u8
-                            }
+                            _ => next(),
                         })
                         .collect()
                 };
@@ -496,12 +493,12 @@ mod tests {
 
     #[test]
     fn row_sums_and_halved_rows_match_the_plain_ones() {
-        let mut seed = 5u32;
+        let mut next = crate::test_bytes(5);
         let mut bytes = |n: usize| -> Vec<u8> {
             (0..n)
                 .map(|i| {
-                    seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
-                    if i % 7 == 0 { 255 } else { (seed >> 16) as u8 }
+                    let random = next();
+                    if i % 7 == 0 { 255 } else { random }
                 })
                 .collect()
         };

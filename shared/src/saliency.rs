@@ -722,16 +722,16 @@ mod tests {
     #[test]
     fn byte_rows_match_the_rows_with_guard_bits() {
         let mut entries = [0; LAPLACIAN_TABLE_LEN];
-        let mut seed = 99u32;
+        let mut next = crate::test_bytes(99);
         for w in 1..=21 {
             for h in [1, 2, 5] {
                 let bytes: Vec<u8> = (0..w * h)
                     .map(|i| {
-                        seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+                        let random = next();
                         match i % 5 {
                             0 => 255,
                             1 => 0,
-                            _ => (seed >> 16) as u8,
+                            _ => random,
                         }
                     })
                     .collect();
@@ -775,11 +775,7 @@ mod tests {
     /// rows and more; and from random images whose maximum grows often along the walk.
     #[test]
     fn column_walk_finds_the_row_walks_maximum() {
-        let mut seed = 12_345u32;
-        let mut next = move || {
-            seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
-            (seed >> 16) as u8
-        };
+        let mut next = crate::test_bytes(12_345);
         let widths = (1..=40).chain([79, 80, 81, 159, 160, 161, 320]);
         for w in widths {
             for h in [1, 2, 3, 4, 5, 7, 16] {

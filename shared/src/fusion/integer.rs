@@ -386,11 +386,7 @@ mod tests {
     /// the camera's, 1 to 7 rows and 16, over a map holding stale values.
     #[test]
     fn saliency_windows_match_the_line_then_take_path() {
-        let mut seed = 4_242u32;
-        let mut next = move || {
-            seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
-            (seed >> 16) as u8
-        };
+        let mut next = crate::test_bytes(4_242);
         let mut entries = [0; TABLE_WORDS];
         let layout = WindowLayout::of(Wavelet::Db2);
         for w in (1..=40).chain([79, 80, 81, 159, 160, 161, 320]) {

@@ -1036,6 +1036,33 @@ mod tests {
     /// image's own maximum (two tables), a shared reference maximum (one), one that caps
     /// most Laplacians and one above every Laplacian; on regions with and without tables
     /// (below `TABLE_MIN_PIXELS`), narrow ones (no groups of four) and strided inputs.
+    /// What `fuse_u8` must give: both 8-bit images widened by the guard bits, the generic
+    /// step (a reference norm scaled alike) and its result rounded back to bytes.
+    fn widened_step(
+        a: &[u8],
+        b: &[u8],
+        dims: Dims,
+        cfg: &FuseConfig,
+        ll: LlWeight,
+        scratch: &mut [i32],
+    ) -> Vec<u8> {
+        let wide =
+            |img: &[u8]| -> Vec<i32> { img.iter().map(|&v| i32::from(v) << GUARD_BITS).collect() };
+        let (mut wa, mut wb) = (wide(a), wide(b));
+        let generic = FuseConfig {
+            norm: match cfg.norm {
+                SaliencyNorm::Reference(r) => SaliencyNorm::Reference(r << GUARD_BITS),
+                local => local,
+            },
+            ..*cfg
+        };
+        fuse_pair(&mut wa, &mut wb, dims, &generic, ll, scratch).unwrap();
+        let half = 1 << (GUARD_BITS - 1);
+        wa.iter()
+            .map(|&v| ((v + half) >> GUARD_BITS).clamp(0, 255) as u8)
+            .collect()
+    }
+
     #[test]
     fn fuse_u8_matches_the_step_on_samples_with_guard_bits() {
         // 8-bit samples with 0/255 dots: Laplacians up to the largest.
@@ -1088,34 +1115,8 @@ mod tests {
                             norm,
                             ..FuseConfig::default()
                         };
-                        let wide = |img: &[u8]| -> Vec<i32> {
-                            img.iter().map(|&v| i32::from(v) << GUARD_BITS).collect()
-                        };
-                        let (mut wa, mut wb) = (wide(&a), wide(&b));
                         let mut scratch = vec![0i32; fuse_scratch_len(dims)];
-                        let generic = FuseConfig {
-                            norm: match norm {
-                                SaliencyNorm::Reference(r) => {
-                                    SaliencyNorm::Reference(r << GUARD_BITS)
-                                }
-                                local => local,
-                            },
-                            ..cfg
-                        };
-                        fuse_pair(
-                            &mut wa,
-                            &mut wb,
-                            dims,
-                            &generic,
-                            LlWeight::HALF,
-                            &mut scratch,
-                        )
-                        .unwrap();
-                        let half = 1 << (GUARD_BITS - 1);
-                        let want: Vec<u8> = wa
-                            .iter()
-                            .map(|&v| ((v + half) >> GUARD_BITS).clamp(0, 255) as u8)
-                            .collect();
+                        let want = widened_step(&a, &b, dims, &cfg, LlWeight::HALF, &mut scratch);
                         let mut got = padded.clone();
                         let (mut ua, mut ub) = (vec![0; w * h], vec![0; w * h]);
                         let work = U8Work {
@@ -1210,26 +1211,8 @@ mod tests {
                                 ..FuseConfig::default()
                             };
                             let ll = LlWeight((random() >> 17) as u16);
-                            let wide = |img: &[u8]| -> Vec<i32> {
-                                img.iter().map(|&v| i32::from(v) << GUARD_BITS).collect()
-                            };
-                            let (mut wa, mut wb) = (wide(&a), wide(&b));
                             let mut scratch = vec![0i32; fuse_scratch_len(dims)];
-                            let generic = FuseConfig {
-                                norm: match norm {
-                                    SaliencyNorm::Reference(r) => {
-                                        SaliencyNorm::Reference(r << GUARD_BITS)
-                                    }
-                                    local => local,
-                                },
-                                ..cfg
-                            };
-                            fuse_pair(&mut wa, &mut wb, dims, &generic, ll, &mut scratch).unwrap();
-                            let half = 1 << (GUARD_BITS - 1);
-                            let want: Vec<u8> = wa
-                                .iter()
-                                .map(|&v| ((v + half) >> GUARD_BITS).clamp(0, 255) as u8)
-                                .collect();
+                            let want = widened_step(&a, &b, dims, &cfg, ll, &mut scratch);
                             let mut got = a.clone();
                             let (mut ua, mut ub) = (vec![0; w * h], vec![0; w * h]);
                             let work = U8Work {
