@@ -27,9 +27,11 @@ impl Clock {
 
     /// Ticks `f` takes.
     pub fn ticks<R>(&self, f: impl FnOnce() -> R) -> (R, u32) {
+        section_marker();
         let start = SYST::get_current();
         let out = f();
         let end = SYST::get_current();
+        section_marker();
         // A down-counter: elapsed ticks modulo its range.
         (out, start.wrapping_sub(end) & RELOAD)
     }
@@ -66,3 +68,16 @@ impl Clock {
         self.per_tick
     }
 }
+
+/// Called before and after every timed section when profiling (feature `profile`): the
+/// profiler (`tests/mcu-bench/profile.py`) counts the instructions QEMU executes between
+/// two calls, by function. Out of line so that it shows in the log; a no-op otherwise.
+#[cfg(feature = "profile")]
+#[inline(never)]
+fn section_marker() {
+    cortex_m::asm::nop();
+}
+
+#[cfg(not(feature = "profile"))]
+#[inline(always)]
+fn section_marker() {}

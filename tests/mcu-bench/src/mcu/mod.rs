@@ -25,7 +25,19 @@ fn main() -> ! {
         clock.per_tick(),
         clock.per_tick()
     );
-    let ok = runs::all(&clock, &mut |row: &runs::Row| hprintln!("{}", row));
+    let mut print = |row: &runs::Row| hprintln!("{}", row);
+    // Profiling (tests/mcu-bench/profile.sh) runs one configuration: its log stays small.
+    let ok = if cfg!(feature = "profile") {
+        match runs::profiled() {
+            Some((setup, precision)) => runs::one(&clock, setup, precision, &mut print),
+            None => {
+                hprintln!("# ROLLFUSE_PROFILE names no configuration");
+                false
+            }
+        }
+    } else {
+        runs::all(&clock, &mut print)
+    };
     halt(ok)
 }
 

@@ -32,7 +32,7 @@ const SENSOR: Sensor = CAMERA;
 
 /// One configuration of the sweep.
 #[derive(Clone, Copy)]
-struct Setup {
+pub struct Setup {
     wavelet: WaveletId,
     levels: u8,
     downsample: u8,
@@ -122,19 +122,25 @@ struct Buffers {
     fscratch: [f32; 8 * 1024],
 }
 
+impl Buffers {
+    const fn new() -> Self {
+        Self {
+            camera: [0; FRAME_BYTES],
+            frame: [0; WIDTH * HEIGHT],
+            tiles: [0; 16 * 16 * WIDTH],
+            work: [0; 32 * 1024],
+            profiles: [0; 2 * HEIGHT],
+            ints: [0; 16 * WIDTH],
+            fa: [0.0; 16 * WIDTH],
+            fb: [0.0; 16 * WIDTH],
+            fscratch: [0.0; 8 * 1024],
+        }
+    }
+}
+
 /// Runs everything, handing each row to `out`. False if any measurement could not run.
 pub fn all(clock: &Clock, out: &mut impl FnMut(&Row)) -> bool {
-    let mut b = Buffers {
-        camera: [0; FRAME_BYTES],
-        frame: [0; WIDTH * HEIGHT],
-        tiles: [0; 16 * 16 * WIDTH],
-        work: [0; 32 * 1024],
-        profiles: [0; 2 * HEIGHT],
-        ints: [0; 16 * WIDTH],
-        fa: [0.0; 16 * WIDTH],
-        fb: [0.0; 16 * WIDTH],
-        fscratch: [0.0; 8 * 1024],
-    };
+    let mut b = Buffers::new();
     let full = Setup {
         wavelet: WaveletId::Db2,
         levels: 1,
@@ -377,4 +383,43 @@ fn kernels(clock: &Clock, b: &mut Buffers, setup: Setup, out: &mut impl FnMut(&R
     }
     row("fuse_max_high", n, i);
     true
+}
+
+/// The device pipeline at one configuration only (what `tests/mcu-bench/profile.sh`
+/// traces): its warm-up and measured frames, each a timed section.
+pub fn one(clock: &Clock, setup: Setup, precision: Precision, out: &mut impl FnMut(&Row)) -> bool {
+    pipeline(clock, &mut Buffers::new(), setup, precision, out)
+}
+
+/// The configuration `ROLLFUSE_PROFILE` names at build time, as
+/// `wavelet,levels,downsample,norm,precision` (`db2,1,1,frame,fixed` if unset); `None` if
+/// it names none.
+pub fn profiled() -> Option<(Setup, Precision)> {
+    let spec = option_env!("ROLLFUSE_PROFILE").unwrap_or("db2,1,1,frame,fixed");
+    let mut parts = spec.split(',');
+    let mut next = || parts.next().map(str::trim);
+    let wavelet = match next()? {
+        "haar" => WaveletId::Haar,
+        "db2" => WaveletId::Db2,
+        _ => return None,
+    };
+    let levels = next()?.parse().ok()?;
+    let downsample = next()?.parse().ok()?;
+    let per_frame = match next()? {
+        "frame" => true,
+        "tile" => false,
+        _ => return None,
+    };
+    let precision = match next()? {
+        "fixed" => Precision::Fixed,
+        "f32" => Precision::F32,
+        _ => return None,
+    };
+    let setup = Setup {
+        wavelet,
+        levels,
+        downsample,
+        per_frame,
+    };
+    Some((setup, precision))
 }
