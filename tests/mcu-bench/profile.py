@@ -72,7 +72,10 @@ def main():
     parser.add_argument("--last", type=int, default=8, help="sections averaged (the last N)")
     parser.add_argument("--top", type=int, default=20, help="functions listed")
     args = parser.parse_args()
-    found = sections(args.log)
+    try:
+        found = sections(args.log)
+    except OSError as e:
+        sys.exit(f"profile: cannot read {args.log}: {e.strerror}")
     if len(found) < args.last or args.last < 1:
         sys.exit(f"profile: {len(found)} timed sections in {args.log}, {args.last} asked for")
     chosen = found[-args.last :]

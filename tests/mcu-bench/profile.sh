@@ -21,10 +21,15 @@ ROLLFUSE_PROFILE="$spec" cargo build -q --release --target thumbv7em-none-eabihf
 elf="$dir/thumbv7em-none-eabihf/release/rollfuse-mcu-bench"
 log="$dir/exec.log"
 trap 'rm -f "$log"' EXIT
-timeout 1200 qemu-system-arm -machine mps2-an500 -cpu cortex-m7 -icount shift=0 \
+if ! timeout 1200 qemu-system-arm -machine mps2-an500 -cpu cortex-m7 -icount shift=0 \
     -nographic -monitor none -serial none \
     -semihosting-config enable=on,target=native -kernel "$elf" \
-    -d exec,nochain,in_asm -D "$log" > "$dir/bench.csv"
+    -d exec,nochain,in_asm -D "$log" > "$dir/bench.csv"; then
+    # The bench says why on its output (a configuration it cannot run, a panic).
+    grep '^# ' "$dir/bench.csv" | grep -v '^# \(rollfuse-mcu-bench\|board\|section\)' >&2 || true
+    echo "profile: the bench failed for configuration $spec" >&2
+    exit 1
+fi
 echo "configuration $spec, the bench's count (instructions per frame, mean of 8):"
 grep -E '^pipeline' "$dir/bench.csv" | awk -F, '{ printf "  %d\n\n", $10 }'
 # Sections: the calibration loop, 8 warm-up frames, then the 8 measured.

@@ -5,6 +5,7 @@
 use super::clock::Clock;
 use super::frames::{self, FRAME_BYTES, HEIGHT, SPACING_PX, WIDTH};
 use core::fmt;
+use cortex_m_semihosting::hprintln;
 use rollfuse_core::device::downsample::{downsample, downsample_rows};
 use rollfuse_core::device::refine::{refine_shift, row_profile};
 use rollfuse_core::device::{
@@ -388,6 +389,10 @@ fn kernels(clock: &Clock, b: &mut Buffers, setup: Setup, out: &mut impl FnMut(&R
 /// The device pipeline at one configuration only (what `tests/mcu-bench/profile.sh`
 /// traces): its warm-up and measured frames, each a timed section.
 pub fn one(clock: &Clock, setup: Setup, precision: Precision, out: &mut impl FnMut(&Row)) -> bool {
+    if setup.config().is_none() {
+        hprintln!("# the device refuses this configuration (PipelineConfig::from_wire)");
+        return false;
+    }
     pipeline(clock, &mut Buffers::new(), setup, precision, out)
 }
 
