@@ -17,33 +17,40 @@ import shutil
 import subprocess
 import sys
 
-TRACE = re.compile(r"^Trace \d+: 0x[0-9a-f]+ \[[0-9a-f]+/([0-9a-f]+)/[0-9a-f]+/[0-9a-f]+\] ?(.*)$")
+TRACE = re.compile(r"^Trace \d+: (0x[0-9a-f]+) \[[0-9a-f]+/([0-9a-f]+)/[0-9a-f]+/[0-9a-f]+\] ?(.*)$")
 INSN = re.compile(r"^0x([0-9a-f]+):")
 MARKER = "section_marker"
 
 
 def sections(log):
     """Per timed section, a Counter of instructions by (mangled) function."""
-    size = {}  # block start address -> instructions in it
-    block = None  # addresses of the block being listed after an `IN:` line
+    # One guest address can have several translations (under -icount QEMU retranslates a
+    # block shorter where it must stop early), so sizes are kept by the translation's host
+    # address, the first field of a `Trace` line: a block is listed (`IN:`) when it is
+    # translated, and the next `Trace` line is its first run.
+    size = {}
+    block = None  # instructions of the block being listed after an `IN:` line
+    listed = None  # a listed block's size, until its first run names its translation
     found, current = [], None
     with open(log, errors="replace") as f:
         for line in f:
             if line.startswith("IN:"):
-                block = []
+                block = 0
                 continue
             if block is not None:
-                m = INSN.match(line)
-                if m:
-                    block.append(int(m.group(1), 16))
+                if INSN.match(line):
+                    block += 1
                     continue
                 if block:
-                    size[block[0]] = len(block)
+                    listed = block
                 block = None
             m = TRACE.match(line)
             if not m:
                 continue
-            pc, function = int(m.group(1), 16), m.group(2).strip()
+            host, pc, function = m.group(1), int(m.group(2), 16), m.group(3).strip()
+            if listed is not None:
+                size[host] = listed
+                listed = None
             if MARKER in function:
                 if current is None:
                     current = collections.Counter()
@@ -51,7 +58,7 @@ def sections(log):
                     found.append(current)
                     current = None
             elif current is not None:
-                current[function or hex(pc)] += size.get(pc, 1)
+                current[function or hex(pc)] += size.get(host, 1)
     return found
 
 

@@ -8,7 +8,7 @@
 #   bash tests/mcu-bench/profile.sh [wavelet,levels,downsample,norm,precision]
 #
 # e.g. `db2,1,1,frame,fixed` (the default), `db2,2,2,frame,fixed` (the firmware's default).
-# The log of 16 frames at 1x takes about a gigabyte, in target/mcu-profile/ (removed after).
+# The log of 16 frames of db2 at 1x takes about 320 MB, in target/mcu-profile/ (removed after).
 set -euo pipefail
 spec="${1:-db2,1,1,frame,fixed}"
 cd "$(dirname "$0")"

@@ -420,6 +420,9 @@ pub fn profiled() -> Option<(Setup, Precision)> {
         "f32" => Precision::F32,
         _ => return None,
     };
+    if next().is_some() {
+        return None;
+    }
     let setup = Setup {
         wavelet,
         levels,
