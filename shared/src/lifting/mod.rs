@@ -71,7 +71,8 @@ pub(crate) trait Lift:
     fn sqrt3(self, k: Self::Constants) -> Self;
     /// db2's predict term: `R(√3/4·s + (√3−2)/4·s_prev)`.
     fn predict(s: Self, s_prev: Self, k: Self::Constants) -> Self;
-    /// Saturates to `±bound` (the integer inverse's guard; floats pass unchanged).
+    /// Saturates to `±bound`, `bound ≥ 0` (the integer inverse's guard; floats pass
+    /// unchanged).
     fn saturate(self, bound: i32) -> Self;
     /// The sample of an 8-bit value with the fusion's guard bits
     /// ([`crate::fusion::GUARD_BITS`]): `v·2^GUARD_BITS`.
@@ -85,6 +86,33 @@ pub(crate) trait Lift:
     /// A sample with guard bits back to 8 bits: rounded to nearest (halves up) and clamped
     /// to `0..=255`.
     fn to_byte(self) -> u8;
+}
+
+/// Whether `|v| ≤ bound` (`bound ≥ 0`), in one unsigned compare: `v + bound` lies in
+/// `0..=2·bound` exactly then, both taken modulo 2³² (a true sum below 0 or past
+/// `2·bound` wraps past `2·bound`, which is below 2³²).
+#[inline(always)]
+fn within(v: i32, bound: i32) -> bool {
+    (v.wrapping_add(bound) as u32) <= (bound as u32).wrapping_mul(2)
+}
+
+/// `v` saturated to `±bound` (`bound ≥ 0`): as it is, where [`within`] says so.
+#[inline(always)]
+fn saturate_by_range_test(v: i32, bound: i32) -> i32 {
+    if within(v, bound) {
+        v
+    } else {
+        clamp_past(v, bound)
+    }
+}
+
+/// `v` saturated to `±bound`. Not `clamp`: its `min ≤ max` check is a panic path; bounds
+/// are never negative. Out of line on the Cortex-M7, where [`within`] keeps it off the
+/// common path.
+#[cfg_attr(target_arch = "arm", cold, inline(never))]
+#[cfg_attr(not(target_arch = "arm"), inline(always))]
+fn clamp_past(v: i32, bound: i32) -> i32 {
+    v.max(-bound).min(bound)
 }
 
 impl Lift for i32 {
@@ -108,8 +136,15 @@ impl Lift for i32 {
     }
     #[inline(always)]
     fn saturate(self, bound: i32) -> Self {
-        // Not `clamp`: its `min ≤ max` check is a panic path; bounds are never negative.
-        self.max(-bound).min(bound)
+        // On the Cortex-M7 a value within the bound (nearly all of them) costs one add,
+        // one unsigned compare and a branch not taken, where the two-sided clamp took
+        // two compare/IT/move triples (Haar's inverse columns, `tests/mcu-bench`). Where
+        // there are vector units the branch-free clamp vectorizes.
+        if cfg!(target_arch = "arm") {
+            saturate_by_range_test(self, bound)
+        } else {
+            clamp_past(self, bound)
+        }
     }
     #[inline(always)]
     fn from_guarded_byte(v: u8) -> Self {
@@ -1038,6 +1073,33 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
     use std::{vec, vec::Vec};
+
+    /// The one-compare range test the Cortex-M7's saturation takes is `|v| ≤ bound`, for
+    /// bounds from 0 to `i32::MAX` and values at and around both limits, the extremes of
+    /// `i32` and a spread between; both forms of the saturation give the clamp's value.
+    #[test]
+    fn one_compare_range_test_is_the_two_sided_one() {
+        let mut bounds = vec![0, 1, 2, 255, 4095, 1 << 29, (1 << 30) - 1, 1 << 30];
+        bounds.extend([i32::MAX - 1, i32::MAX]);
+        bounds.extend((0..200u32).map(|k| (k.wrapping_mul(2_654_435_761) >> 1) as i32));
+        for &b in &bounds {
+            let mut values = vec![0, 1, -1, i32::MIN, i32::MIN + 1, i32::MAX, i32::MAX - 1];
+            for edge in [b, -b] {
+                values.extend([edge.saturating_sub(1), edge, edge.saturating_add(1)]);
+            }
+            values.extend((0..200u32).map(|k| k.wrapping_mul(2_246_822_519) as i32));
+            for &v in &values {
+                assert_eq!(within(v, b), -b <= v && v <= b, "within({v}, {b})");
+                let want = v.clamp(-b, b);
+                assert_eq!(
+                    saturate_by_range_test(v, b),
+                    want,
+                    "the M7's saturate({v}, {b})"
+                );
+                assert_eq!(v.saturate(b), want, "saturate({v}, {b})");
+            }
+        }
+    }
 
     /// Test images: random 8-bit content and the extremes the bounds must survive.
     #[derive(Debug, Clone, Copy)]
