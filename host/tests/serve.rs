@@ -358,6 +358,7 @@ fn the_command_line_refuses_bad_serve_options_clearly() {
         ),
         (vec!["--serve", &in_use], "cannot serve on"),
         (vec!["--control"], "--serve"),
+        (vec!["--keep-serving"], "--serve"),
         (vec!["--frame-rate", "0"], "--frame-rate must be from"),
     ] {
         let mut args = base.to_vec();
@@ -369,6 +370,80 @@ fn the_command_line_refuses_bad_serve_options_clearly() {
             "{extra:?}: {err}"
         );
     }
+}
+
+#[test]
+fn after_the_end_a_new_client_gets_the_strip_and_the_end_and_commands_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let server = server(true);
+    let outcome = stream_served(&letters(36), tmp.path(), &server);
+    // Read to the end of the body: the connection closes after `end`.
+    let (code, body) = get(&server, "/events");
+    assert_eq!(code, 200);
+    let Events { tiles, names, .. } = read_events(&body[..]);
+    assert_eq!(tiles.len() as u64, outcome.manifest.tiles_received);
+    assert_eq!(names.last().map(String::as_str), Some("end"));
+    let (_, _, file) = strip_pixels(&std::fs::read(tmp.path().join("strip.png")).unwrap());
+    let all: Vec<u8> = tiles.iter().flat_map(|t| t.pixels.clone()).collect();
+    assert_eq!(all, file);
+    let token = server.token().unwrap().to_string();
+    assert_eq!(post(&server, "/control/roller/stop", Some(&token)), 409);
+    assert_eq!(post(&server, "/control/roller/stop", None), 401);
+}
+
+#[test]
+fn keep_serving_keeps_the_page_up_after_the_stream_with_its_files_written() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let scene = scene_path();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_rollfuse"))
+        .args([
+            "stream",
+            "--device",
+            "sim",
+            "--scene",
+            scene.to_str().unwrap(),
+        ])
+        .args(["--out", out.to_str().unwrap(), "--serve", "127.0.0.1:0"])
+        .arg("--keep-serving")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let stdout = child.stdout.take().unwrap();
+    // The line that says the stream ended and where the page stays; None if the process
+    // ended (its stdout closed) without saying it.
+    let ended = BufReader::new(stdout)
+        .lines()
+        .map_while(Result::ok)
+        .find(|l| l.contains("the page stays up at http://"));
+    let checked = ended.map(|line| {
+        let addr = line
+            .split("http://")
+            .nth(1)
+            .unwrap()
+            .split('/')
+            .next()
+            .unwrap();
+        let get = |path: &str| {
+            let mut r = agent().get(&format!("http://{addr}{path}")).call().unwrap();
+            (r.status().as_u16(), r.body_mut().read_to_vec().unwrap())
+        };
+        let status: serde_json::Value = serde_json::from_slice(&get("/status.json").1).unwrap();
+        let (code, png) = get("/strip.png?rows=16");
+        let manifest = std::fs::read(out.join("manifest.json")).ok();
+        (status, code, png, manifest)
+    });
+    let still_running = child.try_wait().unwrap().is_none();
+    let _ = child.kill();
+    let _ = child.wait();
+    let (status, code, png, manifest) = checked.expect("the command never said the page stays up");
+    assert!(still_running, "the command exited instead of serving on");
+    assert_eq!(status["state"], "ended");
+    assert_eq!(code, 200);
+    assert_eq!(strip_pixels(&png).1, 16);
+    let manifest: serde_json::Value = serde_json::from_slice(&manifest.unwrap()).unwrap();
+    assert_eq!(manifest["tiles_received"], status["tiles"]);
 }
 
 #[test]

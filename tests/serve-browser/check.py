@@ -212,11 +212,14 @@ def main():
     args = ap.parse_args()
     # A helper Chromium left behind may still hold its profile; that must not fail the check.
     with tempfile.TemporaryDirectory(ignore_cleanup_errors=True) as tmp:
-        stream, url = start_stream(args.rollfuse, args.scene, os.path.join(tmp, "out"),
-                                   args.frame_rate, args.detect)
+        # The browser first: however long it takes to start, the stream starts after it,
+        # so the page is loaded while the strip grows.
         browser, ws_url = start_chromium(args.chromium, os.path.join(tmp, "profile"))
+        stream = None
         try:
             page = Page(WebSocket(ws_url))
+            stream, url = start_stream(args.rollfuse, args.scene, os.path.join(tmp, "out"),
+                                       args.frame_rate, args.detect)
             samples, tables = watch_page(page, url, seconds=60)
             boxes = page.evaluate("found.boxes.length")
             table_shown = page.evaluate("!document.getElementById('detector').hidden")
@@ -225,9 +228,15 @@ def main():
                 f.write(base64.b64decode(shot["data"]))
         finally:
             stop_chromium(browser)
-            stream.wait(timeout=60)
-    grew = any(b > a for a, b in zip(samples, samples[1:]))
+            if stream is not None:
+                stream.wait(timeout=60)
     print(f"rows shown over time: {samples}")
+    # A sample is None while the page is not loaded yet (no element to read).
+    samples = [n for n in samples if isinstance(n, (int, float))]
+    if not samples:
+        print("FAIL: the page never showed its row counter (did it load?)")
+        return 1
+    grew = any(b > a for a, b in zip(samples, samples[1:]))
     print(f"screenshot: {args.screenshot}")
     if page.errors:
         print("FAIL: console errors:\n  " + "\n  ".join(page.errors))

@@ -96,6 +96,10 @@ pub struct Args {
     /// With --detect: the detector's model (default: the one built into the tool).
     #[arg(long, requires = "detect")]
     pub model: Option<PathBuf>,
+    /// With --serve: once the stream has ended and its files are written, keep the page
+    /// up (the strip, the status, the detector's boxes) until interrupted (Ctrl-C).
+    #[arg(long, requires = "serve")]
+    pub keep_serving: bool,
 }
 
 impl Args {
@@ -178,6 +182,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     print_summary(&args.out, &outcome);
     if let Some(d) = server.as_ref().and_then(serve::Server::detector_status) {
         print_defects(&d);
+    }
+    if let Some(server) = server.filter(|_| args.keep_serving) {
+        println!(
+            "the stream has ended; the page stays up at http://{}/ until interrupted (Ctrl-C)",
+            server.addr()
+        );
+        // Every output is written: an interrupt loses nothing.
+        loop {
+            std::thread::park();
+        }
     }
     Ok(())
 }

@@ -33,6 +33,11 @@ pub fn tile_event(index: u32, (width, height): (usize, usize), pixels: &[u8]) ->
     event("tile", &json.to_string(), height as u64)
 }
 
+/// Whether `e` is the `end` event.
+fn is_end(e: &Event) -> bool {
+    e.text.starts_with("event: end\n")
+}
+
 /// The status's event; `end` once the session is over.
 pub fn status_event(status: &Status) -> Event {
     let name = if status.state == "ended" {
@@ -63,7 +68,8 @@ fn backlog(ring: &TileRing) -> Vec<Event> {
     tiles.map(|(&i, px)| tile_event(i, size, px)).collect()
 }
 
-/// Registers a client: the backlog and the status now, then its feed. Taken under the
+/// Registers a client: the backlog and the status now, then its feed (none once the
+/// session is over). Taken under the
 /// clients' lock, which the watcher holds while it keeps and hands out a tile, so no
 /// tile is both in the backlog and in the feed, and none is in neither.
 pub fn subscribe(shared: &Shared) -> (Vec<Event>, ClientFeed) {
@@ -77,23 +83,44 @@ pub fn subscribe(shared: &Shared) -> (Vec<Event>, ClientFeed) {
         let kept: Vec<LiveBox> = findings.boxes.iter().copied().collect();
         first.push(defects_event(&kept, &findings.status));
     }
-    clients.push(queue);
+    // Once the session is over nothing more comes: the client's feed ends with the
+    // backlog and the final status (its queue dropped here), and the connection closes.
+    if !shared.ended.load(Ordering::Acquire) {
+        clients.push(queue);
+    }
     drop(clients);
     first.push(status_event(&shared.status_now()));
     (first, feed)
 }
 
-/// Writes the stream to one client until its feed ends or the client goes.
-pub fn serve_client(out: &mut dyn Write, first: Vec<Event>, feed: ClientFeed) {
-    let _ = serve_client_inner(out, first, feed);
+/// The session is over (its final status set): every client is sent `end` and its feed
+/// ends. A client subscribing from now on is not registered; one registered before is
+/// closed here.
+pub fn end_all(shared: &Shared) {
+    let status = shared.status_now();
+    shared.ended.store(true, Ordering::Release);
+    let mut clients = lock(&shared.clients);
+    Shared::broadcast(&mut clients, &status_event(&status));
+    drop(clients);
+    shared.close_clients();
+}
+
+/// Writes the stream to one client until its feed ends or the client goes. A feed that
+/// ends with the session ends with `end`, also where the client's full queue lost it.
+pub fn serve_client(out: &mut dyn Write, first: Vec<Event>, feed: ClientFeed, shared: &Shared) {
+    let _ = serve_client_inner(out, first, feed, shared);
 }
 
 fn serve_client_inner(
     out: &mut dyn Write,
     first: Vec<Event>,
     feed: ClientFeed,
+    shared: &Shared,
 ) -> std::io::Result<()> {
+    // Whether `end` has been written.
+    let mut ended = false;
     for e in first {
+        ended |= is_end(&e);
         out.write_all(e.text.as_bytes())?;
     }
     out.flush()?;
@@ -105,7 +132,13 @@ fn serve_client_inner(
                 out.flush()?;
                 continue;
             }
-            Err(RecvTimeoutError::Disconnected) => return Ok(()),
+            Err(RecvTimeoutError::Disconnected) => {
+                if !ended && shared.ended.load(Ordering::Acquire) {
+                    out.write_all(status_event(&shared.status_now()).text.as_bytes())?;
+                    out.flush()?;
+                }
+                return Ok(());
+            }
         };
         let skipped = feed.skipped.swap(0, Ordering::Relaxed);
         if skipped > 0 {
@@ -122,9 +155,11 @@ fn serve_client_inner(
             dropped += feed.skipped.swap(0, Ordering::Relaxed);
             out.write_all(skipped_event(dropped).text.as_bytes())?;
             if let Some(status) = status {
+                ended |= is_end(&status);
                 out.write_all(status.text.as_bytes())?;
             }
         } else {
+            ended |= is_end(&next);
             out.write_all(next.text.as_bytes())?;
         }
         out.flush()?;

@@ -113,6 +113,7 @@ impl Server {
             commands: Default::default(),
             detecting: detector.is_some(),
             findings: Default::default(),
+            ended: Default::default(),
         });
         let detector = detector
             .map(|d| detect::LiveDetector::start(Arc::clone(&shared), d))
@@ -161,7 +162,9 @@ impl Server {
     }
 
     /// The session is over: the final status goes to the page (`ended`), the event
-    /// streams close, and the server goes on answering until dropped.
+    /// streams end, and the server goes on answering until dropped (the kept rows, the
+    /// final status; event clients that come later get both and the end; control is
+    /// refused).
     pub fn finish(&self, manifest: &Manifest) {
         // The detector checks the last rows first, so the page has every box.
         if let Some(mut d) = lock(&self.detector).take() {
@@ -178,11 +181,7 @@ impl Server {
             status.update(manifest, rate);
             status.state = "ended";
         }
-        let status = self.shared.status_now();
-        let mut clients = lock(&self.shared.clients);
-        Shared::broadcast(&mut clients, &events::status_event(&status));
-        drop(clients);
-        self.shared.close_clients();
+        events::end_all(&self.shared);
     }
 }
 

@@ -6,6 +6,7 @@ use super::state::{COMMAND_QUEUE, KEPT_ROWS, Shared, lock};
 use rollfuse_core::device::controller::MAX_SPEED_UM_S;
 use rollfuse_core::protocol::{Command, RollerCommand};
 use std::io::Write;
+use std::sync::atomic::Ordering;
 use tiny_http::{Header, Method, Request, Response, StatusCode};
 
 /// The page, with its script and style; it loads nothing else.
@@ -118,14 +119,39 @@ fn encode_png(width: usize, height: usize, pixels: &[u8]) -> anyhow::Result<Vec<
 }
 
 /// Hands the connection to the event stream: the headers written here, because the
-/// events must leave as they come (tiny_http's bodies are buffered and chunked).
+/// events must leave as they come (tiny_http's bodies are buffered). The body is chunked,
+/// each event a chunk, and ends with the last chunk when the feed does: the client knows
+/// the stream is over without the connection closing (tiny_http keeps it open for a next
+/// request).
 fn events_stream(request: Request, shared: &Shared) {
     let (first, feed) = events::subscribe(shared);
     let mut out = request.into_writer();
     let head = "HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\n\
-                Cache-Control: no-store\r\nConnection: close\r\n\r\n";
+                Cache-Control: no-store\r\nTransfer-Encoding: chunked\r\n\r\n";
     if out.write_all(head.as_bytes()).is_ok() {
-        events::serve_client(&mut out, first, feed);
+        let mut chunks = Chunked(&mut out);
+        events::serve_client(&mut chunks, first, feed, shared);
+        // The last chunk; a client already gone makes this fail, which changes nothing.
+        let _ = out.write_all(b"0\r\n\r\n").and_then(|()| out.flush());
+    }
+}
+
+/// Writes each buffer as one HTTP/1.1 chunk (RFC 9112, section 7.1).
+struct Chunked<W>(W);
+
+impl<W: Write> Write for Chunked<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        // An empty chunk would end the body.
+        if !buf.is_empty() {
+            write!(self.0, "{:x}\r\n", buf.len())?;
+            self.0.write_all(buf)?;
+            self.0.write_all(b"\r\n")?;
+        }
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.0.flush()
     }
 }
 
@@ -168,6 +194,12 @@ fn control(request: &Request, shared: &Shared, path: &str, query: &str) -> Answe
             "the tiles come from a recording: there is no device to command",
         );
     }
+    if shared.ended.load(Ordering::Acquire) {
+        return text(
+            409,
+            "the stream has ended: there is no session to send commands",
+        );
+    }
     let mut queue = lock(&shared.commands);
     if queue.len() >= COMMAND_QUEUE {
         return text(503, "commands are waiting to be sent; try again");
@@ -207,4 +239,25 @@ fn command_for(path: &str, query: &str) -> Result<Command, (u16, String)> {
             ));
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Chunked;
+    use std::io::Write;
+
+    /// Each write is one chunk, sized in hex; an empty write writes nothing (an empty
+    /// chunk would end the body).
+    #[test]
+    fn each_write_is_one_chunk() {
+        let mut out = Vec::new();
+        let mut chunks = Chunked(&mut out);
+        chunks.write_all(b"event: end\n\n").unwrap();
+        chunks.write_all(b"").unwrap();
+        chunks.write_all(&[b'x'; 300]).unwrap();
+        let mut want = b"c\r\nevent: end\n\n\r\n12c\r\n".to_vec();
+        want.extend([b'x'; 300]);
+        want.extend(b"\r\n");
+        assert_eq!(out, want);
+    }
 }

@@ -7,7 +7,7 @@ use crate::stream::{Faults, Manifest};
 use rollfuse_core::protocol::{Command, DeviceInfo, StatusCounters};
 use serde::Serialize;
 use std::collections::{BTreeMap, VecDeque};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Instant;
@@ -225,6 +225,9 @@ pub struct Shared {
     pub detecting: bool,
     /// What it found.
     pub findings: Mutex<Findings>,
+    /// Whether the session is over ([`super::Server::finish`]): event clients that come
+    /// later get what is kept and the end, and control requests are refused.
+    pub ended: AtomicBool,
 }
 
 /// Locks a mutex, taking the data even if a thread panicked while holding it: every

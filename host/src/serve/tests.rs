@@ -40,6 +40,7 @@ pub(super) fn shared() -> Arc<Shared> {
         commands: Default::default(),
         detecting: false,
         findings: Default::default(),
+        ended: Default::default(),
     })
 }
 
@@ -70,22 +71,49 @@ fn read_events(text: &str) -> (Vec<u64>, Vec<u64>) {
     (tiles, skipped)
 }
 
-#[test]
-fn a_stuck_client_skips_rows_and_never_holds_up_the_watcher() {
-    let shared = shared();
-    let mut watch = LiveWatch {
-        shared: Arc::clone(&shared),
+/// A session's watcher feeding `shared`.
+fn watcher(shared: &Arc<Shared>) -> LiveWatch {
+    LiveWatch {
+        shared: Arc::clone(shared),
         last_status: None,
         tile_size_shown: false,
         samples: Default::default(),
-    };
+    }
+}
+
+/// An event client of `shared` on a thread of its own, writing to a [`HeldClient`]: each
+/// send on `release` lets one write through, and `output` has what it wrote.
+struct HeldFeed {
+    client: std::thread::JoinHandle<()>,
+    release: SyncSender<()>,
+    output: Receiver<Vec<u8>>,
+}
+
+fn held_feed(shared: &Arc<Shared>) -> HeldFeed {
     let (release, gate) = std::sync::mpsc::sync_channel(0);
     let (written, output) = std::sync::mpsc::sync_channel(10_000);
-    let (first, feed) = events::subscribe(&shared);
+    let (first, feed) = events::subscribe(shared);
+    let client_shared = Arc::clone(shared);
     let client = std::thread::spawn(move || {
         let mut out = HeldClient { gate, written };
-        events::serve_client(&mut out, first, feed);
+        events::serve_client(&mut out, first, feed, &client_shared);
     });
+    HeldFeed {
+        client,
+        release,
+        output,
+    }
+}
+
+#[test]
+fn a_stuck_client_skips_rows_and_never_holds_up_the_watcher() {
+    let shared = shared();
+    let mut watch = watcher(&shared);
+    let HeldFeed {
+        client,
+        release,
+        output,
+    } = held_feed(&shared);
     // Four times the queue, while the client cannot write a byte: each call returns.
     let pixels = [7u8; 8];
     let m = Manifest::default();
@@ -115,6 +143,53 @@ fn a_stuck_client_skips_rows_and_never_holds_up_the_watcher() {
         (u64::from(total)..u64::from(total) + 10).collect::<Vec<_>>()
     );
     assert_eq!(lock(&shared.ring).tiles.len() as u32, total + 10);
+}
+
+/// A client whose queue was full when the session ended (so its `end` was lost there)
+/// still gets `end` last, and one that subscribes after the end gets the kept tiles and
+/// `end` and no feed.
+#[test]
+fn every_client_gets_the_end_even_when_its_queue_lost_it() {
+    let shared = shared();
+    let mut watch = watcher(&shared);
+    let HeldFeed {
+        client,
+        release,
+        output,
+    } = held_feed(&shared);
+    let pixels = [7u8; 8];
+    let m = Manifest::default();
+    for i in 0..2 * CLIENT_QUEUE as u32 {
+        watch.tile(&tile(i, &pixels), &m);
+    }
+    lock(&shared.status).state = "ended";
+    events::end_all(&shared);
+    let releaser = std::thread::spawn(move || while release.send(()).is_ok() {});
+    client.join().unwrap();
+    releaser.join().unwrap();
+    let text: String = output
+        .try_iter()
+        .map(|b| String::from_utf8(b).unwrap())
+        .collect();
+    let names: Vec<&str> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("event: "))
+        .collect();
+    assert_eq!(names.last(), Some(&"end"), "{text}");
+    assert_eq!(names.iter().filter(|&&n| n == "end").count(), 1);
+
+    let (late_first, late_feed) = events::subscribe(&shared);
+    assert!(
+        late_first
+            .last()
+            .is_some_and(|e| e.text.starts_with("event: end\n"))
+    );
+    assert_eq!(
+        late_first.len(),
+        2 * CLIENT_QUEUE + 1,
+        "every kept tile, then the end"
+    );
+    assert!(late_feed.events.recv().is_err(), "no feed after the end");
 }
 
 #[test]
