@@ -257,6 +257,7 @@ pub fn stream(
         control: false,
         detect: false,
         model: None,
+        keep_serving: false,
     };
     let Opened { mut link, opts, .. } = py.detach(|| open(&args)).or_py()?;
     let (tx, rx) = sync_channel(WAITING_TILES);
