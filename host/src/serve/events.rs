@@ -69,9 +69,9 @@ fn backlog(ring: &TileRing) -> Vec<Event> {
 }
 
 /// Registers a client: the backlog and the status now, then its feed (none once the
-/// session is over). Taken under the
-/// clients' lock, which the watcher holds while it keeps and hands out a tile, so no
-/// tile is both in the backlog and in the feed, and none is in neither.
+/// session is over). Taken under the clients' lock, which the watcher holds while it
+/// keeps and hands out a tile, so no tile is both in the backlog and in the feed, and
+/// none is in neither.
 pub fn subscribe(shared: &Shared) -> (Vec<Event>, ClientFeed) {
     let mut clients = lock(&shared.clients);
     let ring = lock(&shared.ring);
@@ -83,8 +83,8 @@ pub fn subscribe(shared: &Shared) -> (Vec<Event>, ClientFeed) {
         let kept: Vec<LiveBox> = findings.boxes.iter().copied().collect();
         first.push(defects_event(&kept, &findings.status));
     }
-    // Once the session is over nothing more comes: the client's feed ends with the
-    // backlog and the final status (its queue dropped here), and the connection closes.
+    // Once the session is over nothing more comes: the client gets the backlog and the
+    // final status, and its feed ends at once (its queue dropped here).
     if !shared.ended.load(Ordering::Acquire) {
         clients.push(queue);
     }
