@@ -99,7 +99,7 @@ pub fn set_vector_limit(limit: VectorUnit) {
 macro_rules! kernel {
     (
         $(#[$attr:meta])*
-        $vis:vis fn $name:ident $(< $($g:ident : $bound:path),+ >)?
+        $vis:vis fn $name:ident $(< $($g:ident : $bound:path),+ $(,)? >)?
             ( $($arg:ident : $ty:ty),* $(,)? ) $(-> $ret:ty)?
         $body:block
     ) => {

@@ -1148,6 +1148,61 @@ mod tests {
         assert_eq!(tabled, 3, "regions with tables");
     }
 
+    /// Binary noise, checkers and stripes of 0 and 255 give the largest coefficients
+    /// 8-bit samples can: the level-1 inverse to bytes, whose column pass stores without
+    /// saturating (`lifting::Unsaturated`), still gives the bytes of the saturating step.
+    #[test]
+    fn fuse_u8_of_extreme_content_matches_the_saturating_step() {
+        let (w, h) = (64, 24);
+        let dims = Dims::new(w, h).unwrap();
+        let patterns: [fn(usize, usize) -> bool; 4] = [
+            |x, y| (x + y) % 2 == 0,
+            |x, _| x % 2 == 0,
+            |_, y| y % 2 == 0,
+            |x, y| (x / 2 + y) % 2 == 0,
+        ];
+        let mut noise = crate::test_bytes(99);
+        let mut images: Vec<Vec<u8>> = patterns
+            .iter()
+            .map(|p| {
+                (0..w * h)
+                    .map(|i| [0, 255][usize::from(p(i % w, i / w))])
+                    .collect()
+            })
+            .collect();
+        for _ in 0..4 {
+            images.push(
+                (0..w * h)
+                    .map(|_| [0, 255][usize::from(noise() > 127)])
+                    .collect(),
+            );
+        }
+        for (i, a) in images.iter().enumerate() {
+            let b = &images[(i + 3) % images.len()];
+            for wavelet in [Wavelet::Haar, Wavelet::Db2] {
+                for levels in 1..=2 {
+                    let cfg = FuseConfig {
+                        wavelet,
+                        levels,
+                        ..FuseConfig::default()
+                    };
+                    let mut scratch = vec![0i32; fuse_scratch_len(dims)];
+                    let want = widened_step(a, b, dims, &cfg, LlWeight::HALF, &mut scratch);
+                    let mut got = a.clone();
+                    let (mut ua, mut ub) = (vec![0; w * h], vec![0; w * h]);
+                    let work = U8Work {
+                        a: &mut ua,
+                        b: &mut ub,
+                        scratch: &mut scratch,
+                    };
+                    let pair = U8Pair::same(&mut got, b, dims);
+                    fuse_u8(pair, &cfg, LlWeight::HALF, work).unwrap();
+                    assert_eq!(got, want, "images {i}, {wavelet:?} L{levels}");
+                }
+            }
+        }
+    }
+
     /// `fuse_u8` lifts level 1's rows straight from the bytes and writes its result
     /// straight back as bytes (no widened copies, no saturation of the last row pass, no
     /// rounding pass): the same bytes as widening both images, the generic step and

@@ -160,6 +160,28 @@ mod tests {
     use crate::lifting::{db2, haar};
     use std::{println, vec};
 
+    /// A level-1 inverse to bytes stores its column pass unsaturated
+    /// (`lifting::Unsaturated`). Its loads are the fused coefficients of 8-bit samples
+    /// with the guard bits, within those bands' bounds (convex combinations of them), but
+    /// LL, which a deeper level reconstructs, up to the bound that level saturates its
+    /// output to. From there the column outputs and the whole row pass stay far inside
+    /// `i32`, and the bytes are clamped after.
+    #[test]
+    fn level_one_to_bytes_needs_no_column_saturation() {
+        let bytes = 255 << crate::fusion::GUARD_BITS;
+        for wavelet in [Wavelet::Haar, Wavelet::Db2] {
+            let b = level_bounds_for(wavelet, 1, bytes)[0];
+            let deeper = level_bounds(wavelet, 2)[1].input;
+            let u = |v: i32| v as u64;
+            let ll = u(b.ll.max(deeper));
+            let left = pass_peak(wavelet, 0, ll, u(b.lh));
+            let right = pass_peak(wavelet, 0, u(b.hl), u(b.hh));
+            let row = pass_peak(wavelet, 0, left, right);
+            println!("{wavelet:?}: columns {left} / {right}, rows {row}");
+            assert!(row < 1 << 24, "{wavelet:?}: the row pass may reach {row}");
+        }
+    }
+
     /// Largest ℓ¹ row norm of one pass, measured by lifting scaled impulses through the
     /// real integer code for every line length up to 40. An output reads at most three
     /// samples either side of its own pair, and the boundary rules look at most two

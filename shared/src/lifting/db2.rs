@@ -20,7 +20,7 @@
 //! channel, so the inverse applies the same extension to the same values and undoes each
 //! step exactly, for every length ≥ 1.
 
-use super::{ColumnBounds, Lift, RowsPrepared, RowsReady, row_pair, rows_at, segment};
+use super::{ColumnBounds, Lift, RowsPrepared, RowsReady, StoreRule, row_pair, rows_at, segment};
 use crate::Dims;
 use crate::geometry::mirror;
 use crate::simd;
@@ -604,10 +604,15 @@ simd::kernel! {
     /// and odd ones the unsaturated odd samples until the next row pair is known. The
     /// stages below are inlined: this is the Cortex-M7's hot loop, and the wider copies of
     /// [`simd::kernel!`] reach only inlined code.
-    pub(crate) fn inverse_columns<T: Lift, P: FnMut(usize, &mut [T]), D: FnMut(usize, &mut [T])>(
+    pub(crate) fn inverse_columns<
+        T: Lift,
+        S: StoreRule,
+        P: FnMut(usize, &mut [T]),
+        D: FnMut(usize, &mut [T]),
+    >(
         buf: &mut [T],
         region: Dims,
-        bounds: ColumnBounds,
+        bounds: ColumnBounds<S>,
         prepared: &mut RowsPrepared<'_, P>,
         done: &mut D,
     ) {
@@ -691,11 +696,16 @@ fn unlift_s2_rows<T: Lift>(buf: &mut [T], region: Dims, early: impl Fn(usize) ->
 /// An odd length's last even row back from `s¹` (row `s`) and its mirrored odd partner
 /// (row `o`, not yet saturated), saturated to `bounds`.
 #[inline(always)]
-fn unlift_even_row<T: Lift>(s: &mut [T], o: &mut [T], bounds: ColumnBounds, k: T::Constants) {
+fn unlift_even_row<T: Lift, S: StoreRule>(
+    s: &mut [T],
+    o: &mut [T],
+    bounds: ColumnBounds<S>,
+    k: T::Constants,
+) {
     for (cols, b) in bounds.segments() {
         let lanes = segment(s, &cols).iter_mut().zip(segment(o, &cols).iter());
         for (s, &o) in lanes {
-            *s = unlift_even(*s, o, k).saturate(b);
+            *s = bounds.store(unlift_even(*s, o, k), b);
         }
     }
 }
@@ -703,12 +713,12 @@ fn unlift_even_row<T: Lift>(s: &mut [T], o: &mut [T], bounds: ColumnBounds, k: T
 /// Pair `l`'s output (rows `s`, `o`, saturated to `bounds`) and pair `l + 1`'s odd sample
 /// (row `o_next`), where pair `l + 1`'s `s¹` (row `s_next`) was made early.
 #[inline(always)]
-fn finish_pair_before_early<T: Lift>(
+fn finish_pair_before_early<T: Lift, S: StoreRule>(
     s: &mut [T],
     o: &mut [T],
     s_next: &mut [T],
     o_next: &mut [T],
-    bounds: ColumnBounds,
+    bounds: ColumnBounds<S>,
     k: T::Constants,
 ) {
     for (cols, b) in bounds.segments() {
@@ -720,8 +730,8 @@ fn finish_pair_before_early<T: Lift>(
             .zip(segment(o_next, &cols).iter_mut());
         for ((s, o), (&s_next, o_next)) in lanes.zip(next) {
             *o_next = unlift_odd(*o_next, s_next, *s, k);
-            *s = unlift_even(*s, *o, k).saturate(b);
-            *o = o.saturate(b);
+            *s = bounds.store(unlift_even(*s, *o, k), b);
+            *o = bounds.store(*o, b);
         }
     }
 }
@@ -729,13 +739,13 @@ fn finish_pair_before_early<T: Lift>(
 /// Pair `l`'s output (rows `s`, `o`, saturated to `bounds`) and pair `l + 1`'s `s¹` and odd
 /// sample (rows `s_next`, `o_next`), `s¹` from `d¹[l + 2]` (row `d_after`).
 #[inline(always)]
-fn finish_pair<T: Lift>(
+fn finish_pair<T: Lift, S: StoreRule>(
     s: &mut [T],
     o: &mut [T],
     s_next: &mut [T],
     o_next: &mut [T],
     d_after: &mut [T],
-    bounds: ColumnBounds,
+    bounds: ColumnBounds<S>,
     k: T::Constants,
 ) {
     for (cols, b) in bounds.segments() {
@@ -749,8 +759,8 @@ fn finish_pair<T: Lift>(
         for (((s, o), (s_next, o_next)), &d_after) in lanes.zip(next).zip(ahead) {
             *s_next += d_after;
             *o_next = unlift_odd(*o_next, *s_next, *s, k);
-            *s = unlift_even(*s, *o, k).saturate(b);
-            *o = o.saturate(b);
+            *s = bounds.store(unlift_even(*s, *o, k), b);
+            *o = bounds.store(*o, b);
         }
     }
 }
@@ -758,14 +768,19 @@ fn finish_pair<T: Lift>(
 /// The last pair's output (rows `s`, `o`), saturated to `bounds`: its neighbours are all
 /// done.
 #[inline(always)]
-fn finish_last_pair<T: Lift>(s: &mut [T], o: &mut [T], bounds: ColumnBounds, k: T::Constants) {
+fn finish_last_pair<T: Lift, S: StoreRule>(
+    s: &mut [T],
+    o: &mut [T],
+    bounds: ColumnBounds<S>,
+    k: T::Constants,
+) {
     for (cols, b) in bounds.segments() {
         let lanes = segment(s, &cols)
             .iter_mut()
             .zip(segment(o, &cols).iter_mut());
         for (s, o) in lanes {
-            *s = unlift_even(*s, *o, k).saturate(b);
-            *o = o.saturate(b);
+            *s = bounds.store(unlift_even(*s, *o, k), b);
+            *o = bounds.store(*o, b);
         }
     }
 }

@@ -5,7 +5,7 @@
 //! the low and high bands on exit). For an odd length, `low` has one more element than
 //! `high`; the unpaired last sample passes to the low band unchanged.
 
-use super::{ColumnBounds, Lift, RowsPrepared, RowsReady, rows_at, segment};
+use super::{ColumnBounds, Lift, RowsPrepared, RowsReady, StoreRule, rows_at, segment};
 use crate::{Dims, simd};
 
 /// Forward S-transform of one line: `src` holds the samples, `dst` (as long) gets the low
@@ -86,10 +86,15 @@ pub(crate) fn forward_columns<T: Lift, F: FnMut(usize, &mut [T])>(
 simd::kernel! {
     /// Inverse of [`forward_columns`], in place, each output sample saturated to its column's
     /// bound; `done(y, row y)` runs on each row once it is final.
-    pub(crate) fn inverse_columns<T: Lift, P: FnMut(usize, &mut [T]), D: FnMut(usize, &mut [T])>(
+    pub(crate) fn inverse_columns<
+        T: Lift,
+        S: StoreRule,
+        P: FnMut(usize, &mut [T]),
+        D: FnMut(usize, &mut [T]),
+    >(
         buf: &mut [T],
         region: Dims,
-        bounds: ColumnBounds,
+        bounds: ColumnBounds<S>,
         prepared: &mut RowsPrepared<'_, P>,
         done: &mut D,
     ) {
@@ -100,7 +105,7 @@ simd::kernel! {
                 return;
             };
             for (cols, b) in bounds.segments() {
-                inverse_rows(segment(s_row, &cols), segment(d_row, &cols), b);
+                inverse_rows(segment(s_row, &cols), segment(d_row, &cols), b, bounds);
             }
             done(2 * l, s_row);
             done(2 * l + 1, d_row);
@@ -131,15 +136,20 @@ simd::kernel! {
 }
 
 simd::kernel! {
-    /// One row pair of the inverse column pass, each output saturated to `±bound` (not
+    /// One row pair of the inverse column pass, each output stored to `±bound` as `rule` says (not
     /// inlined where there are vector units, as [`forward_rows`]).
     #[cfg_attr(target_arch = "arm", inline(always))]
     #[cfg_attr(not(target_arch = "arm"), inline(never))]
-    fn inverse_rows<T: Lift>(s_row: &mut [T], d_row: &mut [T], bound: i32) {
+    fn inverse_rows<T: Lift, S: StoreRule>(
+        s_row: &mut [T],
+        d_row: &mut [T],
+        bound: i32,
+        rule: ColumnBounds<S>,
+    ) {
         for (s, d) in s_row.iter_mut().zip(d_row.iter_mut()) {
             let even = *s - d.half();
-            *s = even.saturate(bound);
-            *d = (*d + even).saturate(bound);
+            *s = rule.store(even, bound);
+            *d = rule.store(*d + even, bound);
         }
     }
 }

@@ -239,14 +239,14 @@ impl Wavelet {
         }
     }
 
-    /// Inverse of [`Self::forward_columns`], each output sample saturated to its column's
-    /// bound; `prepared` runs its preparation on each row before the sweep first reads
+    /// Inverse of [`Self::forward_columns`], each output sample stored as `bounds` says;
+    /// `prepared` runs its preparation on each row before the sweep first reads
     /// it, `done` runs on each row as soon as it is final.
-    fn inverse_columns<T: Lift, P: FnMut(usize, &mut [T])>(
+    fn inverse_columns<T: Lift, S: StoreRule, P: FnMut(usize, &mut [T])>(
         self,
         buf: &mut [T],
         region: Dims,
-        bounds: ColumnBounds,
+        bounds: ColumnBounds<S>,
         prepared: &mut RowsPrepared<'_, P>,
         done: &mut impl FnMut(usize, &mut [T]),
     ) {
@@ -323,9 +323,10 @@ fn segment<'r, T>(row: &'r mut [T], cols: &core::ops::Range<usize>) -> &'r mut [
 }
 
 /// The saturation bounds of an inverse column pass's output: columns left of `split`
-/// came from the row pass's low band, the rest from its high band.
+/// came from the row pass's low band, the rest from its high band. `rule` says whether
+/// stores saturate to them ([`StoreRule`]).
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct ColumnBounds {
+pub(crate) struct ColumnBounds<S = Saturate> {
     /// The first column of the right part.
     split: usize,
     /// The row's length.
@@ -334,9 +335,11 @@ pub(crate) struct ColumnBounds {
     left: i32,
     /// The bound of the right part.
     right: i32,
+    /// What a store does with the bound.
+    rule: S,
 }
 
-impl ColumnBounds {
+impl<S: StoreRule> ColumnBounds<S> {
     /// The two parts of a row, each with its bound.
     #[inline(always)]
     fn segments(self) -> [(core::ops::Range<usize>, i32); 2] {
@@ -344,14 +347,52 @@ impl ColumnBounds {
         [(0..split, self.left), (split..self.width, self.right)]
     }
 
-    /// Saturates a row in place.
+    /// `v` as a store to a column bounded by `bound` leaves it.
+    #[inline(always)]
+    fn store<T: Lift>(self, v: T, bound: i32) -> T {
+        self.rule.store(v, bound)
+    }
+
+    /// Stores a row in place.
     #[inline(always)]
     fn saturate<T: Lift>(self, row: &mut [T]) {
         for (cols, b) in self.segments() {
             for v in segment(row, &cols) {
-                *v = v.saturate(b);
+                *v = self.store(*v, b);
             }
         }
+    }
+}
+
+/// What an inverse column pass does with its output bounds, chosen at compile time so
+/// the hot loops carry no test for it.
+pub(crate) trait StoreRule: Copy {
+    /// `v` as stored to a value bounded by `bound`.
+    fn store<T: Lift>(self, v: T, bound: i32) -> T;
+}
+
+/// Every stored value is saturated to its bound: what keeps any coefficients from
+/// overflowing the passes after.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Saturate;
+
+impl StoreRule for Saturate {
+    #[inline(always)]
+    fn store<T: Lift>(self, v: T, bound: i32) -> T {
+        v.saturate(bound)
+    }
+}
+
+/// Stores as they are: for a level-1 inverse to bytes of 8-bit samples' coefficients,
+/// whose whole inverse is proven far inside `i32` without saturating (test
+/// `level_one_to_bytes_needs_no_column_saturation`) and whose bytes are clamped anyway.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Unsaturated;
+
+impl StoreRule for Unsaturated {
+    #[inline(always)]
+    fn store<T: Lift>(self, v: T, _bound: i32) -> T {
+        v
     }
 }
 
@@ -730,24 +771,52 @@ impl<'f, F> RowsPrepared<'f, F> {
 /// What an inverse column pass saturates to, each in two parts of the row
 /// ([`ColumnBounds`]): left of the row pass's split the columns hold its low band.
 #[derive(Debug, Clone, Copy)]
-struct ColumnPassBounds {
+struct ColumnPassBounds<S> {
     /// The coefficients of the even rows (the column-low band), as they are loaded.
     low: ColumnBounds,
     /// The coefficients of the odd rows (the column-high band), as they are loaded.
     high: ColumnBounds,
-    /// The output (the row pass's bands).
-    out: ColumnBounds,
+    /// The output (the row pass's bands), stored as its rule says.
+    out: ColumnBounds<S>,
+}
+
+impl<S> ColumnPassBounds<S> {
+    /// A `w`-column level's bounds, its stores following `rule`.
+    fn of(bounds: &LevelBounds, w: usize, rule: S) -> Self {
+        // Columns left of nlx came from the rows' low band, the rest from the high band;
+        // a one-column region had no row pass, so its columns are the level's input.
+        let parts = |left, right| ColumnBounds {
+            split: w.div_ceil(2),
+            width: w,
+            left,
+            right,
+            rule: Saturate,
+        };
+        let left_out = if w == 1 { bounds.input } else { bounds.row_low };
+        let out = parts(left_out, bounds.row_high);
+        Self {
+            low: parts(bounds.ll, bounds.hl),
+            high: parts(bounds.lh, bounds.hh),
+            out: ColumnBounds {
+                split: out.split,
+                width: out.width,
+                left: out.left,
+                right: out.right,
+                rule,
+            },
+        }
+    }
 }
 
 /// The inverse column pass: loads saturated to `bounds.low` and `bounds.high` (unless the
 /// `coefficients` are [`Coefficients::InBounds`]) and the columns lifted back in place,
-/// saturated to `bounds.out`; `prepare(y, row y)` runs on each row before anything else
+/// stored as `bounds.out` says; `prepare(y, row y)` runs on each row before anything else
 /// reads it, `done` on each row as soon as it is final.
-fn inverse_columns<T: Lift>(
+fn inverse_columns<T: Lift, S: StoreRule>(
     wavelet: Wavelet,
     buf: &mut [T],
     dims: Dims,
-    bounds: ColumnPassBounds,
+    bounds: ColumnPassBounds<S>,
     coefficients: Coefficients,
     prepare: &mut impl FnMut(usize, &mut [T]),
     done: &mut impl FnMut(usize, &mut [T]),
@@ -852,25 +921,12 @@ pub(crate) fn inverse_level<T: Lift>(
 ) {
     let bounds = saturation.bounds;
     let (w, h) = (dims.width(), dims.height());
-    let nlx = w.div_ceil(2);
     if h > 1 {
-        // Columns left of nlx came from the rows' low band, the rest from the high band;
-        // a one-column region had no row pass, so its columns are the level's input.
-        let parts = |left, right| ColumnBounds {
-            split: nlx,
-            width: w,
-            left,
-            right,
-        };
-        let left_out = if w == 1 { bounds.input } else { bounds.row_low };
-        let column_bounds = ColumnPassBounds {
-            low: parts(bounds.ll, bounds.hl),
-            high: parts(bounds.lh, bounds.hh),
-            out: parts(left_out, bounds.row_high),
-        };
+        let to_bytes = out.is_some();
         // Each row is lifted back as soon as the column sweep has finished it, while it
         // is in cache. The column pass's output is already saturated to the row bands'
-        // bounds: loading it saturates nothing more.
+        // bounds, or to bytes needs no saturation ([`Unsaturated`]): loading it
+        // saturates nothing more.
         let mut row_pass = |k: usize, row: &mut [T]| match &mut out {
             None => {
                 if w > 1 {
@@ -883,15 +939,30 @@ pub(crate) fn inverse_level<T: Lift>(
                 }
             }
         };
-        inverse_columns(
-            wavelet,
-            buf,
-            dims,
-            column_bounds,
-            saturation.coefficients,
-            prepare,
-            &mut row_pass,
-        );
+        let coefficients = saturation.coefficients;
+        if to_bytes {
+            let bounds = ColumnPassBounds::of(bounds, w, Unsaturated);
+            inverse_columns(
+                wavelet,
+                buf,
+                dims,
+                bounds,
+                coefficients,
+                prepare,
+                &mut row_pass,
+            );
+        } else {
+            let bounds = ColumnPassBounds::of(bounds, w, Saturate);
+            inverse_columns(
+                wavelet,
+                buf,
+                dims,
+                bounds,
+                coefficients,
+                prepare,
+                &mut row_pass,
+            );
+        }
     } else if let Some(row) = dims.row_mut(buf, 0) {
         prepare(0, row);
         // Without a column pass loads always saturate: a one-row level's low band holds
@@ -1457,6 +1528,7 @@ mod tests {
                         width: w,
                         left: (1 << 18) + 1000,
                         right: (1 << 18) - 5000,
+                        rule: Saturate,
                     };
                     for wavelet in [Wavelet::Haar, Wavelet::Db2] {
                         check_against_steps(wavelet, &ints, region, bounds);
@@ -1488,6 +1560,7 @@ mod tests {
                 width: w,
                 left: (1 << 18) + 1000,
                 right: (1 << 18) - 5000,
+                rule: Saturate,
             };
             check_against_steps(wavelet, &ints, region, bounds);
             let floats: Vec<f32> = ints.iter().map(|&v| v as f32 / 64.0).collect();
