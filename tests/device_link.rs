@@ -9,9 +9,7 @@ use rollfuse::link::sim::{SimDevice, camera_bytes};
 use rollfuse::progress::Silent;
 use rollfuse::sim::{Scene, Simulator};
 use rollfuse::stream::{self, Options};
-use rollfuse_core::fusion::{
-    KeptTransform, LlWeight, U8Pair, U8Work, fuse_scratch_len, fuse_u8_keeping,
-};
+use rollfuse_core::fusion::{LlWeight, U8Pair, U8Work, fuse_scratch_len, fuse_u8};
 use rollfuse_core::protocol::{DeviceConfig, NormMode, WaveletId};
 use rollfuse_core::{Dims, FuseConfig, LlWeighting, SaliencyNorm, Wavelet};
 use std::path::Path;
@@ -80,7 +78,7 @@ fn reference_tiles(
     let window = n * s + t - 1;
     let top = (dh - window) / 2;
     let tile_dims = Dims::new(dw, t).unwrap();
-    let mut kept = std::collections::BTreeMap::new();
+    let mut tiles = std::collections::BTreeMap::new();
     let origin = sim.strip_row_of_top(sim.frame(0).offset_mm);
     for k in 0..sim.frames() {
         let frame = sim.frame(k);
@@ -117,9 +115,7 @@ fn reference_tiles(
                 continue;
             }
             let rows = &small[(start - offset) * dw..(start - offset + t) * dw];
-            let entry = kept
-                .entry(index as u64)
-                .or_insert((0u8, Vec::new(), vec![0i32; dw * t]));
+            let entry = tiles.entry(index as u64).or_insert((0u8, Vec::new()));
             if entry.0 == 0 {
                 entry.1 = rows.to_vec();
             } else {
@@ -131,26 +127,18 @@ fn reference_tiles(
                     b: &mut b,
                     scratch: &mut scratch,
                 };
-                // The device keeps each tile's level-1 transform from its first fuse step on.
-                let transform = KeptTransform {
-                    coefficients: &mut entry.2,
-                    loaded: entry.0 >= 2,
-                };
-                fuse_u8_keeping(
+                fuse_u8(
                     U8Pair::same(&mut entry.1, rows, tile_dims),
                     &fuse_cfg,
                     ll,
                     work,
-                    transform,
                 )
                 .unwrap();
             }
             entry.0 += 1;
         }
     }
-    kept.into_iter()
-        .map(|(index, (obs, pixels, _))| (index, (obs, pixels)))
-        .collect()
+    tiles
 }
 
 fn options(out: &Path, config: Option<DeviceConfig>, record: Option<&Path>) -> Options {

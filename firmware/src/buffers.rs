@@ -7,10 +7,10 @@
 //!   DMA1 cannot reach the DTCM;
 //! - the fusion's tiles, work area and row profiles in the DTCM (`.dtcm`): zero wait
 //!   states, no cache needed, and every fused tile goes over them many times;
-//! - the downsampled window, the tiles' kept transforms, the link's encoding buffer and
-//!   the outbox in the AXI SRAM (`.bss`, the RAM cortex-m-rt initializes): each is
-//!   written and read once per frame, fuse step or message, and the USB core (no DMA
-//!   here) reads nothing of them itself — the CPU copies messages into its FIFO.
+//! - the downsampled window, the link's encoding buffer and the outbox in the AXI SRAM
+//!   (`.bss`, the RAM cortex-m-rt initializes): each is written and read once per frame or
+//!   message, and the USB core (no DMA here) reads nothing of them itself — the CPU copies
+//!   messages into its FIFO.
 //!
 //! cortex-m-rt zeroes only `.bss` and copies only `.data`, both in the AXI SRAM. The DTCM
 //! and D2 sections are `NOLOAD`: their statics are all-zero when built (arrays of zeros,
@@ -18,9 +18,7 @@
 //! those zeros at boot, before anything takes them.
 
 use crate::pipeline::FRAME_WORDS;
-use rollfuse_core::device::{
-    MCU_CAPACITY, ModuleCoefficients, ModuleFrame, ModuleWork, PipelineBuffers,
-};
+use rollfuse_core::device::{MCU_CAPACITY, ModuleFrame, ModuleWork, PipelineBuffers};
 use rollfuse_core::protocol::MAX_MESSAGE;
 use static_cell::ConstStaticCell;
 
@@ -37,19 +35,12 @@ pub static WINDOW: ConstStaticCell<ModuleFrame> =
 #[cfg_attr(target_os = "none", unsafe(link_section = ".dtcm"))]
 pub static FUSION: ConstStaticCell<ModuleWork> = ConstStaticCell::new(ModuleWork::new());
 
-/// The tiles' kept level-1 transforms (AXI SRAM: 120 KiB, which the DTCM has no room
-/// left for; each word is read and written once a fuse step, front to back, which the
-/// AXI SRAM's cache serves well).
-pub static COEFFICIENTS: ConstStaticCell<ModuleCoefficients> =
-    ConstStaticCell::new([0; MCU_CAPACITY.coefficient_words]);
-
 /// The link's encoding buffer (a message is as large as a tile; AXI SRAM).
 pub static TX: ConstStaticCell<[u8; MAX_MESSAGE]> = ConstStaticCell::new([0; MAX_MESSAGE]);
 
-/// The pipeline's buffers: the window, the fusion's memory and the kept transforms,
-/// each taken once.
+/// The pipeline's buffers: the window and the fusion's memory, each taken once.
 pub fn pipeline() -> PipelineBuffers<'static> {
-    FUSION.take().buffers(WINDOW.take(), COEFFICIENTS.take())
+    FUSION.take().buffers(WINDOW.take())
 }
 
 #[cfg(target_os = "none")]

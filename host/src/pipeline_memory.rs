@@ -1,4 +1,4 @@
-//! The host's owner of a device pipeline's memory: the five buffers the core's
+//! The host's owner of a device pipeline's memory: the four buffers the core's
 //! `PipelineBuffers` borrows, allocated at the sizes a `Memory` gives (the firmware's
 //! `MCU_CAPACITY`, or what one configuration needs).
 
@@ -10,7 +10,6 @@ pub struct PipelineMemory {
     tiles: Vec<u8>,
     work: Vec<i32>,
     profiles: Vec<i32>,
-    coefficients: Vec<i32>,
 }
 
 impl PipelineMemory {
@@ -21,7 +20,6 @@ impl PipelineMemory {
             tiles: vec![0; memory.tile_bytes],
             work: vec![0; memory.work_words],
             profiles: vec![0; memory.profile_words],
-            coefficients: vec![0; memory.coefficient_words],
         }
     }
 
@@ -32,7 +30,6 @@ impl PipelineMemory {
             tiles: &mut self.tiles,
             work: &mut self.work,
             profiles: &mut self.profiles,
-            coefficients: &mut self.coefficients,
         }
     }
 }

@@ -19,7 +19,6 @@ struct Storage {
     tiles: Vec<u8>,
     work: Vec<i32>,
     profiles: Vec<i32>,
-    coefficients: Vec<i32>,
 }
 
 impl Storage {
@@ -30,7 +29,6 @@ impl Storage {
             tiles: vec![0; m.tile_bytes],
             work: vec![0; m.work_words],
             profiles: vec![0; m.profile_words],
-            coefficients: vec![0; m.coefficient_words],
         }
     }
     fn buffers(&mut self) -> PipelineBuffers<'_> {
@@ -39,7 +37,6 @@ impl Storage {
             tiles: &mut self.tiles,
             work: &mut self.work,
             profiles: &mut self.profiles,
-            coefficients: &mut self.coefficients,
         }
     }
 }
@@ -63,9 +60,7 @@ fn the_default_configuration_needs_what_the_formula_says() {
         2 * t * w + w + 2 * (w / 2 + 1) * (t / 2 + 1) + 2 * 1024
     );
     assert_eq!(m.profile_words, 2 * (h - 1));
-    // Each tile's kept level-1 transform.
-    assert_eq!(m.coefficient_words, 4 * t * w);
-    assert_eq!(m.total_bytes(), 94_232);
+    assert_eq!(m.total_bytes(), 53_272);
 
     // The firmware's buffers hold it, and the 2×-downsampled configurations users pick.
     assert!(m.fits(&rollfuse_core::device::MCU_CAPACITY));
@@ -86,14 +81,13 @@ fn the_default_configuration_needs_what_the_formula_says() {
     // One element short anywhere is refused.
     let mut s = Storage::new(&cfg);
     assert!(Pipeline::new(cfg, s.buffers()).is_ok());
-    for which in 0..5 {
+    for which in 0..4 {
         let mut s = Storage::new(&cfg);
         match which {
             0 => s.frame.pop().map(drop),
             1 => s.tiles.pop().map(drop),
             2 => s.work.pop().map(drop),
-            3 => s.profiles.pop().map(drop),
-            _ => s.coefficients.pop().map(drop),
+            _ => s.profiles.pop().map(drop),
         };
         assert!(Pipeline::new(cfg, s.buffers()).is_err(), "buffer {which}");
     }

@@ -22,10 +22,7 @@ pub mod refine;
 pub mod session;
 
 pub use controller::{Controller, Effect};
-pub use module::{
-    CAMERA, FIRMWARE_VERSION, MCU_CAPACITY, ModuleBuffers, ModuleCoefficients, ModuleFrame,
-    ModuleWork,
-};
+pub use module::{CAMERA, FIRMWARE_VERSION, MCU_CAPACITY, ModuleBuffers, ModuleFrame, ModuleWork};
 pub use pipeline::{
     FrameError, FrameReport, Memory, Pipeline, PipelineBuffers, PipelineConfig, Precision,
     Schedule, Sensor,

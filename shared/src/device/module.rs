@@ -15,29 +15,23 @@ pub const CAMERA: Sensor = Sensor {
     format: PixelFormat::Yuyv,
 };
 
-/// The pipeline buffers the firmware reserves ([`ModuleFrame`], [`ModuleWork`] and
-/// [`ModuleCoefficients`]): the camera's whole frame at full resolution (so every
-/// downsampling factor, 1× included), 48 KiB of tiles, 16 Ki words of work area, the row
-/// profiles of a full-resolution frame, and 30 Ki words of kept transforms (the six
-/// 16-row tiles of a full-resolution window). Tiles, work and profiles are sized to fit
-/// the H743's 128 KiB DTCM together (the firmware's `memory.x`). The controller refuses
-/// configurations that need more (`Controller::with_capacity`).
+/// The pipeline buffers the firmware reserves ([`ModuleFrame`] and [`ModuleWork`]): the
+/// camera's whole frame at full resolution (so every downsampling factor, 1× included),
+/// 48 KiB of tiles, 16 Ki words of work area, the row profiles of a full-resolution frame.
+/// Tiles, work and profiles are sized to fit the H743's 128 KiB DTCM together (the
+/// firmware's `memory.x`). The controller refuses configurations that need more
+/// (`Controller::with_capacity`).
 pub const MCU_CAPACITY: Memory = Memory {
     frame_bytes: CAMERA.width * CAMERA.height,
     tile_bytes: 48 * 1024,
     work_words: 16 * 1024,
     profile_words: 2 * (CAMERA.height - 1),
-    coefficient_words: 30 * 1024,
 };
 
 /// The downsampled observation window at [`MCU_CAPACITY`]: written once per frame and
 /// read by the kernels that follow, so the firmware may place it apart from the fusion's
 /// work ([`ModuleWork`]).
 pub type ModuleFrame = [u8; MCU_CAPACITY.frame_bytes];
-
-/// The tiles' kept level-1 transforms at [`MCU_CAPACITY`]: each word is read and written
-/// once per fuse step, so the firmware may place them apart from the fusion's work.
-pub type ModuleCoefficients = [i32; MCU_CAPACITY.coefficient_words];
 
 /// The fusion's memory at [`MCU_CAPACITY`] — tiles, work area and row profiles — as
 /// fixed arrays: const-initialized, so a `static` of it is placed by the linker and costs
@@ -64,30 +58,22 @@ impl ModuleWork {
         }
     }
 
-    /// The pipeline's buffers: `frame` for the window, `coefficients` for the kept
-    /// transforms, the rest from here.
-    pub fn buffers<'a>(
-        &'a mut self,
-        frame: &'a mut ModuleFrame,
-        coefficients: &'a mut ModuleCoefficients,
-    ) -> PipelineBuffers<'a> {
+    /// The pipeline's buffers: `frame` for the window, the rest from here.
+    pub fn buffers<'a>(&'a mut self, frame: &'a mut ModuleFrame) -> PipelineBuffers<'a> {
         PipelineBuffers {
             frame,
             tiles: &mut self.tiles,
             work: &mut self.work,
             profiles: &mut self.profiles,
-            coefficients,
         }
     }
 }
 
 /// The pipeline's buffers at [`MCU_CAPACITY`] in one value, for the host's virtual device
-/// and tests (the firmware keeps [`ModuleFrame`], [`ModuleWork`] and
-/// [`ModuleCoefficients`] apart, each in the RAM that suits it).
+/// and tests (the firmware keeps [`ModuleFrame`] and [`ModuleWork`] in different RAMs).
 pub struct ModuleBuffers {
     frame: ModuleFrame,
     work: ModuleWork,
-    coefficients: ModuleCoefficients,
 }
 
 impl Default for ModuleBuffers {
@@ -102,12 +88,11 @@ impl ModuleBuffers {
         Self {
             frame: [0; MCU_CAPACITY.frame_bytes],
             work: ModuleWork::new(),
-            coefficients: [0; MCU_CAPACITY.coefficient_words],
         }
     }
 
     /// The buffers, for a [`super::Pipeline`] or a [`super::Session`].
     pub fn buffers(&mut self) -> PipelineBuffers<'_> {
-        self.work.buffers(&mut self.frame, &mut self.coefficients)
+        self.work.buffers(&mut self.frame)
     }
 }

@@ -24,7 +24,7 @@
 use super::downsample::{downsample_rows_profiled, downsampled_dims};
 use super::refine::refine_shift;
 use crate::float;
-use crate::fusion::{KeptTransform, LlWeight, U8Pair, U8Work, fuse_scratch_words, fuse_u8_keeping};
+use crate::fusion::{LlWeight, U8Pair, U8Work, fuse_scratch_words, fuse_u8};
 use crate::protocol::{DeviceConfig, NakReason, NormMode, PixelFormat, Tile, WaveletId};
 use crate::saliency::laplacian_max_u8;
 use crate::{Ablation, Dims, Error, FuseConfig, LlWeighting, SaliencyNorm, Wavelet};
@@ -103,9 +103,7 @@ pub struct PipelineConfig {
 /// - `work`: two fusion work images and the fusion scratch, `2·T·W +`
 ///   [`fuse_scratch_words`]`(W, T)` words;
 /// - `profiles`: this frame's and the previous frame's row profiles (of the window),
-///   `2·(n·s + T − 2)` words;
-/// - `coefficients`: on the integer path, each tile's level-1 transform kept between its
-///   fuse steps ([`crate::fusion::KeptTransform`]), `A·T·W` words; none on the `f32` path.
+///   `2·(n·s + T − 2)` words.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Memory {
     /// Bytes of `frame`.
@@ -116,8 +114,6 @@ pub struct Memory {
     pub work_words: usize,
     /// Words (`i32`) of `profiles`.
     pub profile_words: usize,
-    /// Words (`i32`) of `coefficients`.
-    pub coefficient_words: usize,
 }
 
 impl Memory {
@@ -127,14 +123,11 @@ impl Memory {
             && self.tile_bytes <= capacity.tile_bytes
             && self.work_words <= capacity.work_words
             && self.profile_words <= capacity.profile_words
-            && self.coefficient_words <= capacity.coefficient_words
     }
 
     /// Everything, in bytes.
     pub const fn total_bytes(&self) -> usize {
-        self.frame_bytes
-            + self.tile_bytes
-            + 4 * (self.work_words + self.profile_words + self.coefficient_words)
+        self.frame_bytes + self.tile_bytes + 4 * (self.work_words + self.profile_words)
     }
 }
 
@@ -248,10 +241,6 @@ impl PipelineConfig {
                     Precision::F32 => float::fuse_scratch_len(self.tile),
                 },
             profile_words: 2 * (h - 1),
-            coefficient_words: match self.precision {
-                Precision::Fixed => self.active_tiles() * t * w,
-                Precision::F32 => 0,
-            },
         }
     }
 }
@@ -329,8 +318,6 @@ pub struct PipelineBuffers<'a> {
     pub work: &'a mut [i32],
     /// Row profiles.
     pub profiles: &'a mut [i32],
-    /// The tiles' kept level-1 transforms (the integer path).
-    pub coefficients: &'a mut [i32],
 }
 
 impl PipelineBuffers<'_> {
@@ -341,11 +328,6 @@ impl PipelineBuffers<'_> {
             ("tiles", needed.tile_bytes, self.tiles.len()),
             ("work", needed.work_words, self.work.len()),
             ("profiles", needed.profile_words, self.profiles.len()),
-            (
-                "coefficients",
-                needed.coefficient_words,
-                self.coefficients.len(),
-            ),
         ] {
             if got < needed {
                 return Err(Error::BufferTooSmall { which, needed, got });
@@ -360,8 +342,6 @@ impl PipelineBuffers<'_> {
 struct Slot {
     index: u64,
     observations: u8,
-    /// Whether the slot's kept transform is the tile's (the integer path, once fused).
-    kept: bool,
 }
 
 /// What one frame did.
@@ -566,32 +546,16 @@ impl<'a> Pipeline<'a> {
         let Some(slot) = self.slots.get_mut(slot_no) else {
             return;
         };
-        let (observations, kept) = slot.map_or((0, false), |s| (s.observations, s.kept));
-        let mut now_kept = false;
+        let observations = slot.map_or(0, |s| s.observations);
         if observations == 0 {
             tile.copy_from_slice(src);
         } else {
             let ll = LlWeight::for_frame(cfg.ll_weighting, u32::from(observations) + 1);
-            let work = &mut *self.bufs.work;
             // Sizes were validated with the configuration; should this fail, the tile
-            // keeps its previous observations (and its kept transform).
+            // keeps its previous observations.
             let fused = match self.cfg.precision {
-                Precision::Fixed => {
-                    let coefficients = self
-                        .bufs
-                        .coefficients
-                        .get_mut(slot_no * n..(slot_no + 1) * n);
-                    let Some(coefficients) = coefficients else {
-                        return;
-                    };
-                    let kept = KeptTransform {
-                        coefficients,
-                        loaded: kept,
-                    };
-                    now_kept = true;
-                    fuse_tile_fixed(tile, src, dims, cfg, ll, work, kept)
-                }
-                Precision::F32 => fuse_tile_f32(tile, src, dims, cfg, ll, work),
+                Precision::Fixed => fuse_tile_fixed(tile, src, dims, cfg, ll, self.bufs.work),
+                Precision::F32 => fuse_tile_f32(tile, src, dims, cfg, ll, self.bufs.work),
             };
             if fused.is_err() {
                 return;
@@ -600,7 +564,6 @@ impl<'a> Pipeline<'a> {
         *slot = Some(Slot {
             index,
             observations: observations.saturating_add(1),
-            kept: now_kept,
         });
     }
 
@@ -638,9 +601,8 @@ impl<'a> Pipeline<'a> {
     }
 }
 
-/// Fuses observation `src` into `tile` on the integer path, on the tile's kept level-1
-/// transform where it is loaded and leaving the fused one there; `work` holds the two
-/// work images and the scratch ([`PipelineConfig::memory`]).
+/// Fuses observation `src` into `tile` on the integer path; `work` holds the two work
+/// images and the scratch ([`PipelineConfig::memory`]).
 fn fuse_tile_fixed(
     tile: &mut [u8],
     src: &[u8],
@@ -648,7 +610,6 @@ fn fuse_tile_fixed(
     cfg: &FuseConfig,
     ll: LlWeight,
     work: &mut [i32],
-    kept: KeptTransform<'_>,
 ) -> Result<(), Error> {
     let n = dims.pixels();
     let (wa, rest) = work.split_at_mut(n.min(work.len()));
@@ -658,7 +619,7 @@ fn fuse_tile_fixed(
         b: wb,
         scratch,
     };
-    fuse_u8_keeping(U8Pair::same(tile, src, dims), cfg, ll, work, kept)
+    fuse_u8(U8Pair::same(tile, src, dims), cfg, ll, work)
 }
 
 /// [`fuse_tile_fixed`] on the `f32` path: the tiles stay 8-bit, the step runs in `f32`

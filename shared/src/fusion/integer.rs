@@ -2,9 +2,9 @@
 //! [`crate::lifting`]. This is what the MCU runs.
 
 use super::{
-    Ablation, Arith, ByteImages, FuseConfig, ImagePair, KeptTransform, LlWeight, ScratchLayout,
-    Sequential, TABLE_WORDS, WindowLayout, WindowMap, fuse_generic, fuse_pair_checked, maps_len,
-    split_maps, split_scratch,
+    Ablation, Arith, ByteImages, FuseConfig, ImagePair, LlWeight, ScratchLayout, Sequential,
+    TABLE_WORDS, WindowLayout, WindowMap, fuse_generic, fuse_pair_checked, maps_len, split_maps,
+    split_scratch,
 };
 use crate::lifting::{self, LevelBounds, bounds::level_bounds};
 use crate::packed::widen_shifted;
@@ -201,41 +201,6 @@ pub fn fuse_u8(
     ll_weight: LlWeight,
     work: U8Work<'_>,
 ) -> Result<(), Error> {
-    fuse_bytes(images, cfg, ll_weight, work, None)
-}
-
-/// [`fuse_u8`] for a running result whose level-1 transform the caller keeps between
-/// steps ([`KeptTransform`], `w·h` words): where `kept` is loaded, the step takes it in
-/// place of transforming `a`'s bytes, and it leaves the fused level-1 transform there for
-/// the next step. The bytes stay what [`fuse_u8`] writes of the fused transform; the
-/// kept transform is the unrounded one, so the next step starts from it rather than from
-/// the bytes (test `kept_transform_steps_match_the_steps_on_its_inverse`).
-pub fn fuse_u8_keeping(
-    images: U8Pair<'_>,
-    cfg: &FuseConfig,
-    ll_weight: LlWeight,
-    work: U8Work<'_>,
-    kept: KeptTransform<'_>,
-) -> Result<(), Error> {
-    let needed = images.a_dims.width() * images.a_dims.height();
-    if kept.coefficients.len() < needed {
-        return Err(Error::BufferTooSmall {
-            which: "kept transform",
-            needed,
-            got: kept.coefficients.len(),
-        });
-    }
-    fuse_bytes(images, cfg, ll_weight, work, Some(kept))
-}
-
-/// [`fuse_u8`] and [`fuse_u8_keeping`].
-fn fuse_bytes(
-    images: U8Pair<'_>,
-    cfg: &FuseConfig,
-    ll_weight: LlWeight,
-    work: U8Work<'_>,
-    kept: Option<KeptTransform<'_>>,
-) -> Result<(), Error> {
     let U8Pair {
         a,
         a_dims,
@@ -291,7 +256,6 @@ fn fuse_bytes(
             a_dims,
             b,
             b_dims,
-            kept,
         };
         return fuse_generic(
             images,

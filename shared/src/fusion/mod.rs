@@ -20,7 +20,6 @@ pub(crate) mod integer;
 pub use cyclic::{CyclicBuffers, CyclicFuser};
 pub use integer::{
     GUARD_BITS, U8Pair, U8Work, fuse_pair, fuse_scratch_len, fuse_scratch_words, fuse_u8,
-    fuse_u8_keeping,
 };
 
 use crate::lifting::{self, Coefficients, LevelBounds, Lift, Saturation};
@@ -257,7 +256,7 @@ pub(crate) struct ImagePair<'i, T> {
 /// reads level 1's rows from them and writes its result back to `a` as bytes
 /// ([`Lift::from_guarded_byte`], [`Lift::to_byte`]): no widened copy of either image and
 /// no rounding pass after.
-pub(crate) struct ByteImages<'i, T> {
+pub(crate) struct ByteImages<'i> {
     /// Image A's bytes: read by the forward transform, overwritten by the result.
     pub a: &'i mut [u8],
     /// Where image A lies in `a`.
@@ -266,20 +265,6 @@ pub(crate) struct ByteImages<'i, T> {
     pub b: &'i [u8],
     /// Where image B lies in `b`.
     pub b_dims: Dims,
-    /// Image A's level-1 transform kept between steps, if the caller keeps one.
-    pub kept: Option<KeptTransform<'i, T>>,
-}
-
-/// A running result's level-1 transform, kept from one fuse step to the next so the next
-/// need not recompute it from the result's bytes. Unlike the bytes it is not rounded to
-/// 8 bits, so a fusion that keeps it differs from one that does not in the last bits.
-pub struct KeptTransform<'k, T = i32> {
-    /// The transform, `w·h` values laid out as the step's work image (`crate::geometry`).
-    pub coefficients: &'k mut [T],
-    /// Whether `coefficients` holds the transform of the step's first image now: the step
-    /// then takes it in place of transforming that image. Either way a step that succeeds
-    /// leaves the fused level-1 transform there, and one that fails leaves it as it was.
-    pub loaded: bool,
 }
 
 /// The checks and the call shared by both paths' public `fuse_pair`, with the scratch laid
@@ -732,7 +717,7 @@ pub(crate) fn fuse_generic<T: Arith>(
     work: Work<'_, T>,
     maxima: [Option<T>; 2],
     join: &impl Join,
-    mut bytes: Option<ByteImages<'_, T>>,
+    mut bytes: Option<ByteImages<'_>>,
 ) -> Result<(), Error> {
     let ImagePair { a, b, dims } = images;
     let Work {
@@ -744,18 +729,6 @@ pub(crate) fn fuse_generic<T: Arith>(
         return mix_region(a, b, dims, ll_weight).ok_or(image_error);
     }
     let mut d = dims;
-    let mut kept = bytes.as_mut().and_then(|i| i.kept.take());
-    // A kept transform stands for A's level 1 where level 1's maps are taken already (from
-    // the bytes) or not at all: the level has nothing else to read A's samples for.
-    let maps_need_a = cfg.ablation.uses_saliency() && !maps.first_ready;
-    let mut a_ready = match &kept {
-        Some(k) if k.loaded && !maps_need_a => {
-            let rows = dims.rows_mut(a).zip(dims.rows(k.coefficients));
-            rows.for_each(|(dst, src)| lifting::copy_row(dst, src));
-            true
-        }
-        _ => false,
-    };
     // Level 1 reads the images' bytes, where given.
     let mut sources = bytes.as_ref().map(|i| [(&*i.a, i.a_dims), (i.b, i.b_dims)]);
     for level in 1..cfg.levels {
@@ -773,7 +746,6 @@ pub(crate) fn fuse_generic<T: Arith>(
             LevelInputs {
                 maxima,
                 sources: sources.take(),
-                a_ready: core::mem::take(&mut a_ready),
             },
             join,
         )?;
@@ -799,13 +771,11 @@ pub(crate) fn fuse_generic<T: Arith>(
         LevelInputs {
             maxima,
             sources: sources.take(),
-            a_ready,
         },
         join,
     )?;
     let b = &*b;
     let mut outcome = Ok(());
-    let mut keep_rows = kept.as_mut().map(|k| &mut *k.coefficients);
     let mut fuse_deepest = |level: u8, y: usize, ra: &mut [T]| {
         if level == cfg.levels {
             let fused = match d.row(b, y) {
@@ -813,12 +783,6 @@ pub(crate) fn fuse_generic<T: Arith>(
                 None => Err(image_error),
             };
             outcome = outcome.and(fused);
-        }
-        // Level 1's rows are final here: fused, before its inverse reads them.
-        if level == 1
-            && let Some(row) = keep_rows.as_deref_mut().and_then(|k| dims.row_mut(k, y))
-        {
-            lifting::copy_row(row, ra);
         }
     };
     let out = bytes.take().map(|i| (i.a, i.a_dims));
@@ -840,9 +804,6 @@ struct LevelInputs<'s, T> {
     maxima: [Option<T>; 2],
     /// The 8-bit images level 1 reads its rows from ([`ByteImages`]), if any.
     sources: Option<[(&'s [u8], Dims); 2]>,
-    /// Whether image A holds its transform of this level already ([`KeptTransform`]):
-    /// the level then neither reads A's samples nor transforms it.
-    a_ready: bool,
 }
 
 /// One level of a fuse step up to its fusion: each image's saliency map (read before its
@@ -861,7 +822,6 @@ fn transform_level<'m, T: Arith>(
     let LevelInputs {
         maxima: [max_a, max_b],
         sources,
-        a_ready,
     } = inputs;
     let ImagePair { a, b, dims: d } = images;
     let maps_ready = level == 1 && maps.first_ready;
@@ -903,10 +863,8 @@ fn transform_level<'m, T: Arith>(
     match lines.line_b.as_deref_mut() {
         Some(lb) => join.join(
             || {
-                if !a_ready {
-                    let map = with_map(&mut *map_a, scale_a);
-                    saliency_and_forward(a, d, wl, map, line, ring_a, src_a);
-                }
+                let map = with_map(&mut *map_a, scale_a);
+                saliency_and_forward(a, d, wl, map, line, ring_a, src_a);
             },
             || {
                 let map = with_map(&mut *map_b, scale_b);
@@ -914,10 +872,8 @@ fn transform_level<'m, T: Arith>(
             },
         ),
         None => {
-            if !a_ready {
-                let map = with_map(&mut *map_a, scale_a);
-                saliency_and_forward(a, d, wl, map, line, ring_a, src_a);
-            }
+            let map = with_map(&mut *map_a, scale_a);
+            saliency_and_forward(a, d, wl, map, line, ring_a, src_a);
             let map = with_map(&mut *map_b, scale_b);
             saliency_and_forward(b, d, wl, map, line, ring_b, src_b);
         }
@@ -1190,99 +1146,6 @@ mod tests {
             }
         }
         assert_eq!(tabled, 3, "regions with tables");
-    }
-
-    /// A step that keeps A's level-1 transform ([`fuse_u8_keeping`]) writes the bytes
-    /// [`fuse_u8`] writes, whether it transforms A's bytes (nothing loaded) or takes their
-    /// transform from the kept one, and leaves the same fused transform either way; that
-    /// transform's inverse, rounded, is the bytes. A chain of steps on the kept transform
-    /// stays within a gray level or two of the chain on the bytes alone.
-    #[test]
-    fn kept_transform_steps_match_the_steps_on_its_inverse() {
-        let (w, h) = (96, 16);
-        let dims = Dims::new(w, h).unwrap();
-        let frame = |seed| -> Vec<u8> {
-            scene(w, h, seed)
-                .iter()
-                .map(|v| v.round().clamp(0.0, 255.0) as u8)
-                .collect()
-        };
-        let mut scratch = vec![0i32; fuse_scratch_len(dims)];
-        let (mut ua, mut ub) = (vec![0; w * h], vec![0; w * h]);
-        let mut step =
-            |a: &mut Vec<u8>, b: &[u8], cfg: &FuseConfig, kept: Option<(&mut [i32], bool)>| {
-                let work = U8Work {
-                    a: &mut ua,
-                    b: &mut ub,
-                    scratch: &mut scratch,
-                };
-                let pair = U8Pair::same(a, b, dims);
-                match kept {
-                    None => fuse_u8(pair, cfg, LlWeight::HALF, work),
-                    Some((coefficients, loaded)) => {
-                        let kept = KeptTransform {
-                            coefficients,
-                            loaded,
-                        };
-                        fuse_u8_keeping(pair, cfg, LlWeight::HALF, work, kept)
-                    }
-                }
-                .unwrap();
-            };
-        for wavelet in [Wavelet::Haar, Wavelet::Db2] {
-            for levels in 1..=2 {
-                let cfg = FuseConfig {
-                    wavelet,
-                    levels,
-                    ..FuseConfig::default()
-                };
-                let (a, b) = (frame(1), frame(4));
-                let mut plain = a.clone();
-                step(&mut plain, &b, &cfg, None);
-                let mut unloaded = (a.clone(), vec![0; w * h]);
-                step(&mut unloaded.0, &b, &cfg, Some((&mut unloaded.1, false)));
-                let mut transform: Vec<i32> =
-                    a.iter().map(|&v| i32::from(v) << GUARD_BITS).collect();
-                let mut line = vec![0; lifting::scratch_len(dims)];
-                lifting::forward_2d(wavelet, &mut transform, dims, 1, &mut line).unwrap();
-                let mut loaded = (a.clone(), transform);
-                step(&mut loaded.0, &b, &cfg, Some((&mut loaded.1, true)));
-                let what = std::format!("{wavelet:?} L{levels}");
-                assert_eq!(unloaded.0, plain, "{what}: bytes, nothing loaded");
-                assert_eq!(loaded.0, plain, "{what}: bytes, transform loaded");
-                assert_eq!(loaded.1, unloaded.1, "{what}: the fused transform");
-                let mut inverse = loaded.1.clone();
-                lifting::inverse_2d(wavelet, &mut inverse, dims, 1, &mut line).unwrap();
-                let rounded: Vec<u8> = inverse.iter().map(|&v| v.to_byte()).collect();
-                assert_eq!(
-                    rounded, plain,
-                    "{what}: the bytes are the transform's inverse"
-                );
-
-                // Three more observations, on the kept transform and on the bytes alone.
-                let (mut kept, mut bytes) = (loaded, plain);
-                for seed in 5..8 {
-                    let b = frame(seed);
-                    step(&mut kept.0, &b, &cfg, Some((&mut kept.1, true)));
-                    step(&mut bytes, &b, &cfg, None);
-                }
-                let diffs: Vec<u8> = kept
-                    .0
-                    .iter()
-                    .zip(&bytes)
-                    .map(|(x, y)| x.abs_diff(*y))
-                    .collect();
-                let mean = diffs.iter().map(|&d| f64::from(d)).sum::<f64>() / diffs.len() as f64;
-                std::println!(
-                    "{what}: mean {mean:.3}, max {:?}, {} of {}",
-                    diffs.iter().max(),
-                    diffs.iter().filter(|&&d| d > 0).count(),
-                    diffs.len()
-                );
-                assert!(mean <= 1.0, "{what}: chains apart by {mean} on average");
-                assert_ne!(kept.0, bytes, "{what}: the kept chain skips the rounding");
-            }
-        }
     }
 
     /// Binary noise, checkers and stripes of 0 and 255 give the largest coefficients

@@ -117,7 +117,6 @@ struct Buffers {
     tiles: [u8; 16 * 16 * WIDTH],
     work: [i32; 32 * 1024],
     profiles: [i32; 2 * HEIGHT],
-    coefficients: [i32; 16 * 16 * WIDTH],
     ints: [i32; 16 * WIDTH],
     fa: [f32; 16 * WIDTH],
     fb: [f32; 16 * WIDTH],
@@ -132,7 +131,6 @@ impl Buffers {
             tiles: [0; 16 * 16 * WIDTH],
             work: [0; 32 * 1024],
             profiles: [0; 2 * HEIGHT],
-            coefficients: [0; 16 * 16 * WIDTH],
             ints: [0; 16 * WIDTH],
             fa: [0.0; 16 * WIDTH],
             fb: [0.0; 16 * WIDTH],
@@ -189,7 +187,6 @@ fn pipeline(
         tiles: &mut b.tiles[..mem.tile_bytes],
         work: &mut b.work[..mem.work_words],
         profiles: &mut b.profiles[..mem.profile_words],
-        coefficients: &mut b.coefficients[..mem.coefficient_words],
     };
     let Ok(mut pipe) = Pipeline::new(cfg, bufs) else {
         return false;
