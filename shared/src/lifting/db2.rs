@@ -336,14 +336,17 @@ pub(crate) fn inverse_line_into<T: Lift, O>(src: &[T], dst: &mut [O], put: impl 
     let inner = nh.saturating_sub(2);
     let mut s = s1(0);
     let mut o = unlift_odd(hi(0), s, s1(prev_index(0, nl)), k);
-    let ahead = from(low, 1).iter().zip(from(high, 1)).zip(from(high, 2));
+    // Pair l + 1's high sample is pair l's `h_after`: carried, so the sweep walks two
+    // input streams, not three (one pointer fewer to keep in a register on the M7).
+    let mut h_next = hi(1);
+    let ahead = from(low, 1).iter().zip(from(high, 2));
     let inner_pairs = pairs.get_mut(..inner).unwrap_or_default();
-    for ([e_out, o_out], ((&l_next, &h_next), &h_after)) in inner_pairs.iter_mut().zip(ahead) {
+    for ([e_out, o_out], (&l_next, &h_after)) in inner_pairs.iter_mut().zip(ahead) {
         let s_next = l_next + h_after;
         let o_next = unlift_odd(h_next, s_next, s, k);
         *e_out = put(unlift_even(s, o, k));
         *o_out = put(o);
-        (s, o) = (s_next, o_next);
+        (s, o, h_next) = (s_next, o_next, h_after);
     }
     // The last pairs read mirrored neighbours; `s` and `o` are pair `inner`'s.
     for l in inner..nl {

@@ -74,6 +74,9 @@ pub(crate) trait Lift:
     /// Saturates to `±bound`, `bound ≥ 0` (the integer inverse's guard; floats pass
     /// unchanged).
     fn saturate(self, bound: i32) -> Self;
+    /// Whether [`Lift::saturate`] does anything: only then does an inverse to bytes take
+    /// its own copy of the column pass that stores unsaturated ([`Unsaturated`]).
+    const SATURATES: bool;
     /// The sample of an 8-bit value with the fusion's guard bits
     /// ([`crate::fusion::GUARD_BITS`]): `v·2^GUARD_BITS`.
     fn from_guarded_byte(v: u8) -> Self;
@@ -146,6 +149,7 @@ impl Lift for i32 {
             clamp_past(self, bound)
         }
     }
+    const SATURATES: bool = true;
     #[inline(always)]
     fn from_guarded_byte(v: u8) -> Self {
         i32::from(v) << GUARD_BITS
@@ -190,6 +194,7 @@ macro_rules! float_lift {
             fn saturate(self, _bound: i32) -> Self {
                 self
             }
+            const SATURATES: bool = false;
             #[inline(always)]
             fn from_guarded_byte(v: u8) -> Self {
                 <$t>::from(v) * <$t>::from(1u8 << GUARD_BITS)
@@ -922,7 +927,8 @@ pub(crate) fn inverse_level<T: Lift>(
     let bounds = saturation.bounds;
     let (w, h) = (dims.width(), dims.height());
     if h > 1 {
-        let to_bytes = out.is_some();
+        // Floats saturate nothing either way: one copy of the pass serves them.
+        let unsaturated = out.is_some() && T::SATURATES;
         // Each row is lifted back as soon as the column sweep has finished it, while it
         // is in cache. The column pass's output is already saturated to the row bands'
         // bounds, or to bytes needs no saturation ([`Unsaturated`]): loading it
@@ -940,7 +946,7 @@ pub(crate) fn inverse_level<T: Lift>(
             }
         };
         let coefficients = saturation.coefficients;
-        if to_bytes {
+        if unsaturated {
             let bounds = ColumnPassBounds::of(bounds, w, Unsaturated);
             inverse_columns(
                 wavelet,
