@@ -371,10 +371,11 @@ fn ten_thousand_cyclic_steps_do_not_drift() {
     assert!((last.0 - mean_1000_before).abs() <= 0.5);
 }
 
-/// The bound of row "fixed vs f64 reference", gray levels per decomposition level (1 and 2
-/// levels; deeper ones are measured, not bounded: docs/hard-cases.md): the integer path
-/// rounds its lifting steps, its saliency to 8-bit steps, its Q15 weights and its output.
-const FIXED_VS_F64_BOUND_PER_LEVEL: f64 = 2.0;
+/// The bound of row "fixed vs f64 reference" in gray levels, at 1 and 2 decomposition levels
+/// (deeper ones are measured, not bounded: docs/hard-cases.md): the integer path rounds its
+/// lifting steps, its saliency to 8-bit steps, its Q15 weights and its output. The search
+/// below (`search_worst_fixed_vs_f64_error`) finds exactly these at 1 and 2 levels.
+const FIXED_VS_F64_BOUND: [f64; 2] = [2.0, 5.0];
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(256))]
@@ -382,7 +383,7 @@ proptest! {
     /// Row "fixed vs f64 reference": over random 8-bit images of random sizes and both
     /// wavelets at 1 and 2 levels — including the adversarial extremes (0/255 noise) that
     /// the strategy favours — the integer path stays within
-    /// `FIXED_VS_F64_BOUND_PER_LEVEL × levels` of the f64 fusion (rounded to 8 bits).
+    /// `FIXED_VS_F64_BOUND` of the f64 fusion (rounded to 8 bits).
     /// Proptest shrinks any counterexample to the smallest image that breaks the bound.
     #[test]
     fn fixed_stays_within_the_bound_of_the_f64_reference(
@@ -405,7 +406,7 @@ proptest! {
         let reference = fuse_f64(&a, &b, w, h, &cfg);
         for (i, (&x, &r)) in fixed.iter().zip(&reference).enumerate() {
             let err = (f64::from(x) - r.round().clamp(0.0, 255.0)).abs();
-            let bound = FIXED_VS_F64_BOUND_PER_LEVEL * f64::from(levels);
+            let bound = FIXED_VS_F64_BOUND[usize::from(levels) - 1];
             prop_assert!(err <= bound, "pixel {i}: fixed {x}, f64 {r}");
         }
     }
@@ -464,10 +465,7 @@ fn local_saliency_jumps_when_a_flat_band_gains_a_ripple() {
     let fixed = fuse_fixed(&a, &b, w, h, &cfg).unwrap();
     for (&x, &r) in fixed.iter().zip(&exact) {
         let err = (f64::from(x) - r.round().clamp(0.0, 255.0)).abs();
-        assert!(
-            err <= FIXED_VS_F64_BOUND_PER_LEVEL * 2.0,
-            "fixed {x}, f64 {r}"
-        );
+        assert!(err <= FIXED_VS_F64_BOUND[1], "fixed {x}, f64 {r}");
     }
 }
 

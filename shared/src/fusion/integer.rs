@@ -194,7 +194,9 @@ const TABLE_MIN_PIXELS: usize = 1024;
 /// Level 1's saliency is taken from the bytes themselves, four pixels per few word
 /// operations, and looked up in a table of every Laplacian 8-bit samples can have: the
 /// same bits as the generic step on the samples with the guard bits
-/// (test `fuse_u8_matches_the_step_on_samples_with_guard_bits`).
+/// (test `fuse_u8_matches_the_step_on_samples_with_guard_bits`), but where that step's
+/// level-1 inverse saturates a column output which this one, going to bytes, keeps
+/// (`lifting::Unsaturated`; only tiny images of 0/255 noise were found to do that).
 pub fn fuse_u8(
     images: U8Pair<'_>,
     cfg: &FuseConfig,

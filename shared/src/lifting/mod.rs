@@ -14,7 +14,10 @@
 //! from there. The inverse saturates to those same bounds every value it stores and every
 //! coefficient it loads (fused ones, convex combinations of in-bound ones, skip that:
 //! `Coefficients`). Forward-transform output is always inside them, so reconstruction
-//! stays exact; edited coefficients can never push a value past them.
+//! stays exact; edited coefficients can never push a value past them. The one exception
+//! is the fusion's level-1 inverse to bytes, whose inputs come from 8-bit samples: its
+//! column pass stores unsaturated (`Unsaturated`), proven far inside `i32`, and its
+//! bytes are clamped.
 
 pub mod bounds;
 mod db2;
@@ -391,6 +394,10 @@ impl StoreRule for Saturate {
 /// Stores as they are: for a level-1 inverse to bytes of 8-bit samples' coefficients,
 /// whose whole inverse is proven far inside `i32` without saturating (test
 /// `level_one_to_bytes_needs_no_column_saturation`) and whose bytes are clamped anyway.
+/// Fused coefficients can take a column output past the saturation bound (of samples up
+/// to `MAX_SAMPLE`) only on tiny images of 0/255 noise; there the value as lifted is the
+/// linear inverse's, where the saturated one was an arbitrary cap
+/// (docs/hard-cases.md, "Bounds stated").
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Unsaturated;
 
@@ -855,7 +862,8 @@ pub(crate) enum Coefficients {
     /// coefficients of the same band (what fusion makes of them). Loads skip the
     /// saturation, except on levels one row high (their low band is the deeper level's
     /// output, not a coefficient); stores still saturate, since such coefficients need
-    /// not be the transform of any image in range.
+    /// not be the transform of any image in range (but for the level-1 inverse to bytes:
+    /// [`Unsaturated`]).
     InBounds,
 }
 
@@ -945,29 +953,13 @@ pub(crate) fn inverse_level<T: Lift>(
                 }
             }
         };
-        let coefficients = saturation.coefficients;
+        let (loads, done) = (saturation.coefficients, &mut row_pass);
         if unsaturated {
-            let bounds = ColumnPassBounds::of(bounds, w, Unsaturated);
-            inverse_columns(
-                wavelet,
-                buf,
-                dims,
-                bounds,
-                coefficients,
-                prepare,
-                &mut row_pass,
-            );
+            let column_bounds = ColumnPassBounds::of(bounds, w, Unsaturated);
+            inverse_columns(wavelet, buf, dims, column_bounds, loads, prepare, done);
         } else {
-            let bounds = ColumnPassBounds::of(bounds, w, Saturate);
-            inverse_columns(
-                wavelet,
-                buf,
-                dims,
-                bounds,
-                coefficients,
-                prepare,
-                &mut row_pass,
-            );
+            let column_bounds = ColumnPassBounds::of(bounds, w, Saturate);
+            inverse_columns(wavelet, buf, dims, column_bounds, loads, prepare, done);
         }
     } else if let Some(row) = dims.row_mut(buf, 0) {
         prepare(0, row);
