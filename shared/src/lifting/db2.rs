@@ -627,7 +627,7 @@ simd::kernel! {
         prepared.through(buf, region, 5);
         if nh == 0 {
             if let Some([row]) = rows_at(buf, region, [0]) {
-                bounds.saturate(row);
+                bounds.store_row(row);
                 done(0, row);
             }
             return;

@@ -114,7 +114,7 @@ simd::kernel! {
         if n % 2 == 1
             && let Some([last]) = rows_at(buf, region, [n - 1])
         {
-            bounds.saturate(last);
+            bounds.store_row(last);
             done(n - 1, last);
         }
     }

@@ -347,6 +347,19 @@ pub(crate) struct ColumnBounds<S = Saturate> {
     rule: S,
 }
 
+impl<S> ColumnBounds<S> {
+    /// `width` columns bounded by `left` up to `⌈width/2⌉` and by `right` after.
+    fn split_at_half(width: usize, [left, right]: [i32; 2], rule: S) -> Self {
+        Self {
+            split: width.div_ceil(2),
+            width,
+            left,
+            right,
+            rule,
+        }
+    }
+}
+
 impl<S: StoreRule> ColumnBounds<S> {
     /// The two parts of a row, each with its bound.
     #[inline(always)]
@@ -361,9 +374,9 @@ impl<S: StoreRule> ColumnBounds<S> {
         self.rule.store(v, bound)
     }
 
-    /// Stores a row in place.
+    /// Stores a row in place, as the rule says.
     #[inline(always)]
-    fn saturate<T: Lift>(self, row: &mut [T]) {
+    fn store_row<T: Lift>(self, row: &mut [T]) {
         for (cols, b) in self.segments() {
             for v in segment(row, &cols) {
                 *v = self.store(*v, b);
@@ -793,29 +806,15 @@ struct ColumnPassBounds<S> {
 }
 
 impl<S> ColumnPassBounds<S> {
-    /// A `w`-column level's bounds, its stores following `rule`.
+    /// A `w`-column level's bounds, its stores following `rule`. Columns left of
+    /// `⌈w/2⌉` came from the rows' low band, the rest from the high band; a one-column
+    /// region had no row pass, so its columns are the level's input.
     fn of(bounds: &LevelBounds, w: usize, rule: S) -> Self {
-        // Columns left of nlx came from the rows' low band, the rest from the high band;
-        // a one-column region had no row pass, so its columns are the level's input.
-        let parts = |left, right| ColumnBounds {
-            split: w.div_ceil(2),
-            width: w,
-            left,
-            right,
-            rule: Saturate,
-        };
         let left_out = if w == 1 { bounds.input } else { bounds.row_low };
-        let out = parts(left_out, bounds.row_high);
         Self {
-            low: parts(bounds.ll, bounds.hl),
-            high: parts(bounds.lh, bounds.hh),
-            out: ColumnBounds {
-                split: out.split,
-                width: out.width,
-                left: out.left,
-                right: out.right,
-                rule,
-            },
+            low: ColumnBounds::split_at_half(w, [bounds.ll, bounds.hl], Saturate),
+            high: ColumnBounds::split_at_half(w, [bounds.lh, bounds.hh], Saturate),
+            out: ColumnBounds::split_at_half(w, [left_out, bounds.row_high], rule),
         }
     }
 }
@@ -842,9 +841,9 @@ fn inverse_columns<T: Lift, S: StoreRule>(
         for y in 0..h {
             if let Some(row) = dims.row_mut(buf, y) {
                 if y % 2 == 0 {
-                    bounds.low.saturate(row);
+                    bounds.low.store_row(row);
                 } else {
-                    bounds.high.saturate(row);
+                    bounds.high.store_row(row);
                 }
             }
         }
