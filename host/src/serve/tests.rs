@@ -105,22 +105,31 @@ fn held_feed(shared: &Arc<Shared>) -> HeldFeed {
     }
 }
 
+/// A watcher of `shared` and a client that cannot write a byte, after tiles `0..n` went
+/// past it (each of `PIXELS`).
+fn tiles_past_a_held_client(shared: &Arc<Shared>, n: u32) -> (LiveWatch, HeldFeed) {
+    let mut watch = watcher(shared);
+    let feed = held_feed(shared);
+    for i in 0..n {
+        watch.tile(&tile(i, &PIXELS), &Manifest::default());
+    }
+    (watch, feed)
+}
+
+/// The pixels of the tiles the held-client tests send.
+const PIXELS: [u8; 8] = [7; 8];
+
 #[test]
 fn a_stuck_client_skips_rows_and_never_holds_up_the_watcher() {
     let shared = shared();
-    let mut watch = watcher(&shared);
+    // Four times the queue, while the client cannot write a byte: each call returns.
+    let total = 4 * CLIENT_QUEUE as u32;
+    let (mut watch, feed) = tiles_past_a_held_client(&shared, total);
     let HeldFeed {
         client,
         release,
         output,
-    } = held_feed(&shared);
-    // Four times the queue, while the client cannot write a byte: each call returns.
-    let pixels = [7u8; 8];
-    let m = Manifest::default();
-    let total = 4 * CLIENT_QUEUE as u32;
-    for i in 0..total {
-        watch.tile(&tile(i, &pixels), &m);
-    }
+    } = feed;
     // Let the client write again: it says what it skipped.
     let releaser = std::thread::spawn(move || while release.send(()).is_ok() {});
     let mut text = String::new();
@@ -129,7 +138,7 @@ fn a_stuck_client_skips_rows_and_never_holds_up_the_watcher() {
     }
     // Then it goes on from the newest tiles.
     for i in total..total + 10 {
-        watch.tile(&tile(i, &pixels), &m);
+        watch.tile(&tile(i, &PIXELS), &Manifest::default());
     }
     shared.close_clients();
     client.join().unwrap();
@@ -151,17 +160,12 @@ fn a_stuck_client_skips_rows_and_never_holds_up_the_watcher() {
 #[test]
 fn every_client_gets_the_end_even_when_its_queue_lost_it() {
     let shared = shared();
-    let mut watch = watcher(&shared);
+    let (_watch, feed) = tiles_past_a_held_client(&shared, 2 * CLIENT_QUEUE as u32);
     let HeldFeed {
         client,
         release,
         output,
-    } = held_feed(&shared);
-    let pixels = [7u8; 8];
-    let m = Manifest::default();
-    for i in 0..2 * CLIENT_QUEUE as u32 {
-        watch.tile(&tile(i, &pixels), &m);
-    }
+    } = feed;
     lock(&shared.status).state = "ended";
     events::end_all(&shared);
     let releaser = std::thread::spawn(move || while release.send(()).is_ok() {});
