@@ -602,11 +602,12 @@ simd::kernel! {
 }
 
 simd::kernel! {
-    /// Inverse of [`forward_columns`], in place: each output sample is saturated to its
-    /// column's bound, and `done(y, row y)` runs on each row as soon as it is final. Even rows hold `s¹`
-    /// and odd ones the unsaturated odd samples until the next row pair is known. The
-    /// stages below are inlined: this is the Cortex-M7's hot loop, and the wider copies of
-    /// [`simd::kernel!`] reach only inlined code.
+    /// Inverse of [`forward_columns`], in place: each output sample is stored as `bounds`
+    /// says (saturated to its column's bound, or not), and `done(y, row y)` runs on each
+    /// row as soon as it is final. Even rows hold `s¹` and odd ones the unsaturated odd
+    /// samples until the next row pair is known. The stages below are inlined: this is the
+    /// Cortex-M7's hot loop, and the wider copies of [`simd::kernel!`] reach only inlined
+    /// code.
     pub(crate) fn inverse_columns<
         T: Lift,
         S: StoreRule,
@@ -697,7 +698,7 @@ fn unlift_s2_rows<T: Lift>(buf: &mut [T], region: Dims, early: impl Fn(usize) ->
 }
 
 /// An odd length's last even row back from `s¹` (row `s`) and its mirrored odd partner
-/// (row `o`, not yet saturated), saturated to `bounds`.
+/// (row `o`, not yet stored), stored as `bounds` says.
 #[inline(always)]
 fn unlift_even_row<T: Lift, S: StoreRule>(
     s: &mut [T],
@@ -713,7 +714,7 @@ fn unlift_even_row<T: Lift, S: StoreRule>(
     }
 }
 
-/// Pair `l`'s output (rows `s`, `o`, saturated to `bounds`) and pair `l + 1`'s odd sample
+/// Pair `l`'s output (rows `s`, `o`, stored as `bounds` says) and pair `l + 1`'s odd sample
 /// (row `o_next`), where pair `l + 1`'s `s¹` (row `s_next`) was made early.
 #[inline(always)]
 fn finish_pair_before_early<T: Lift, S: StoreRule>(
@@ -739,7 +740,7 @@ fn finish_pair_before_early<T: Lift, S: StoreRule>(
     }
 }
 
-/// Pair `l`'s output (rows `s`, `o`, saturated to `bounds`) and pair `l + 1`'s `s¹` and odd
+/// Pair `l`'s output (rows `s`, `o`, stored as `bounds` says) and pair `l + 1`'s `s¹` and odd
 /// sample (rows `s_next`, `o_next`), `s¹` from `d¹[l + 2]` (row `d_after`).
 #[inline(always)]
 fn finish_pair<T: Lift, S: StoreRule>(
@@ -768,7 +769,7 @@ fn finish_pair<T: Lift, S: StoreRule>(
     }
 }
 
-/// The last pair's output (rows `s`, `o`), saturated to `bounds`: its neighbours are all
+/// The last pair's output (rows `s`, `o`), stored as `bounds` says: its neighbours are all
 /// done.
 #[inline(always)]
 fn finish_last_pair<T: Lift, S: StoreRule>(

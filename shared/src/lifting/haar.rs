@@ -84,8 +84,9 @@ pub(crate) fn forward_columns<T: Lift, F: FnMut(usize, &mut [T])>(
 }
 
 simd::kernel! {
-    /// Inverse of [`forward_columns`], in place, each output sample saturated to its column's
-    /// bound; `done(y, row y)` runs on each row once it is final.
+    /// Inverse of [`forward_columns`], in place, each output sample stored as `bounds` says
+    /// (saturated to its column's bound, or not); `done(y, row y)` runs on each row once
+    /// it is final.
     pub(crate) fn inverse_columns<
         T: Lift,
         S: StoreRule,
