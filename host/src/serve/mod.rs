@@ -19,7 +19,6 @@ use state::{Rate, Shared, Status, lock};
 use std::collections::VecDeque;
 use std::net::SocketAddr;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -28,6 +27,10 @@ pub const STATUS_EVERY: Duration = Duration::from_millis(250);
 
 /// Requests answered at once; beyond, a request gets 503 (each `/events` client counts).
 pub const MAX_REQUESTS: usize = 128;
+
+/// How long a dropped server waits for the answers under way (a client that stopped
+/// reading holds its answer until it is cut off).
+pub const ANSWER_GRACE: Duration = Duration::from_secs(2);
 
 /// What to serve and how.
 #[derive(Debug, Clone)]
@@ -42,7 +45,8 @@ pub struct ServeOptions {
     pub live: bool,
 }
 
-/// The running server. Dropping it stops it.
+/// The running server. Dropping it stops it, once the answers under way are written (up
+/// to [`ANSWER_GRACE`]).
 pub struct Server {
     shared: Arc<Shared>,
     /// The detector's thread, with `--detect` (taken when the session is over).
@@ -114,6 +118,8 @@ impl Server {
             detecting: detector.is_some(),
             findings: Default::default(),
             ended: Default::default(),
+            requests: Default::default(),
+            request_done: Default::default(),
         });
         let detector = detector
             .map(|d| detect::LiveDetector::start(Arc::clone(&shared), d))
@@ -164,7 +170,7 @@ impl Server {
     /// The session is over: the final status goes to the page (`ended`), the event
     /// streams end, and the server goes on answering until dropped (the kept rows, the
     /// final status; event clients that come later get both and the end; control is
-    /// refused).
+    /// refused). Every event stream open now is sent `end` before the server is gone.
     pub fn finish(&self, manifest: &Manifest) {
         // The detector checks the last rows first, so the page has every box.
         if let Some(mut d) = lock(&self.detector).take() {
@@ -188,6 +194,9 @@ impl Server {
 impl Drop for Server {
     fn drop(&mut self) {
         self.shared.close_clients();
+        // The answers under way finish first: an event stream writes its `end`, a download
+        // its last byte. Without this, a process that exits right after would cut them off.
+        self.shared.wait_for_requests(ANSWER_GRACE);
         self.http.unblock();
         if let Some(t) = self.accept.take() {
             let _ = t.join();
@@ -197,25 +206,21 @@ impl Drop for Server {
 
 /// Takes requests and answers each on a thread of its own, up to [`MAX_REQUESTS`].
 fn accept_loop(http: &tiny_http::Server, shared: &Arc<Shared>) {
-    let busy = Arc::new(AtomicUsize::new(0));
     for request in http.incoming_requests() {
-        if busy.load(Ordering::Relaxed) >= MAX_REQUESTS {
+        let Some(answering) = shared.begin_request() else {
             let _ = request.respond(
                 tiny_http::Response::from_string("too many requests\n").with_status_code(503),
             );
             continue;
-        }
-        busy.fetch_add(1, Ordering::Relaxed);
-        let (shared, done) = (Arc::clone(shared), Arc::clone(&busy));
-        let spawned = std::thread::Builder::new()
+        };
+        let shared = Arc::clone(shared);
+        // A thread that cannot be had drops the request and its count with it.
+        let _ = std::thread::Builder::new()
             .name("serve-request".into())
             .spawn(move || {
                 routes::handle(request, &shared);
-                done.fetch_sub(1, Ordering::Relaxed);
+                drop(answering);
             });
-        if spawned.is_err() {
-            busy.fetch_sub(1, Ordering::Relaxed);
-        }
     }
 }
 

@@ -9,8 +9,8 @@ use serde::Serialize;
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError};
-use std::sync::{Arc, Mutex, MutexGuard};
-use std::time::Instant;
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
 
 /// Rows of the strip the server keeps in memory (the page shows as many; the strip's
 /// files on disk hold the rest).
@@ -228,6 +228,20 @@ pub struct Shared {
     /// Whether the session is over ([`super::Server::finish`]): event clients that come
     /// later get what is kept and the end, and control requests are refused.
     pub ended: AtomicBool,
+    /// Requests being answered, each on a thread of its own.
+    pub requests: Mutex<usize>,
+    /// Signalled whenever a request has been answered.
+    pub request_done: Condvar,
+}
+
+/// A request being answered: counted in [`Shared::requests`] until dropped.
+pub struct Answering(Arc<Shared>);
+
+impl Drop for Answering {
+    fn drop(&mut self) {
+        *lock(&self.0.requests) -= 1;
+        self.0.request_done.notify_all();
+    }
 }
 
 /// Locks a mutex, taking the data even if a thread panicked while holding it: every
@@ -264,5 +278,27 @@ impl Shared {
     /// Ends every client's feed (they close their connections once drained).
     pub fn close_clients(&self) {
         lock(&self.clients).clear();
+    }
+
+    /// Counts a request as being answered until the guard is dropped; `None` when
+    /// [`super::MAX_REQUESTS`] are answered already.
+    pub fn begin_request(self: &Arc<Self>) -> Option<Answering> {
+        let mut n = lock(&self.requests);
+        if *n >= super::MAX_REQUESTS {
+            return None;
+        }
+        *n += 1;
+        Some(Answering(Arc::clone(self)))
+    }
+
+    /// Waits until every request has been answered, or `grace` has passed (a client that
+    /// stopped reading can hold its answer forever); whether all were.
+    pub fn wait_for_requests(&self, grace: Duration) -> bool {
+        let n = lock(&self.requests);
+        let (n, _) = self
+            .request_done
+            .wait_timeout_while(n, grace, |n| *n > 0)
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        *n == 0
     }
 }

@@ -2,7 +2,7 @@
 //! up the watcher, and once it reads again it is told what it missed and goes on from the
 //! newest tiles.
 
-use super::state::{CLIENT_QUEUE, Shared, Status, lock};
+use super::state::{Answering, CLIENT_QUEUE, Shared, Status, lock};
 use super::{LiveWatch, events};
 use crate::stream::{Manifest, Watch};
 use rollfuse_core::protocol::Tile;
@@ -41,6 +41,8 @@ pub(super) fn shared() -> Arc<Shared> {
         detecting: false,
         findings: Default::default(),
         ended: Default::default(),
+        requests: Default::default(),
+        request_done: Default::default(),
     })
 }
 
@@ -90,6 +92,11 @@ struct HeldFeed {
 }
 
 fn held_feed(shared: &Arc<Shared>) -> HeldFeed {
+    held_answer(shared, None)
+}
+
+/// [`held_feed`], counted as a request being answered while `answering` is held.
+fn held_answer(shared: &Arc<Shared>, answering: Option<Answering>) -> HeldFeed {
     let (release, gate) = std::sync::mpsc::sync_channel(0);
     let (written, output) = std::sync::mpsc::sync_channel(10_000);
     let (first, feed) = events::subscribe(shared);
@@ -97,6 +104,7 @@ fn held_feed(shared: &Arc<Shared>) -> HeldFeed {
     let client = std::thread::spawn(move || {
         let mut out = HeldClient { gate, written };
         events::serve_client(&mut out, first, feed, &client_shared);
+        drop(answering);
     });
     HeldFeed {
         client,
@@ -171,10 +179,7 @@ fn every_client_gets_the_end_even_when_its_queue_lost_it() {
     let releaser = std::thread::spawn(move || while release.send(()).is_ok() {});
     client.join().unwrap();
     releaser.join().unwrap();
-    let text: String = output
-        .try_iter()
-        .map(|b| String::from_utf8(b).unwrap())
-        .collect();
+    let text = written(&output);
     let names: Vec<&str> = text
         .lines()
         .filter_map(|l| l.strip_prefix("event: "))
@@ -222,4 +227,35 @@ fn the_detector_walks_every_kept_row_once_and_steps_over_a_jump() {
     let covered: Vec<u64> = owns.iter().flat_map(|o| o.clone()).collect();
     assert_eq!(covered, kept, "{owns:?}");
     assert_eq!(lock(&shared.findings).status.rows_skipped, 0);
+}
+
+/// The text a held client wrote so far.
+fn written(output: &Receiver<Vec<u8>>) -> String {
+    output
+        .try_iter()
+        .map(|b| String::from_utf8(b).unwrap())
+        .collect()
+}
+
+/// A server going away waits for an event stream under way to write its `end`, so a
+/// process that exits right after does not cut it off; a client that never reads holds
+/// it only for the grace given.
+#[test]
+fn a_server_going_away_lets_the_answers_under_way_write_the_end() {
+    let shared = shared();
+    let answering = shared.begin_request().unwrap();
+    let feed = held_answer(&shared, Some(answering));
+    lock(&shared.status).state = "ended";
+    events::end_all(&shared);
+    assert!(
+        !shared.wait_for_requests(std::time::Duration::ZERO),
+        "still writing"
+    );
+    let release = feed.release;
+    let releaser = std::thread::spawn(move || while release.send(()).is_ok() {});
+    assert!(shared.wait_for_requests(std::time::Duration::from_secs(3600)));
+    let text = written(&feed.output);
+    assert!(text.contains("event: end\n"), "the end was written: {text}");
+    feed.client.join().unwrap();
+    releaser.join().unwrap();
 }
