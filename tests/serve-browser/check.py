@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The live page in a real browser: headless Chromium loads `rollfuse stream --serve`'s page
-during a paced virtual-device stream, watches the strip grow, fails on any console error or
-uncaught exception, and saves a screenshot.
+during a paced virtual-device stream, watches the strip grow and the page told the stream
+ended, fails on any console error or uncaught exception, and saves a screenshot.
 
 Standard library only: Chromium is driven over its DevTools protocol (a WebSocket, spoken
 here by hand). Exit 0 when the page behaved, 1 with the reason otherwise.
@@ -182,11 +182,12 @@ def stop_chromium(proc):
 
 
 def watch_page(page, url, seconds):
-    """Loads the page and samples the rows it shows until the stream ends; the samples."""
+    """Loads the page and samples the rows it shows until the stream ends; the samples,
+    whether the detector's table was shown at each, and whether the page saw the end."""
     for domain in ("Runtime", "Log", "Page"):
         page.call(f"{domain}.enable")
     page.call("Page.navigate", url=url)
-    samples, tables = [], []
+    samples, tables, ended = [], [], False
     deadline = time.time() + seconds
     while time.time() < deadline:
         page.pump(0.3)
@@ -195,9 +196,10 @@ def watch_page(page, url, seconds):
         samples.append(shown)
         tables.append(page.evaluate("!document.getElementById('detector').hidden"))
         if state == "stream ended":
+            ended = True
             break
     page.pump(0.5)
-    return samples, tables
+    return samples, tables, ended
 
 
 def main():
@@ -220,7 +222,7 @@ def main():
             page = Page(WebSocket(ws_url))
             stream, url = start_stream(args.rollfuse, args.scene, os.path.join(tmp, "out"),
                                        args.frame_rate, args.detect)
-            samples, tables = watch_page(page, url, seconds=60)
+            samples, tables, ended = watch_page(page, url, seconds=60)
             boxes = page.evaluate("found.boxes.length")
             table_shown = page.evaluate("!document.getElementById('detector').hidden")
             shot = page.call("Page.captureScreenshot", format="png")
@@ -243,6 +245,9 @@ def main():
         return 1
     if not grew or samples[-1] == 0:
         print("FAIL: the strip did not grow on the page")
+        return 1
+    if not ended:
+        print("FAIL: the page was never told the stream ended")
         return 1
     if args.detect:
         print(f"defect boxes on the page: {boxes}")
