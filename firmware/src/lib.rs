@@ -39,5 +39,6 @@ use rollfuse_core::protocol::DeviceConfig;
 pub fn controller() -> Option<Controller> {
     Controller::new(CAMERA, FIRMWARE_VERSION, DeviceConfig::default())
         .and_then(|c| c.with_capacity(MCU_CAPACITY))
+        .map(|c| c.with_motion(roller::MECHANICS))
         .ok()
 }

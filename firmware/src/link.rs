@@ -8,7 +8,7 @@
 
 use crate::counters::COUNTERS;
 use crate::outbox::{self, Kind};
-use crate::signals::{EFFECTS, STOP_STREAM};
+use crate::signals::{Accepted, EFFECTS, STOP_STREAM};
 use crate::{fw_info, fw_warn, liveness, roller};
 use embassy_futures::select::{Either3, select3};
 use embassy_time::{Duration, Instant, Timer};
@@ -56,7 +56,9 @@ pub async fn serve(
     controller: &mut Controller,
     tx: &mut [u8; MAX_MESSAGE],
 ) {
-    read.wait_enabled().await;
+    // No host may come for a long time (the board powered without its USB cable): the
+    // link is alive meanwhile.
+    liveness::waiting(liveness::Task::Link, read.wait_enabled()).await;
     fw_info!("USB host connected");
     // A new host must not get the last one's tiles.
     outbox::discard_ready();
@@ -113,7 +115,7 @@ pub async fn serve(
                     other => {
                         // Room was checked before the command was accepted, and only this
                         // task sends effects.
-                        if EFFECTS.try_send(other).is_err() {
+                        if EFFECTS.try_send(Accepted::now(other)).is_err() {
                             fw_warn!("effect queue full after all");
                         }
                     }

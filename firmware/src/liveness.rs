@@ -59,6 +59,20 @@ pub async fn within<F: Future>(
     }
 }
 
+/// Waits for `fut` however long it takes, beating for `task` meanwhile: for a wait on
+/// something that is alive and answers in its own time (a host yet to plug in, a queue
+/// that a beating task drains), where giving up would lose what is waited for. A task
+/// that stalls behind it still starves the watchdog by its own beats.
+pub async fn waiting<F: Future>(task: Task, fut: F) -> F::Output {
+    let mut fut = pin!(fut);
+    loop {
+        beat(task);
+        if let Either::First(out) = select(fut.as_mut(), Timer::after(BEAT)).await {
+            return out;
+        }
+    }
+}
+
 /// Whether every task has beaten since `seen` (which it updates).
 pub fn all_alive(seen: &mut [u32; TASKS]) -> bool {
     let mut alive = true;

@@ -11,7 +11,7 @@ use crate::signals::TRIGGERS;
 use crate::{fw_info, fw_warn};
 use core::cell::Cell;
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
-use embassy_futures::select::{Either, Either3, select, select3};
+use embassy_futures::select::{Either3, select3};
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
@@ -39,8 +39,16 @@ pub fn belt_px(steps: u64) -> u64 {
 /// What the motion task is told.
 #[derive(Debug, Clone, Copy)]
 pub enum Order {
-    /// A roller command from the host.
-    Roller(RollerCommand),
+    /// A roller command from the host, accepted after `stops` stops had been requested
+    /// ([`stops_requested`]). A Start or Speed that a later stop overtook is dropped: a
+    /// stop is never queued, so it can reach the step generator before orders accepted
+    /// ahead of it.
+    Roller {
+        /// The command.
+        command: RollerCommand,
+        /// [`stops_requested`] when the command was accepted.
+        stops: u32,
+    },
     /// A new frame spacing, camera pixels.
     FrameSpacing(u16),
 }
@@ -55,10 +63,20 @@ static STOP: AtomicBool = AtomicBool::new(false);
 /// Wakes the motion task when it waits for orders while stopped is requested.
 static STOP_SIGNAL: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 
-/// Stops the roller (ramping down): the step generator sees it before its next step.
+/// Stops requested since start-up (wrapping).
+static STOPS: AtomicU32 = AtomicU32::new(0);
+
+/// Stops the roller (ramping down): the step generator sees it at once, and drops the
+/// roller orders accepted before it that are still queued.
 pub fn stop() {
+    STOPS.fetch_add(1, Ordering::AcqRel);
     STOP.store(true, Ordering::Release);
     STOP_SIGNAL.signal(());
+}
+
+/// Stops requested since start-up (wrapping): what an order accepted now is tagged with.
+pub fn stops_requested() -> u32 {
+    STOPS.load(Ordering::Acquire)
 }
 
 /// Steps taken since start-up (a 64-bit count: no atomic of that width on the M7).
@@ -132,12 +150,8 @@ pub async fn run(pins: &mut impl StepPins, spacing_px: u16) {
             if stop_requested() {
                 let _ = ramp.set_speed(0);
             }
-            liveness::beat(liveness::Task::Motion);
             deadline += Duration::from_ticks(u64::from(s.interval));
-            // Orders arriving meanwhile are applied; the step already due is still taken.
-            while let Either::Second(order) = select(Timer::at(deadline), ORDERS.receive()).await {
-                apply(&mut ramp, order, &steps_per_frame);
-            }
+            wait_for_step(&mut ramp, deadline, &steps_per_frame).await;
             let late = Instant::now().saturating_duration_since(deadline);
             let late_us = u32::try_from(late.as_micros()).unwrap_or(u32::MAX);
             WORST_LATENESS_US.fetch_max(late_us, Ordering::Relaxed);
@@ -157,16 +171,42 @@ pub async fn run(pins: &mut impl StepPins, spacing_px: u16) {
     }
 }
 
+/// Waits for the step due at `deadline`, beating at least every [`liveness::BEAT`] (a slow
+/// belt steps once a second or less), applying orders as they arrive and a stop at once.
+/// The step already due is still taken.
+async fn wait_for_step(ramp: &mut Ramp, deadline: Instant, steps_per_frame: &impl Fn(u16) -> u32) {
+    loop {
+        liveness::beat(liveness::Task::Motion);
+        let wake = deadline.min(Instant::now() + liveness::BEAT);
+        match select3(Timer::at(wake), ORDERS.receive(), STOP_SIGNAL.wait()).await {
+            Either3::First(()) if Instant::now() >= deadline => return,
+            Either3::First(()) => {}
+            Either3::Second(order) => apply(ramp, order, steps_per_frame),
+            Either3::Third(()) => {
+                if stop_requested() {
+                    let _ = ramp.set_speed(0);
+                }
+            }
+        }
+    }
+}
+
 fn apply(ramp: &mut Ramp, order: Order, steps_per_frame: &impl Fn(u16) -> u32) {
     match order {
-        Order::Roller(
-            RollerCommand::Start { speed_um_s } | RollerCommand::Speed { speed_um_s },
-        ) => {
-            if ramp.set_speed(speed_um_s).is_err() {
+        Order::Roller {
+            command: RollerCommand::Start { speed_um_s } | RollerCommand::Speed { speed_um_s },
+            stops,
+        } => {
+            if stops != stops_requested() {
+                fw_info!("a roller order from before a stop dropped");
+            } else if ramp.set_speed(speed_um_s).is_err() {
                 fw_warn!("roller speed {} um/s refused", speed_um_s);
             }
         }
-        Order::Roller(RollerCommand::Stop) => {
+        Order::Roller {
+            command: RollerCommand::Stop,
+            ..
+        } => {
             let _ = ramp.set_speed(0);
         }
         Order::FrameSpacing(px) => {

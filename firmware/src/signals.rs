@@ -14,7 +14,28 @@ pub static STOP_STREAM: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 
 /// Accepted commands' effects, for the task that carries them out ([`crate::effects`]).
 /// The link checks for room before accepting a command that needs it.
-pub static EFFECTS: Channel<CriticalSectionRawMutex, Effect, 8> = Channel::new();
+pub static EFFECTS: Channel<CriticalSectionRawMutex, Accepted, 8> = Channel::new();
+
+/// An accepted command's effect, with the roller stops requested when it was accepted
+/// ([`crate::roller::stops_requested`]): a roller order that a later stop overtook in the
+/// queues is dropped, not carried out after it.
+#[derive(Debug, Clone, Copy)]
+pub struct Accepted {
+    /// What the command does.
+    pub effect: Effect,
+    /// Roller stops requested before the command was accepted.
+    pub stops: u32,
+}
+
+impl Accepted {
+    /// `effect`, accepted now.
+    pub fn now(effect: Effect) -> Self {
+        Self {
+            effect,
+            stops: crate::roller::stops_requested(),
+        }
+    }
+}
 
 /// Frame triggers from the roller. A trigger the camera has not taken when the next
 /// arrives is overwritten, and counted as an overrun. The frame's position is not the

@@ -10,7 +10,7 @@ use rollfuse_core::protocol::{Command, RollerCommand};
 use rollfuse_fw::link;
 use rollfuse_fw::liveness::{self, Task};
 use rollfuse_fw::outbox::{self, Kind};
-use rollfuse_fw::roller::{ORDERS, Order};
+use rollfuse_fw::roller::{self, ORDERS, Order};
 use rollfuse_fw::signals::STOP_STREAM;
 use std::sync::atomic::Ordering::Relaxed;
 
@@ -25,7 +25,10 @@ fn a_host_that_stops_reading_stops_the_roller_within_the_heartbeat() {
         assert!(until(Duration::from_millis(100), || acked(1) && acked(2)).await);
         // The effects task is not running here: the roller gets its order directly.
         ORDERS
-            .send(Order::Roller(RollerCommand::Start { speed_um_s: 20_000 }))
+            .send(Order::Roller {
+                command: RollerCommand::Start { speed_um_s: 20_000 },
+                stops: roller::stops_requested(),
+            })
             .await;
         assert!(until(Duration::from_secs(1), || STEPS.load(Relaxed) > 100).await);
         // The host stops reading and says nothing more; a tile is waiting to go.

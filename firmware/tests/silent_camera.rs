@@ -13,7 +13,7 @@ use rollfuse_core::protocol::{DeviceConfig, LedDuty, RollerCommand};
 use rollfuse_fw::counters::COUNTERS;
 use rollfuse_fw::effects::{self, Leds};
 use rollfuse_fw::pipeline::{self, Camera, FRAME_WORDS};
-use rollfuse_fw::signals::{EFFECTS, STREAM};
+use rollfuse_fw::signals::{Accepted, EFFECTS, STREAM};
 use rollfuse_fw::{liveness, outbox, roller};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
@@ -53,7 +53,9 @@ fn a_silent_camera_blocks_no_order_and_is_reported() {
     let test = async {
         STREAM.send(Order::Start).await;
         EFFECTS
-            .send(Effect::Roller(RollerCommand::Start { speed_um_s: 20_000 }))
+            .send(Accepted::now(Effect::Roller(RollerCommand::Start {
+                speed_um_s: 20_000,
+            })))
             .await;
         // Frames are triggered; their captures time out one after another.
         assert!(
@@ -68,14 +70,14 @@ fn a_silent_camera_blocks_no_order_and_is_reported() {
         // More pipeline orders than its queue holds, then an LED order: the pipeline
         // takes its orders between abandoned captures, so the LED order gets through.
         for _ in 0..6 {
-            EFFECTS.send(Effect::StreamStart).await;
+            EFFECTS.send(Accepted::now(Effect::StreamStart)).await;
         }
         let duty = LedDuty {
             red: 100,
             green: 200,
             blue: 300,
         };
-        EFFECTS.send(Effect::Leds(duty)).await;
+        EFFECTS.send(Accepted::now(Effect::Leds(duty))).await;
         let lit = until(Duration::from_secs(2), || {
             *LED.lock().unwrap() == Some(duty)
         })

@@ -7,8 +7,8 @@ use embassy_futures::select::select;
 use embassy_time::Duration;
 use rollfuse_core::device::Effect;
 use rollfuse_core::protocol::{Command, RollerCommand};
-use rollfuse_fw::roller::{ORDERS, Order};
-use rollfuse_fw::signals::EFFECTS;
+use rollfuse_fw::roller::{self, ORDERS, Order};
+use rollfuse_fw::signals::{Accepted, EFFECTS};
 use std::sync::atomic::Ordering::Relaxed;
 
 #[test]
@@ -16,12 +16,15 @@ fn stop_reaches_the_step_generator_with_every_queue_full() {
     let test = async {
         // The roller turns.
         ORDERS
-            .send(Order::Roller(RollerCommand::Start { speed_um_s: 20_000 }))
+            .send(Order::Roller {
+                command: RollerCommand::Start { speed_um_s: 20_000 },
+                stops: roller::stops_requested(),
+            })
             .await;
         assert!(until(Duration::from_secs(1), || STEPS.load(Relaxed) > 100).await);
         // Every queue full: nothing drains the effects here, and the roller's orders are
         // topped up as it takes them.
-        while EFFECTS.try_send(Effect::StreamStart).is_ok() {}
+        while EFFECTS.try_send(Accepted::now(Effect::StreamStart)).is_ok() {}
         let top_up = async {
             loop {
                 while ORDERS.try_send(Order::FrameSpacing(16)).is_ok() {}

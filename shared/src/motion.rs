@@ -19,6 +19,9 @@ pub struct MotionConfig {
     pub timer_hz: u32,
 }
 
+/// The fastest step timer a ramp takes, Hz.
+pub const MAX_TIMER_HZ: u32 = 100_000_000;
+
 /// Why a motion request was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MotionError {
@@ -30,8 +33,23 @@ pub enum MotionError {
 
 impl MotionConfig {
     fn check(&self) -> Result<(), MotionError> {
-        if self.nm_per_step == 0 || self.accel_um_s2 == 0 || self.timer_hz < 1000 {
+        // The ramp squares the timer's rate in 64 bits (`Ramp::new`): 2·f² must fit.
+        if self.nm_per_step == 0
+            || self.accel_um_s2 == 0
+            || !(1000..=MAX_TIMER_HZ).contains(&self.timer_hz)
+        {
             return Err(MotionError::Config);
+        }
+        Ok(())
+    }
+
+    /// Whether the ramp can run the belt at `speed_um_s` (> 0): at least one step a second
+    /// and at most one a timer tick; else [`MotionError::Speed`]. A device refuses such a
+    /// speed before it acknowledges it ([`crate::device::Controller::with_motion`]).
+    pub fn check_speed(&self, speed_um_s: u32) -> Result<(), MotionError> {
+        let v = self.steps_per_s(speed_um_s);
+        if v == 0 || v > u64::from(self.timer_hz) {
+            return Err(MotionError::Speed);
         }
         Ok(())
     }
@@ -101,11 +119,9 @@ impl Ramp {
             self.target_n = 0;
             return Ok(());
         }
+        self.cfg.check_speed(speed_um_s)?;
         let v = self.cfg.steps_per_s(speed_um_s);
         let f = u64::from(self.cfg.timer_hz);
-        if v == 0 || v > f {
-            return Err(MotionError::Speed);
-        }
         // v² = 2·a·n.
         self.target_n = (v * v / (2 * self.cfg.accel_steps())).max(1);
         self.cruise = f / v;
@@ -234,9 +250,30 @@ mod tests {
             .err(),
             Some(MotionError::Config)
         );
+        // A timer whose rate the ramp could not square in 64 bits.
+        for timer_hz in [999, MAX_TIMER_HZ + 1, u32::MAX] {
+            let cfg = MotionConfig { timer_hz, ..CFG };
+            assert_eq!(
+                Ramp::new(cfg, 1).err(),
+                Some(MotionError::Config),
+                "{timer_hz}"
+            );
+        }
+        assert!(
+            Ramp::new(
+                MotionConfig {
+                    timer_hz: MAX_TIMER_HZ,
+                    ..CFG
+                },
+                1
+            )
+            .is_ok()
+        );
         let mut r = Ramp::new(CFG, 1).unwrap();
-        // Faster than one step per tick.
+        // Faster than one step per tick, slower than one a second (5 µm a step).
         assert_eq!(r.set_speed(u32::MAX), Err(MotionError::Speed));
+        assert_eq!(r.set_speed(4), Err(MotionError::Speed));
         assert_eq!(r.next_step(), None, "still stopped");
+        assert_eq!(r.set_speed(5), Ok(()), "one step a second");
     }
 }

@@ -4,6 +4,7 @@
 use rollfuse_core::device::{
     Controller, Effect, FrameError, Pipeline, PipelineBuffers, PipelineConfig, Precision, Sensor,
 };
+use rollfuse_core::motion::MotionConfig;
 use rollfuse_core::protocol::{
     self, Command, DeviceConfig, DeviceMessage, LedDuty, NakReason, PixelFormat, RollerCommand,
 };
@@ -251,6 +252,50 @@ fn command(seq: u32, c: &Command) -> Vec<u8> {
     let mut buf = [0u8; 128];
     let n = protocol::encode(seq, c, &mut buf).unwrap();
     buf[..n].to_vec()
+}
+
+/// With the roller's mechanics, a speed the ramp cannot run (under one step a second) is
+/// refused before it is acknowledged; the slowest it can run is accepted.
+#[test]
+fn a_device_with_a_roller_refuses_speeds_its_ramp_cannot_run() {
+    let motion = MotionConfig {
+        nm_per_step: 23_562,
+        accel_um_s2: 100_000,
+        timer_hz: 1_000_000,
+    };
+    let mut ctl = Controller::new(QVGA, [1, 2, 3], DeviceConfig::default())
+        .unwrap()
+        .with_motion(motion);
+    let start = |speed_um_s| Command::Roller(RollerCommand::Start { speed_um_s });
+    let speed = |speed_um_s| Command::Roller(RollerCommand::Speed { speed_um_s });
+    for c in [start(1), start(23), speed(23)] {
+        match ctl.handle(&command(3, &c)) {
+            (
+                DeviceMessage::Nak {
+                    reason: NakReason::Speed,
+                    ..
+                },
+                Effect::None,
+            ) => {}
+            other => panic!("{c:?} answered {other:?}"),
+        }
+        assert!(
+            !ctl.counters().roller_running,
+            "{c:?} marked the roller running"
+        );
+    }
+    // 24 µm/s is one step a second: the ramp runs it.
+    assert!(motion.check_speed(24).is_ok());
+    match ctl.handle(&command(4, &start(24))) {
+        (DeviceMessage::Ack { .. }, Effect::Roller(_)) => {}
+        other => panic!("the slowest speed answered {other:?}"),
+    }
+    // Without the mechanics the controller cannot know: any speed from 1 µm/s is taken.
+    let mut plain = Controller::new(QVGA, [1, 2, 3], DeviceConfig::default()).unwrap();
+    assert!(matches!(
+        plain.handle(&command(5, &start(1))).0,
+        DeviceMessage::Ack { .. }
+    ));
 }
 
 #[test]

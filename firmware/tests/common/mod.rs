@@ -70,6 +70,16 @@ fn info(dir: Direction) -> EndpointInfo {
 /// Packets the host sends.
 pub static HOST_OUT: Channel<CriticalSectionRawMutex, Vec<u8>, 64> = Channel::new();
 
+/// Whether a host has configured the device: the endpoints wait for it.
+pub static HOST_CONFIGURED: AtomicBool = AtomicBool::new(true);
+
+/// Waits until [`HOST_CONFIGURED`].
+async fn configured() {
+    while !HOST_CONFIGURED.load(Relaxed) {
+        yield_now().await;
+    }
+}
+
 /// The bulk OUT endpoint: packets from [`HOST_OUT`]; waits forever when there are none.
 pub struct Out(EndpointInfo);
 
@@ -83,7 +93,9 @@ impl Endpoint for Out {
     fn info(&self) -> &EndpointInfo {
         &self.0
     }
-    async fn wait_enabled(&mut self) {}
+    async fn wait_enabled(&mut self) {
+        configured().await
+    }
 }
 
 impl EndpointOut for Out {
@@ -113,7 +125,9 @@ impl Endpoint for In {
     fn info(&self) -> &EndpointInfo {
         &self.0
     }
-    async fn wait_enabled(&mut self) {}
+    async fn wait_enabled(&mut self) {
+        configured().await
+    }
 }
 
 impl EndpointIn for In {
@@ -160,6 +174,25 @@ pub fn acked(seq: u32) -> bool {
             Ok((_, DeviceMessage::Ack { command_seq })) if command_seq == seq
         )
     })
+}
+
+/// LEDs that do nothing.
+pub struct NoLeds;
+
+impl rollfuse_fw::effects::Leds for NoLeds {
+    fn set(&mut self, _: rollfuse_core::protocol::LedDuty) {}
+}
+
+/// [`beside_link_and_roller`] with the effects task running too, so accepted commands
+/// reach the roller and the pipeline's queue as on the board.
+pub fn beside_link_roller_and_effects(test: impl Future<Output = ()>) {
+    let mut leds = NoLeds;
+    beside_link_and_roller(async {
+        match select(test, rollfuse_fw::effects::run(&mut leds)).await {
+            embassy_futures::select::Either::First(()) => {}
+            embassy_futures::select::Either::Second(()) => panic!("the effects task ended"),
+        }
+    });
 }
 
 /// Runs `test` in virtual time beside the roller and the link (served again whenever it

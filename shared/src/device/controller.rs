@@ -3,6 +3,7 @@
 //! for the same reason on both.
 
 use super::pipeline::{Memory, PipelineConfig, Sensor};
+use crate::motion::MotionConfig;
 use crate::protocol::{
     self, Command, DecodeError, DeviceConfig, DeviceInfo, DeviceMessage, EncodeError, LedDuty,
     MAX_TILE_BYTES, NakReason, RollerCommand, StatusCounters,
@@ -43,6 +44,8 @@ pub struct Controller {
     seq: u32,
     /// The device's pipeline buffers, when it has fixed ones.
     capacity: Option<Memory>,
+    /// The roller's mechanics, when the device has a roller.
+    motion: Option<MotionConfig>,
 }
 
 impl Controller {
@@ -56,6 +59,7 @@ impl Controller {
             counters: StatusCounters::default(),
             seq: 0,
             capacity: None,
+            motion: None,
         })
     }
 
@@ -67,6 +71,14 @@ impl Controller {
         }
         self.capacity = Some(capacity);
         Ok(self)
+    }
+
+    /// Refuses, from now on, roller speeds that `motion`'s ramp cannot run (below one step
+    /// a second; [`MotionConfig::check_speed`]) as [`NakReason::Speed`], so that an `Ack`
+    /// means the roller will turn.
+    pub fn with_motion(mut self, motion: MotionConfig) -> Self {
+        self.motion = Some(motion);
+        self
     }
 
     /// The pipeline configuration in force.
@@ -161,7 +173,11 @@ impl Controller {
             Command::Roller(r) => {
                 match r {
                     RollerCommand::Start { speed_um_s } | RollerCommand::Speed { speed_um_s } => {
-                        if speed_um_s == 0 || speed_um_s > MAX_SPEED_UM_S {
+                        let runs = |m: &MotionConfig| m.check_speed(speed_um_s).is_ok();
+                        if speed_um_s == 0
+                            || speed_um_s > MAX_SPEED_UM_S
+                            || !self.motion.as_ref().is_none_or(runs)
+                        {
                             return Err(NakReason::Speed);
                         }
                         self.counters.roller_running = true;

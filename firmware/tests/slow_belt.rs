@@ -1,0 +1,43 @@
+//! The slowest belt, one step a second: the step generator keeps beating between steps
+//! (the watchdog's timeout is a second), and a stop ends the motion within a step.
+
+mod common;
+
+use common::*;
+use embassy_time::{Duration, Instant};
+use rollfuse_core::protocol::RollerCommand;
+use rollfuse_fw::liveness::{self, Task};
+use rollfuse_fw::roller::{self, ORDERS, Order};
+use std::sync::atomic::Ordering::Relaxed;
+
+#[test]
+fn one_step_a_second_beats_between_steps_and_stops_within_one() {
+    let test = async {
+        // 30 µm/s at 23.562 µm a step: one step a second.
+        let command = RollerCommand::Start { speed_um_s: 30 };
+        let stops = roller::stops_requested();
+        ORDERS.send(Order::Roller { command, stops }).await;
+        for _ in 0..8 {
+            let before = liveness::beats(Task::Motion);
+            wait(Duration::from_millis(400)).await;
+            assert!(
+                liveness::beats(Task::Motion) > before,
+                "the step generator stopped beating between steps"
+            );
+        }
+        assert!(STEPS.load(Relaxed) >= 2, "the roller did not step");
+        roller::stop();
+        let asked = Instant::now();
+        let stopped = until(Duration::from_secs(2), || !DRIVER_ON.load(Relaxed)).await;
+        assert!(stopped, "the roller still turns");
+        assert!(
+            Instant::now() - asked <= Duration::from_millis(1100),
+            "the stop took {:?}",
+            Instant::now() - asked
+        );
+        let steps = STEPS.load(Relaxed);
+        wait(Duration::from_secs(2)).await;
+        assert_eq!(STEPS.load(Relaxed), steps, "steps after the stop");
+    };
+    beside_link_and_roller(test);
+}
