@@ -9,11 +9,10 @@
 //! `n·s + T − 1` rows centred on the roller's apex, `n` being the frames per tile and `s`
 //! the nominal frame spacing in rows. Only the window is downsampled, and the shift
 //! refinement's row profile and the per-frame saliency normalization (the largest
-//! Laplacian) are taken over it: the camera rows outside it are never read, which at the
-//! default configuration (47 of 120 rows) saves a fifth of the frame's instructions on
-//! the Cortex-M7 (docs/tradeoff.md). A tile is observed by a frame when it lies wholly
-//! in that window — with exact motion, by exactly `n` consecutive frames, from below the
-//! apex to above it. Each observation is fused into the tile's running result on the
+//! Laplacian) are taken over it: the camera rows outside it are never read (at the default
+//! configuration the window is 47 of 120 rows). A tile is observed by a frame when it lies
+//! wholly in that window — with exact motion, by exactly `n` consecutive frames, from below
+//! the apex to above it. Each observation is fused into the tile's running result on the
 //! integer path ([`crate::fusion::fuse_u8`], the LL band weighted as configured); the
 //! tile is emitted, with its belt index and observation count, as soon as a frame
 //! arrives in which it has left the window (offsets only grow, so none can see it again),
