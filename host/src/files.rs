@@ -20,8 +20,11 @@ use std::path::{Path, PathBuf};
 pub const FAIL_WRITES_AFTER: &str = "ROLLFUSE_FAIL_WRITES_AFTER";
 
 /// A temporary path beside `target`: same folder (so the rename stays on one file
-/// system), hidden, unique to this process.
+/// system), hidden, unique to this process and this call (two outputs of one name in a
+/// batch get two temporaries).
 pub fn temporary_beside(target: &Path, tag: &str) -> PathBuf {
+    static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let name = target
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
@@ -30,7 +33,7 @@ pub fn temporary_beside(target: &Path, tag: &str) -> PathBuf {
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    parent.join(format!(".{name}.{tag}-{}", std::process::id()))
+    parent.join(format!(".{name}.{tag}-{}-{call}", std::process::id()))
 }
 
 /// Where `path` really is: links and `..` resolved, through its folder when the file does
@@ -61,6 +64,20 @@ pub fn refuse_overwriting(outputs: &[&Path], inputs: &[(&str, &Path)]) -> anyhow
                 input.display()
             );
         }
+    }
+    Ok(())
+}
+
+/// Refuses, before any work, two outputs that are one file (the second would replace the
+/// first): `what` says how they came to share it.
+pub fn refuse_duplicate_outputs(outputs: &[&Path], what: &str) -> anyhow::Result<()> {
+    let mut seen = std::collections::HashSet::new();
+    for out in outputs {
+        anyhow::ensure!(
+            seen.insert(resolved(out)),
+            "{} would be written twice ({what}): refusing to lose one of them",
+            out.display()
+        );
     }
     Ok(())
 }
@@ -304,15 +321,40 @@ impl PendingFile {
     }
 
     /// Flushes, syncs and renames the file into place.
-    pub fn commit(mut self) -> anyhow::Result<()> {
+    pub fn commit(self) -> anyhow::Result<()> {
+        self.commit_by(|tmp, target| {
+            std::fs::rename(tmp, target)
+                .with_context(|| format!("cannot move {} into place", target.display()))
+        })
+    }
+
+    /// Flushes, syncs and puts the file into place only where no file is: whether it
+    /// did. Never replaces a file, even one that appears meanwhile (a hard link, which
+    /// fails on an existing name; where the file system has none, a rename after a look).
+    pub fn commit_if_new(self) -> anyhow::Result<bool> {
+        let mut placed = false;
+        self.commit_by(|tmp, target| {
+            let linked = match std::fs::hard_link(tmp, target) {
+                Ok(()) => Ok(true),
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(false),
+                Err(_) if target.exists() => Ok(false),
+                Err(_) => std::fs::rename(tmp, target).map(|()| true),
+            };
+            placed = linked.with_context(|| format!("cannot place {}", target.display()))?;
+            Ok(())
+        })?;
+        Ok(placed)
+    }
+
+    /// Flushes and syncs the file, then `place(temporary, target)`; the temporary is
+    /// removed in every case.
+    fn commit_by(
+        mut self,
+        place: impl FnOnce(&Path, &Path) -> anyhow::Result<()>,
+    ) -> anyhow::Result<()> {
         let writer = self.writer.take().context("file already committed")?;
-        let result = finish(writer, &self.target).and_then(|()| {
-            std::fs::rename(&self.tmp, &self.target)
-                .with_context(|| format!("cannot move {} into place", self.target.display()))
-        });
-        if result.is_err() {
-            let _ = std::fs::remove_file(&self.tmp);
-        }
+        let result = finish(writer, &self.target).and_then(|()| place(&self.tmp, &self.target));
+        let _ = std::fs::remove_file(&self.tmp);
         result
     }
 }

@@ -101,6 +101,10 @@ pub struct Faults {
     pub messages_missing: u64,
     /// Messages seen twice or out of order.
     pub repeated: u64,
+    /// Messages numbered far past the sequence (a stray or crafted number; not taken).
+    pub far_ahead: u64,
+    /// Times the device's numbering moved and was followed (a restart).
+    pub renumbered: u64,
     /// Tiles whose index had already been received (the first copy is kept).
     pub duplicate_tiles: u64,
     /// Tiles that arrived after their index had been declared lost (not placed).
@@ -139,6 +143,16 @@ impl Faults {
             + self.late_tiles
             + self.mismatched_tiles
     }
+}
+
+/// The files a session writes into `out`, the strip first: `strip.png` (or its segments
+/// `strip.NNNN.png`, [`crate::strip_file`]), its index `strip.json`, and `manifest.json`.
+pub fn output_files(out: &Path) -> [PathBuf; 3] {
+    [
+        out.join("strip.png"),
+        StripWriter::index_path(&out.join("strip.png")),
+        out.join("manifest.json"),
+    ]
 }
 
 /// What `manifest.json` holds.
@@ -359,6 +373,18 @@ fn in_sequence(
             faults.repeated += 1;
             false
         }
+        SeqEvent::FarAhead => {
+            faults.far_ahead += 1;
+            progress.note(&format!(
+                "message #{seq} is far past the sequence: not taken"
+            ));
+            false
+        }
+        SeqEvent::Renumbered => {
+            faults.renumbered += 1;
+            progress.note(&format!("the device's numbering went on from #{seq}"));
+            true
+        }
     }
 }
 
@@ -460,8 +486,8 @@ impl<'a> Session<'a> {
             started,
             recorder,
             manifest: Manifest::default(),
-            manifest_path: opts.out.join("manifest.json"),
-            strip: StreamedStrip::new(opts.out.join("strip.png")),
+            manifest_path: output_files(&opts.out)[2].clone(),
+            strip: StreamedStrip::new(output_files(&opts.out)[0].clone()),
             seqs: SeqTracker::new(),
             cmd_seq,
             essential,
@@ -623,6 +649,40 @@ impl<'a> Session<'a> {
         Ok(())
     }
 
+    /// Takes messages until the session ends.
+    fn receive_all(&mut self, link: &mut dyn Transport) -> anyhow::Result<()> {
+        // Room beyond the largest message, so an oversized transfer arrives whole enough
+        // to be counted as too long rather than failing the read.
+        let mut buf = vec![0u8; 2 * MAX_MESSAGE];
+        loop {
+            self.steer(link)?;
+            let flow = match self.receive(link, &mut buf)? {
+                Next::Message(n) => self.take(&buf[..n])?,
+                Next::Wait => Flow::Continue,
+                Next::Over => Flow::Stop,
+            };
+            if flow == Flow::Stop {
+                return Ok(());
+            }
+        }
+    }
+
+    /// A failed session keeps its recording, every message taken before the failure, so
+    /// the device's data outlives what went wrong (replay it once that is fixed) — but
+    /// only under a new name: it never replaces an older recording. Returns `e`, saying
+    /// what became of the recording.
+    fn keep_recording(&mut self, e: anyhow::Error) -> anyhow::Error {
+        let (Some(r), Some(path)) = (self.recorder.take(), self.opts.record.as_deref()) else {
+            return e;
+        };
+        let path = path.display();
+        match r.keep_if_new() {
+            Ok(true) => e.context(format!("the session failed; what it received is in {path}")),
+            Ok(false) => e.context(format!("the session failed; {path} is left as it was")),
+            Err(lost) => e.context(format!("the session failed, and its recording: {lost:#}")),
+        }
+    }
+
     /// Writes the strip's last tiles, its index and the manifest.
     fn close(mut self) -> anyhow::Result<Outcome> {
         self.progress.finish();
@@ -660,21 +720,10 @@ pub fn run_watched(
     watch: &mut dyn Watch,
 ) -> anyhow::Result<Outcome> {
     let mut session = Session::open(link, opts, progress, watch)?;
-    // Room beyond the largest message, so an oversized transfer arrives whole enough to
-    // be counted as too long rather than failing the read.
-    let mut buf = vec![0u8; 2 * MAX_MESSAGE];
-    loop {
-        session.steer(link)?;
-        let flow = match session.receive(link, &mut buf)? {
-            Next::Message(n) => session.take(&buf[..n])?,
-            Next::Wait => Flow::Continue,
-            Next::Over => Flow::Stop,
-        };
-        if flow == Flow::Stop {
-            break;
-        }
+    match session.receive_all(link) {
+        Ok(()) => session.close(),
+        Err(e) => Err(session.keep_recording(e)),
     }
-    session.close()
 }
 
 fn write_manifest(path: &Path, manifest: &Manifest) -> anyhow::Result<()> {

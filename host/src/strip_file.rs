@@ -42,6 +42,34 @@ pub struct StripIndex<T: serde::Serialize> {
     pub details: T,
 }
 
+/// Refuses, before any work, an input (each named by what it is) that a strip written to
+/// `out` could overwrite with a segment: one named `STEM.NNNN.EXT` beside `out`.
+pub fn refuse_segment_names(out: &Path, inputs: &[(&str, &Path)]) -> anyhow::Result<()> {
+    for (what, input) in inputs {
+        ensure!(
+            !is_segment_name(out, input),
+            "{} would write segments named like the {what} {}: refusing to overwrite an input",
+            out.display(),
+            input.display()
+        );
+    }
+    Ok(())
+}
+
+/// Whether `path` is named as a segment of a strip written to `out` (`STEM.NNNN.EXT`
+/// beside it).
+pub fn is_segment_name(out: &Path, path: &Path) -> bool {
+    let stem = out.file_stem().unwrap_or_default().to_string_lossy();
+    let ext = out.extension().unwrap_or_default().to_string_lossy();
+    let at = crate::files::resolved(path);
+    let name = at.file_name().unwrap_or_default().to_string_lossy();
+    let numbered = name
+        .strip_prefix(&format!("{stem}."))
+        .and_then(|r| r.strip_suffix(&format!(".{ext}")))
+        .is_some_and(|n| n.len() == 4 && n.bytes().all(|b| b.is_ascii_digit()));
+    numbered && at.parent() == crate::files::resolved(out).parent()
+}
+
 /// Collects rows and writes segments.
 pub struct StripWriter {
     out: PathBuf,

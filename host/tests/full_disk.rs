@@ -318,6 +318,95 @@ fn outputs_that_are_inputs_are_refused_before_anything_is_written() {
     let err = String::from_utf8_lossy(&run.stderr);
     assert!(!run.status.success() && !err.contains("panicked"), "{err}");
     assert!(err.contains("--seconds"), "{err}");
+    session_outputs_and_simulations_refuse_their_inputs(tmp.path(), &rec, scene);
+}
+
+/// A stream's strip, index, segments and manifest are outputs too: neither the recording
+/// nor a recording replayed may be one of them. A simulation never replaces its scene.
+/// Two images drawn to one file are refused.
+fn session_outputs_and_simulations_refuse_their_inputs(dir: &Path, rec: &Path, scene: &str) {
+    let session = dir.join("session");
+    let recording = std::fs::read(rec).unwrap();
+    let replay = format!("replay:{}", s(rec));
+    for name in ["manifest.json", "strip.png", "strip.json", "strip.0002.png"] {
+        let record = session.join(name);
+        let run = rollfuse(
+            &[
+                "stream",
+                "--device",
+                &replay,
+                "--out",
+                s(&session),
+                "--record",
+                s(&record),
+            ],
+            None,
+        );
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(
+            !run.status.success() && err.contains("--record"),
+            "{name}: {err}"
+        );
+        assert!(!session.exists(), "{name}: the session began");
+    }
+    // The recording replayed from where the session writes its strip.
+    std::fs::create_dir(&session).unwrap();
+    let inside = session.join("strip.png");
+    std::fs::copy(rec, &inside).unwrap();
+    let run = rollfuse(
+        &[
+            "stream",
+            "--device",
+            &format!("replay:{}", s(&inside)),
+            "--out",
+            s(&session),
+        ],
+        None,
+    );
+    assert!(!run.status.success());
+    assert_eq!(std::fs::read(&inside).unwrap(), recording);
+    // A scene named as a simulation's output, in its folder.
+    for name in [
+        "manifest.json",
+        "frame_0000.png",
+        "frame_0500.png",
+        "lights.toml",
+    ] {
+        let copied = session.join(name);
+        std::fs::copy(scene, &copied).unwrap();
+        let before = std::fs::read(&copied).unwrap();
+        let run = rollfuse(&["simulate", s(&copied), "--out", s(&session)], None);
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(
+            !run.status.success() && err.contains("refusing"),
+            "{name}: {err}"
+        );
+        assert_eq!(std::fs::read(&copied).unwrap(), before, "{name}");
+        std::fs::remove_file(&copied).unwrap();
+    }
+    // Two images of one file name drawn into one folder.
+    let (a, b) = (
+        dir.join("x").join("frame.png"),
+        dir.join("y").join("frame.png"),
+    );
+    for p in [&a, &b] {
+        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+        rollfuse::image::Planes {
+            width: 64,
+            height: 64,
+            planes: vec![vec![0.5; 64 * 64]],
+        }
+        .save_png(p)
+        .unwrap();
+    }
+    let drawn = dir.join("drawn");
+    let run = rollfuse(&["detect", s(&a), s(&b), "--draw", s(&drawn)], None);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        !run.status.success() && err.contains("written twice"),
+        "{err}"
+    );
+    assert!(!drawn.exists(), "drawn before the refusal");
 }
 
 #[test]

@@ -426,6 +426,24 @@ fn a_roll_needs_alignment_and_its_options_are_checked() {
         .contains("cross-faded")
     );
     assert!(fails(&args(&frames, &["--out", o, "--window-rows", "0"])).contains("--window-rows"));
+    // Reaches past the frame (a search that large would take the machine's memory), and
+    // none at all, are refused with the frame's size.
+    for (option, value) in [
+        ("--search-rows", "4611686018427387904"),
+        ("--search-rows", "241"),
+        ("--max-shift", "0"),
+        ("--max-shift", "18446744073709551615"),
+        ("--max-drift-cols", "321"),
+    ] {
+        let err = fails(&args(
+            &frames,
+            &["--out", o, "--mode", "roll", option, value],
+        ));
+        assert!(
+            err.contains(option) && err.contains("frames'"),
+            "{option} {value}: {err}"
+        );
+    }
     // Segment names that are inputs' names are refused.
     let clash = tmp.path().join("frame.png");
     let named = tmp.path().join("frame.0003.png");
@@ -439,6 +457,28 @@ fn a_roll_needs_alignment_and_its_options_are_checked() {
         ))
         .contains("segments")
     );
+}
+
+/// Frames given in reverse belt order: each lies behind the strip already fused, and the
+/// command says so rather than writing a short strip in silence. `--mode auto` says what
+/// it chose.
+#[test]
+fn frames_out_of_belt_order_are_said_and_the_mode_chosen_is_printed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut frames = simulate(tmp.path(), "letters", 20);
+    let out = tmp.path().join("o.png");
+    let o = out.to_str().unwrap();
+    let run = fuse(&args(&frames, &["--out", o]));
+    assert!(run.status.success());
+    let said = String::from_utf8_lossy(&run.stdout);
+    assert!(said.contains("mode: roll (the frames span"), "{said}");
+    assert!(!String::from_utf8_lossy(&run.stderr).contains("behind"));
+    frames.reverse();
+    let run = fuse(&args(&frames, &["--out", o, "--mode", "roll"]));
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(err.contains("of 20 frames lay wholly behind"), "{err}");
+    let few = fuse(&args(&frames[..3], &["--out", o, "--align", "none"]));
+    assert!(String::from_utf8_lossy(&few.stdout).contains("mode: mosaic (--align none"));
 }
 
 #[test]

@@ -616,3 +616,72 @@ fn a_watcher_sees_every_tile_as_it_comes_and_its_commands_reach_the_device() {
         assert_eq!(&strip.as_raw()[at..at + pixels.len()], &pixels[..]);
     }
 }
+
+/// Plays some messages, then fails as a device pulled out mid-session does.
+struct Unplugged {
+    messages: std::collections::VecDeque<Vec<u8>>,
+}
+
+impl Transport for Unplugged {
+    fn send(&mut self, _: &[u8]) -> anyhow::Result<()> {
+        Ok(())
+    }
+    fn receive(&mut self, buf: &mut [u8], _: Duration) -> anyhow::Result<Received> {
+        let m = self
+            .messages
+            .pop_front()
+            .ok_or_else(|| anyhow::anyhow!("no such device"))?;
+        buf[..m.len()].copy_from_slice(&m);
+        Ok(Received::Message(m.len()))
+    }
+    fn is_live(&self) -> bool {
+        false
+    }
+}
+
+/// A session whose link fails midway keeps its recording, every message taken before
+/// the failure, so the device's data can be replayed; but it never replaces an older
+/// recording of the same name.
+#[test]
+fn a_failed_session_keeps_its_recording_but_never_over_an_older_one() {
+    let messages = clean_stream();
+    let taken = messages.len() / 2;
+    let tmp = tempfile::tempdir().unwrap();
+    let rec = tmp.path().join("rec.bin");
+    let unplugged = || Unplugged {
+        messages: messages[..taken].iter().cloned().collect(),
+    };
+    let Err(err) = stream::run(&mut unplugged(), &options(tmp.path(), Some(&rec)), &Silent) else {
+        panic!("the session did not fail");
+    };
+    assert!(format!("{err:#}").contains("no such device"), "{err:#}");
+    assert!(format!("{err:#}").contains("rec.bin"), "{err:#}");
+    // The recording holds exactly the messages taken, and plays back.
+    let mut replay = rollfuse::link::replay::Replay::open(&rec).unwrap();
+    let mut buf = vec![0u8; 2 * MAX_MESSAGE];
+    let mut played = Vec::new();
+    while let Received::Message(n) = replay.receive(&mut buf, Duration::ZERO).unwrap() {
+        played.push(buf[..n].to_vec());
+    }
+    assert_eq!(played, messages[..taken]);
+    // Again over that recording: the failed session leaves it as it was.
+    let before = std::fs::read(&rec).unwrap();
+    let short = Unplugged {
+        messages: messages[..2].iter().cloned().collect(),
+    };
+    let Err(err) = stream::run(&mut { short }, &options(tmp.path(), Some(&rec)), &Silent) else {
+        panic!("the session did not fail");
+    };
+    assert!(format!("{err:#}").contains("left as it was"), "{err:#}");
+    assert_eq!(
+        std::fs::read(&rec).unwrap(),
+        before,
+        "the older recording changed"
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .filter(|n| n.to_string_lossy().starts_with('.'))
+        .collect();
+    assert!(leftovers.is_empty(), "temporaries left: {leftovers:?}");
+}

@@ -151,11 +151,13 @@ fn report_dict<'py>(
     d.set_item("bands", s.bands)?;
     d.set_item("bands_outside_window", s.bands_outside_window)?;
     d.set_item("gap_bands", s.gap_bands)?;
-    if s.bands_outside_window + s.gap_bands > 0 {
+    d.set_item("frames_behind", s.frames_behind)?;
+    if s.bands_outside_window + s.gap_bands + s.frames_behind > 0 {
         let text = format!(
             "{} band(s) outside every contact window (fused from the nearest frame), {} \
-             band(s) no frame covered (zeros)",
-            s.bands_outside_window, s.gap_bands
+             band(s) no frame covered (zeros), {} frame(s) wholly behind the strip already \
+             fused (out of belt order?)",
+            s.bands_outside_window, s.gap_bands, s.frames_behind
         );
         PyErr::warn(
             py,
@@ -243,6 +245,7 @@ pub fn fuse_roll<'py>(
     }
     track.subpixel = subpixel;
     track.max_drift_cols = max_drift_cols;
+    track.check(frames.shape().0, height).or_py()?;
     let args = RollArgs {
         align,
         rows,

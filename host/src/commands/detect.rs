@@ -123,6 +123,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => Vec::new(),
     };
     let mut outputs: Vec<&Path> = drawn.iter().map(PathBuf::as_path).collect();
+    crate::files::refuse_duplicate_outputs(&outputs, "two images of one file name drawn")?;
     outputs.extend(args.json.as_deref());
     let mut inputs: Vec<(&str, &Path)> = args
         .images

@@ -339,6 +339,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if args.segment_rows == 0 {
         bail!("--segment-rows must be at least 1");
     }
+    check_reaches(&args)?;
     let cfg = FuseConfig {
         wavelet: args.wavelet.into(),
         levels: args.levels,
@@ -346,20 +347,38 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         norm: SaliencyNorm::Local,
         ll_weighting: args.ll_weighting.into(),
     };
-    match plan(&args)? {
+    let (plan, why) = plan(&args)?;
+    if args.mode == ModeArg::Auto {
+        println!("mode: {why}");
+    }
+    match plan {
         Plan::Mosaic(frames) => run_mosaic(&args, frames, &cfg),
         Plan::Roll(loaded) => super::fuse_roll::run(&args, loaded, &cfg),
     }
 }
 
+/// Refuses an aligner's reach past the frames
+/// ([`crate::fullres::track::TrackParams::check`]); a mosaic's largest shift is bounded as
+/// a roll's first search is.
+fn check_reaches(args: &Args) -> anyhow::Result<()> {
+    let (w, h) = crate::image::dimensions(&args.frames[0])?;
+    let (w, h) = (w as usize, h as usize);
+    super::fuse_roll::track_params(args, h).check(w, h)
+}
+
 /// Chooses roll or mosaic (`--mode auto`: a roll when the frames span more than a frame
-/// height along the belt, so they cannot all see one object).
-fn plan(args: &Args) -> anyhow::Result<Plan> {
+/// height along the belt, so they cannot all see one object), with the reason in words.
+fn plan(args: &Args) -> anyhow::Result<(Plan, &'static str)> {
     let auto = match (args.mode, args.align) {
-        (ModeArg::Mosaic, _) | (ModeArg::Auto, AlignArg::None) => {
-            return Ok(Plan::Mosaic(load_frames(&args.frames)?));
+        (ModeArg::Mosaic, _) => return Ok((Plan::Mosaic(load_frames(&args.frames)?), "mosaic")),
+        (ModeArg::Auto, AlignArg::None) => {
+            let frames = load_frames(&args.frames)?;
+            return Ok((
+                Plan::Mosaic(frames),
+                "mosaic (--align none places no frame)",
+            ));
         }
-        (ModeArg::Roll, _) => return Ok(Plan::Roll(None)),
+        (ModeArg::Roll, _) => return Ok((Plan::Roll(None), "roll")),
         (ModeArg::Auto, align) => align,
     };
     let (_, h) = crate::image::dimensions(&args.frames[0])?;
@@ -370,26 +389,28 @@ fn plan(args: &Args) -> anyhow::Result<Plan> {
         });
         hi - lo
     };
+    const ROLL: &str = "roll (the frames span a frame height or more along the belt)";
+    const MOSAIC: &str = "mosaic (the frames span less than a frame height)";
     if auto == AlignArg::Motion {
         let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
         let offsets = motion_offsets(&manifest, &args.frames)?;
         return Ok(if span(&mut offsets.iter().map(|o| o.dy as f64)) >= h {
-            Plan::Roll(None)
+            (Plan::Roll(None), ROLL)
         } else {
-            Plan::Mosaic(load_frames(&args.frames)?)
+            (Plan::Mosaic(load_frames(&args.frames)?), MOSAIC)
         });
     }
     if args.frames.len() > AUTO_LOAD_FRAMES {
-        return Ok(Plan::Roll(None));
+        return Ok((Plan::Roll(None), "roll (more than 64 frames)"));
     }
     let frames = load_frames(&args.frames)?;
     let params = super::fuse_roll::track_params(args, frames[0].height);
     let mut tracker = Tracker::new(frames[0].width, frames[0].height, params);
     let rows: Vec<f64> = frames.iter().map(|f| tracker.place(f, None).row).collect();
     Ok(if span(&mut rows.into_iter()) >= h {
-        Plan::Roll(Some(frames))
+        (Plan::Roll(Some(frames)), ROLL)
     } else {
-        Plan::Mosaic(frames)
+        (Plan::Mosaic(frames), MOSAIC)
     })
 }
 

@@ -58,41 +58,6 @@ fn manifest_geometry(manifest: &Path, (width, height): (u32, u32)) -> Option<Geo
     })
 }
 
-/// Refuses an output segment name (`STEM.NNNN.EXT` beside `out`) that an input has.
-fn refuse_segment_names(out: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> {
-    let stem = out.file_stem().unwrap_or_default().to_string_lossy();
-    let ext = out.extension().unwrap_or_default().to_string_lossy();
-    let dir = std::fs::canonicalize(
-        out.parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new(".")),
-    )
-    .ok();
-    for input in inputs {
-        let name = input.file_name().unwrap_or_default().to_string_lossy();
-        let numbered = name
-            .strip_prefix(&format!("{stem}."))
-            .and_then(|r| r.strip_suffix(&format!(".{ext}")))
-            .is_some_and(|n| n.len() == 4 && n.bytes().all(|b| b.is_ascii_digit()));
-        let same_dir = input.parent().and_then(|p| {
-            std::fs::canonicalize(if p.as_os_str().is_empty() {
-                Path::new(".")
-            } else {
-                p
-            })
-            .ok()
-        }) == dir;
-        if numbered && same_dir {
-            bail!(
-                "--out {} would write segments named like the input {}",
-                out.display(),
-                input.display()
-            );
-        }
-    }
-    Ok(())
-}
-
 /// What the strip's index records besides its segments.
 #[derive(serde::Serialize)]
 struct Details<'a> {
@@ -172,7 +137,8 @@ fn check_outputs(args: &Args, csv_path: &Path, index_path: &Path) -> anyhow::Res
         &args.frames,
         args.manifest.as_deref(),
     )?;
-    refuse_segment_names(out, &args.frames)?;
+    let frames: Vec<(&str, &Path)> = args.frames.iter().map(|p| ("input", p.as_path())).collect();
+    crate::strip_file::refuse_segment_names(out, &frames)?;
     if args.precision == crate::fullres::Precision::Fixed && args.out_bits == OutBits::Sixteen {
         eprintln!("note: --precision fixed makes 8-bit values; the 16-bit file holds them scaled");
     }
@@ -274,6 +240,13 @@ fn print_summary(args: &Args, r: &StripReport, segments: &[Segment], took: f64, 
              {} band(s) no frame covered (written as zeros), {} band(s) passed over where the \
              belt jumped (a new segment)",
             s.bands_outside_window, s.gap_bands, s.bands_skipped
+        );
+    }
+    if s.frames_behind > 0 {
+        eprintln!(
+            "warning: {} of {n} frames lay wholly behind the strip already fused (frames out \
+             of belt order, or the belt ran backwards): they added nothing",
+            s.frames_behind
         );
     }
     let files: Vec<&str> = segments.iter().map(|s| s.file.as_str()).collect();

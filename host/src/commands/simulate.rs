@@ -22,6 +22,7 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    output::refuse_overwriting(&args.scene, "scene", &args.out)?;
     let mut scene = Scene::load(&args.scene)?;
     if let Some(n) = args.frames {
         scene.sensor.frames = n;

@@ -9,9 +9,9 @@ use crate::link::usb::{self, Usb};
 use crate::serve;
 use crate::sim::Scene;
 use crate::stream::{self, Options, StopReason};
-use anyhow::{Context, bail};
+use anyhow::{Context, bail, ensure};
 use rollfuse_core::protocol::{DeviceConfig, NormMode, WaveletId};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// `--norm`.
@@ -313,19 +313,42 @@ fn check(args: &Args) -> anyhow::Result<Checked> {
         bail!("--frame-rate is for the virtual device (--device sim) only");
     }
     let serve = args.serve.as_deref().map(serve::parse_addr).transpose()?;
-    if let Some(r) = &args.record {
-        let mut inputs: Vec<(&str, &std::path::Path)> = Vec::new();
-        inputs.extend(replay.as_deref().map(|p| ("recording replayed", p)));
-        inputs.extend(args.scene.as_deref().map(|p| ("scene", p)));
-        inputs.extend(args.model.as_deref().map(|p| ("model", p)));
-        crate::files::refuse_overwriting(&[r], &inputs)?;
-    }
+    refuse_overwriting_inputs(args, replay.as_deref())?;
     Ok(Checked {
         replay,
         max_duration,
         serve,
         frame_period,
     })
+}
+
+/// Refuses, before the session, a run that would overwrite what it reads or records: the
+/// recording (`--record`) or an input (the replayed recording, the scene, the model)
+/// where the session writes its strip, its segments, its index or its manifest, or the
+/// recording over an input.
+fn refuse_overwriting_inputs(args: &Args, replay: Option<&Path>) -> anyhow::Result<()> {
+    let mut inputs: Vec<(&str, &Path)> = Vec::new();
+    inputs.extend(replay.map(|p| ("recording replayed", p)));
+    inputs.extend(args.scene.as_deref().map(|p| ("scene", p)));
+    inputs.extend(args.model.as_deref().map(|p| ("model", p)));
+    let session = stream::output_files(&args.out);
+    let outputs: Vec<&Path> = session.iter().map(PathBuf::as_path).collect();
+    crate::files::refuse_overwriting(&outputs, &inputs)?;
+    let strip = &session[0];
+    crate::strip_file::refuse_segment_names(strip, &inputs)?;
+    if let Some(r) = args.record.as_deref() {
+        crate::files::refuse_overwriting(&[r], &inputs)?;
+        let at = crate::files::resolved(r);
+        let session_writes = outputs.iter().any(|o| crate::files::resolved(o) == at)
+            || crate::strip_file::is_segment_name(strip, r);
+        ensure!(
+            !session_writes,
+            "--record {} is where the session writes its strip, index or manifest: record \
+             to another file",
+            r.display()
+        );
+    }
+    Ok(())
 }
 
 /// `--frame-rate`'s period: a rate from 0.01 to 10 000 frames a second.

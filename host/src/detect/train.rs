@@ -26,6 +26,14 @@ pub const TRAIN_SEEDS: u64 = 1_000_000;
 /// First seed of the validation rolls.
 pub const VALIDATION_SEEDS: u64 = 2_000_000;
 
+/// The most rolls of either kind a training run simulates (the training seeds then stay
+/// below the validation seeds, with room to spare).
+pub const MAX_ROLLS: usize = 10_000;
+/// The most crops in a step's batch.
+pub const MAX_BATCH: usize = 256;
+/// The most optimizer steps.
+pub const MAX_STEPS: usize = 1_000_000;
+
 /// How to train.
 #[derive(Debug, Clone)]
 pub struct TrainOptions {
@@ -122,6 +130,13 @@ pub fn train(
         opts.rolls > 0 && opts.batch > 0 && opts.steps > 0,
         "training needs at least one roll, one step and one crop a step"
     );
+    // Each roll is simulated and held; each step's batch is held with its activations.
+    ensure!(
+        opts.rolls <= MAX_ROLLS && opts.validation_rolls <= MAX_ROLLS,
+        "at most {MAX_ROLLS} training and {MAX_ROLLS} validation rolls"
+    );
+    ensure!(opts.batch <= MAX_BATCH, "at most {MAX_BATCH} crops a step");
+    ensure!(opts.steps <= MAX_STEPS, "at most {MAX_STEPS} steps");
     let (w, h) = opts.shape.size;
     ensure!(
         opts.crop <= w.min(h),

@@ -97,7 +97,7 @@ pub fn evaluate_detect(
 ) -> anyhow::Result<Vec<DetectRow>> {
     ensure!(count > 0, "--rolls must be at least 1");
     ensure!(
-        EVAL_SEEDS + count as u64 <= TRAIN_SEEDS,
+        count as u64 <= TRAIN_SEEDS - EVAL_SEEDS,
         "at most {} held-out rolls",
         TRAIN_SEEDS - EVAL_SEEDS
     );

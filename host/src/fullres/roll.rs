@@ -95,6 +95,9 @@ pub struct RollSummary {
     pub bands_skipped: u64,
     /// Strip rows written.
     pub rows: usize,
+    /// Frames whose contact window lay wholly behind the bands already fused, so they
+    /// added nothing: frames out of belt order, or a belt that ran backwards.
+    pub frames_behind: usize,
 }
 
 /// Bands no frame covers written as zeros in a row before the fuser passes over the rest
@@ -247,7 +250,13 @@ impl<S: StripSink> RollFuser<S> {
             self.next_band =
                 Some(start.div_euclid(band_rows) + i64::from(start.rem_euclid(band_rows) != 0));
         }
-        // A frame that went back along the belt still serves the bands to come.
+        // A frame that went back along the belt still serves the bands to come, unless its
+        // whole window is behind them.
+        if let Some(b) = self.next_band
+            && self.window_start(top) + self.window.rows as i64 <= self.centre(b)
+        {
+            self.summary.frames_behind += 1;
+        }
         self.last_top = Some(self.last_top.map_or(top, |t| t.max(top)));
         self.frames.push_back(Held {
             index,

@@ -98,4 +98,10 @@ impl Recorder {
     pub fn finish(self) -> anyhow::Result<()> {
         self.file.commit()
     }
+
+    /// [`Recorder::finish`] for a session that failed: the recording is kept only where no
+    /// file is at its name (it never replaces an older one); whether it was kept.
+    pub fn keep_if_new(self) -> anyhow::Result<bool> {
+        self.file.commit_if_new()
+    }
 }

@@ -126,21 +126,45 @@ fn contact_sheet(frames: &[Planes]) -> Planes {
 fn remove_stale_frames(out: &Path, count: usize) -> anyhow::Result<()> {
     for entry in std::fs::read_dir(out).with_context(|| format!("cannot list {}", out.display()))? {
         let path = entry?.path();
-        let name = path
-            .file_name()
-            .and_then(|n| n.to_str())
-            .unwrap_or_default();
-        let index = name
-            .strip_prefix("frame_")
-            .and_then(|r| r.strip_suffix(".png"))
-            .filter(|d| d.len() == 4 && d.bytes().all(|b| b.is_ascii_digit()));
-        if let Some(k) = index.and_then(|d| d.parse::<usize>().ok())
+        if let Some(k) = frame_index(&path)
             && k >= count
         {
             std::fs::remove_file(&path)
                 .with_context(|| format!("cannot remove stale {}", path.display()))?;
         }
     }
+    Ok(())
+}
+
+/// The frame number of a file named as `write` names frames (`frame_NNNN.png`).
+fn frame_index(path: &Path) -> Option<usize> {
+    let name = path.file_name()?.to_str()?;
+    let digits = name.strip_prefix("frame_")?.strip_suffix(".png")?;
+    (digits.len() == 4 && digits.bytes().all(|b| b.is_ascii_digit()))
+        .then(|| digits.parse().ok())
+        .flatten()
+}
+
+/// Refuses, before any work, an input (`what`, e.g. the scene) that a simulation into
+/// `out` would replace or remove: a file in `out` named as one of its outputs
+/// (`manifest.json`, `contact_sheet.png`, `lights.toml`, any `frame_NNNN.png`), or
+/// anything under `out/truth/`.
+pub fn refuse_overwriting(input: &Path, what: &str, out: &Path) -> anyhow::Result<()> {
+    let at = crate::files::resolved(input);
+    let dir = crate::files::resolved(out);
+    let named_as_output = at.parent() == Some(dir.as_path())
+        && (frame_index(&at).is_some()
+            || at.file_name().is_some_and(|n| {
+                ["manifest.json", "contact_sheet.png", "lights.toml"]
+                    .iter()
+                    .any(|o| n == *o)
+            }));
+    anyhow::ensure!(
+        !named_as_output && !at.starts_with(dir.join("truth")),
+        "the {what} {} is where the simulation writes into {}: refusing to overwrite an input",
+        input.display(),
+        out.display()
+    );
     Ok(())
 }
 

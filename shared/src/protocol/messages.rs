@@ -297,6 +297,9 @@ impl Limits for DeviceMessage<'_> {
                     Err("tile size")
                 } else if t.pixels.len() != n {
                     Err("tile pixel count")
+                } else if n == 0 {
+                    // No pipeline makes an empty tile; a strip cannot take one.
+                    Err("empty tile")
                 } else {
                     Ok(())
                 }

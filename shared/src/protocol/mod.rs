@@ -24,7 +24,7 @@ pub use messages::{
     Command, DeviceConfig, DeviceInfo, DeviceMessage, LedDuty, NakReason, NormMode, PixelFormat,
     RawChunk, RollerCommand, StatusCounters, Tile, WaveletId,
 };
-pub use seq::{SeqEvent, SeqTracker};
+pub use seq::{MAX_GAP, SeqEvent, SeqTracker};
 
 use serde::{Deserialize, Serialize};
 

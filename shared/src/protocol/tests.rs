@@ -111,6 +111,21 @@ fn the_largest_messages_fit_and_one_byte_more_is_refused() {
         encode(0, &tile(&pixels[..5]), &mut buf),
         Err(EncodeError::Limit("tile pixel count"))
     );
+    // An empty tile (no strip can take one), whatever its sides.
+    for (width, height) in [(0, 0), (0, 5), (1, 0)] {
+        let empty = DeviceMessage::Tile(Tile {
+            index: 0,
+            width,
+            height,
+            observations: 1,
+            pixels: &[],
+        });
+        assert_eq!(
+            encode(0, &empty, &mut buf),
+            Err(EncodeError::Limit("empty tile")),
+            "{width}×{height}"
+        );
+    }
     let over = std::vec![0u8; MAX_TILE_BYTES + 1];
     let big = DeviceMessage::Tile(Tile {
         index: 0,
@@ -198,6 +213,39 @@ fn sequence_gaps_repeats_and_wraparound_are_told_apart() {
     assert_eq!(t.observe(3), SeqEvent::Repeat);
     assert_eq!(t.observe(1), SeqEvent::Repeat);
     assert_eq!(t.observe(4), SeqEvent::InOrder);
+    assert_eq!(
+        t.observe(4 + 1 + MAX_GAP),
+        SeqEvent::Gap { missing: MAX_GAP }
+    );
+}
+
+/// One stray message far ahead (or a crafted one) does not make the good messages after
+/// it look old; a sender that restarts its numbering is followed from its second message.
+#[test]
+fn a_stray_number_is_passed_over_and_a_restart_is_followed() {
+    let mut t = SeqTracker::new();
+    for seq in 0..13 {
+        assert_eq!(t.observe(seq), SeqEvent::InOrder);
+    }
+    assert_eq!(t.observe(100_000), SeqEvent::FarAhead);
+    for seq in 13..20 {
+        assert_eq!(t.observe(seq), SeqEvent::InOrder, "{seq}");
+    }
+    // A reset: back to 0, then on from there.
+    assert_eq!(t.observe(0), SeqEvent::Repeat);
+    assert_eq!(t.observe(1), SeqEvent::Renumbered);
+    assert_eq!(t.observe(2), SeqEvent::InOrder);
+    // Numbers going back one by one (a recording played backwards) never renumber.
+    let mut back = SeqTracker::new();
+    assert_eq!(back.observe(50), SeqEvent::InOrder);
+    for seq in (0..50).rev() {
+        assert_eq!(back.observe(seq), SeqEvent::Repeat, "{seq}");
+    }
+    // A stray whose next number then arrives: a jump that holds is followed.
+    let mut jump = SeqTracker::new();
+    jump.observe(7);
+    assert_eq!(jump.observe(5_000), SeqEvent::FarAhead);
+    assert_eq!(jump.observe(5_001), SeqEvent::Renumbered);
 }
 
 /// Cases per property: 2000 in `cargo test`; set `ROLLFUSE_FUZZ_CASES` for a long run
