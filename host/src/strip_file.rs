@@ -7,6 +7,12 @@
 //! `STEM.0001.EXT`, …; in both cases `STEM.json` lists the segments with their first belt
 //! row and is written last, so it names only segments that are complete and of this run.
 //!
+//! An older strip of the same name stays whole until the new one is: a segment whose name
+//! is free is written in place as soon as it is full, one whose name an older file holds
+//! is written beside it under a hidden name and moved into place when the strip
+//! finishes. A strip that fails (or is dropped unfinished) removes what it wrote and
+//! leaves the older strip, its index included, as it was.
+//!
 //! Memory: one segment, `segment_rows × width × channels` samples.
 
 use crate::files::{Batch, PngLayout, add_png, write_bytes_atomic};
@@ -82,10 +88,20 @@ pub struct StripWriter {
     current_first: Option<i64>,
     current_rows: usize,
     data: Vec<u8>,
-    /// Segments written, each under its temporary numbered name until `finish`.
+    /// Segments written, under their numbered names (`finish` renames a lone one).
     written: Vec<Segment>,
-    /// Whether an older index has been removed (see [`StripWriter::retire_old_index`]).
-    index_retired: bool,
+    /// Where each written segment is: in place, or beside an older file it will replace.
+    files: Vec<Written>,
+    /// Set once `finish` has put the strip in place: nothing to clean up.
+    finished: bool,
+}
+
+/// Where a written segment lies until the strip finishes.
+enum Written {
+    /// At its own name, which no file held.
+    InPlace(PathBuf),
+    /// Under a hidden name beside `target`, which an older file holds.
+    Beside { hidden: PathBuf, target: PathBuf },
 }
 
 impl StripWriter {
@@ -112,7 +128,8 @@ impl StripWriter {
             current_rows: 0,
             data: Vec::new(),
             written: Vec::new(),
-            index_retired: false,
+            files: Vec::new(),
+            finished: false,
         })
     }
 
@@ -130,14 +147,9 @@ impl StripWriter {
         self.out.with_file_name(format!("{stem}.{n:04}.{ext}"))
     }
 
-    /// Segments are written in place as the strip grows and the index comes last: an
-    /// older index is removed as the first segment is about to replace an older one (once
-    /// written whole beside it), so no index ever describes a mix of two strips, and a
-    /// strip that fails before its first segment leaves the older one as it was.
-    fn retire_old_index(&mut self) -> anyhow::Result<()> {
-        if self.index_retired {
-            return Ok(());
-        }
+    /// Moves the segments written beside older files into place, the older index first
+    /// removed so that no index describes a mix of two strips meanwhile.
+    fn replace_older(&mut self) -> anyhow::Result<()> {
         let index = Self::index_path(&self.out);
         match std::fs::remove_file(&index) {
             Ok(()) => {}
@@ -147,7 +159,13 @@ impl StripWriter {
                     .with_context(|| format!("cannot remove the old {}", index.display()));
             }
         }
-        self.index_retired = true;
+        for file in &mut self.files {
+            if let Written::Beside { hidden, target } = file {
+                std::fs::rename(&*hidden, &*target)
+                    .with_context(|| format!("cannot move {} into place", target.display()))?;
+                *file = Written::InPlace(target.clone());
+            }
+        }
         Ok(())
     }
 
@@ -220,16 +238,33 @@ impl StripWriter {
             return Ok(());
         };
         let path = self.numbered(self.written.len());
+        // An older file at this name stays until the strip finishes.
+        let written = if path.exists() {
+            let hidden = crate::files::temporary_beside(&path, "new");
+            let hidden = hidden.with_file_name(format!(
+                "{}.png",
+                hidden.file_name().unwrap_or_default().to_string_lossy()
+            ));
+            Written::Beside {
+                hidden,
+                target: path.clone(),
+            }
+        } else {
+            Written::InPlace(path.clone())
+        };
+        let at = match &written {
+            Written::InPlace(p) | Written::Beside { hidden: p, .. } => p,
+        };
         let mut segment = Batch::new();
         add_png(
             &mut segment,
-            &path,
+            at,
             &self.data,
             (self.width, self.current_rows),
             self.layout,
         )?;
-        self.retire_old_index()?;
         segment.commit()?;
+        self.files.push(written);
         self.written.push(Segment {
             file: path
                 .file_name()
@@ -252,6 +287,8 @@ impl StripWriter {
             !self.written.is_empty(),
             "the strip has no rows: nothing was written"
         );
+        self.replace_older()?;
+        self.finished = true;
         self.remove_stale()?;
         if self.written.len() == 1 {
             let lone = self.numbered(0);
@@ -273,7 +310,21 @@ impl StripWriter {
         };
         let json = serde_json::to_string_pretty(&index)? + "\n";
         write_bytes_atomic(&Self::index_path(&self.out), json.as_bytes())?;
-        Ok(self.written)
+        Ok(std::mem::take(&mut self.written))
+    }
+}
+
+impl Drop for StripWriter {
+    /// A strip left unfinished (an error on the way) takes back what it wrote; the older
+    /// strip it would have replaced is as it was.
+    fn drop(&mut self) {
+        if self.finished {
+            return;
+        }
+        for file in &self.files {
+            let (Written::InPlace(p) | Written::Beside { hidden: p, .. }) = file;
+            let _ = std::fs::remove_file(p);
+        }
     }
 }
 
@@ -339,8 +390,20 @@ mod tests {
         assert!(empty.finish(()).is_err());
     }
 
+    /// Every file in `dir` with its bytes.
+    fn files(dir: &Path) -> std::collections::BTreeMap<String, Vec<u8>> {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| {
+                let e = e.unwrap();
+                let name = e.file_name().to_string_lossy().into_owned();
+                (name, std::fs::read(e.path()).unwrap())
+            })
+            .collect()
+    }
+
     #[test]
-    fn an_older_strip_is_never_described_as_a_mix_and_its_leftovers_go() {
+    fn an_older_strip_stays_whole_until_the_new_one_is_and_its_leftovers_go() {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("strip.png");
         let mut old = StripWriter::new(&out, 2, 1, 8, 2).unwrap();
@@ -348,26 +411,43 @@ mod tests {
             old.push(row, &[&[9.0; 2]]).unwrap();
         }
         assert_eq!(old.finish("old").unwrap().len(), 3);
-        // A new strip starts: the old index stands until its first segment replaces an
-        // old one, then goes; a strip that stops midway leaves no index to take the
-        // segments for one strip.
+        let older = files(dir.path());
+        // A new strip longer than the old one, cut off midway: its segments at free
+        // names are written as they fill, those at the old names wait beside them; the
+        // old strip and its index stay as they were, and the cut strip takes back all
+        // it wrote.
         let mut cut = StripWriter::new(&out, 2, 1, 8, 2).unwrap();
-        cut.push(0, &[&[1.0; 2]]).unwrap();
-        assert!(dir.path().join("strip.json").exists());
-        for row in 1..3 {
+        for row in 0..9 {
             cut.push(row, &[&[1.0; 2]]).unwrap();
         }
-        assert!(!dir.path().join("strip.json").exists());
+        assert!(
+            dir.path().join("strip.0003.png").exists(),
+            "a free name waits"
+        );
+        for (name, bytes) in &older {
+            assert_eq!(
+                std::fs::read(dir.path().join(name)).unwrap(),
+                *bytes,
+                "{name}"
+            );
+        }
         drop(cut);
+        assert_eq!(files(dir.path()), older, "the cut strip left something");
         // A short strip finishing: one file, the older segments removed.
         let mut short = StripWriter::new(&out, 2, 1, 8, 10).unwrap();
         short.push(0, &[&[5.0; 2]]).unwrap();
         short.finish("new").unwrap();
-        let mut names: Vec<String> = std::fs::read_dir(dir.path())
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .collect();
-        names.sort();
+        let names: Vec<String> = files(dir.path()).into_keys().collect();
         assert_eq!(names, ["strip.json", "strip.png"]);
+        assert_eq!(image::open(&out).unwrap().to_luma8().into_raw(), [5, 5]);
+        // A longer one over it: its first segment replaces nothing at its numbered name,
+        // and the lone older file goes once it finishes.
+        let mut long = StripWriter::new(&out, 2, 1, 8, 2).unwrap();
+        for row in 0..4 {
+            long.push(row, &[&[3.0; 2]]).unwrap();
+        }
+        long.finish("long").unwrap();
+        let names: Vec<String> = files(dir.path()).into_keys().collect();
+        assert_eq!(names, ["strip.0000.png", "strip.0001.png", "strip.json"]);
     }
 }

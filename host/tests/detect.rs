@@ -179,6 +179,40 @@ fn bad_models_are_one_clear_line() {
     fails(&["detect", i, "--model", cut.to_str().unwrap()], "model");
 }
 
+/// Training and held-out sizes past reason are refused before any work (they would
+/// overflow, or take the machine's memory for a batch).
+#[test]
+fn training_and_evaluation_sizes_past_reason_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let model = tmp.path().join("m.safetensors");
+    let m = model.to_str().unwrap();
+    let train = |extra: &[&'static str]| -> Vec<&str> {
+        [&["train", "--out", m, "--rolls", "1"][..], extra].concat()
+    };
+    fails(
+        &train(&["--steps", "18446744073709551615"]),
+        "at most 1000000 steps",
+    );
+    fails(
+        &train(&["--batch", "1000000000"]),
+        "at most 256 crops a step",
+    );
+    fails(&train(&["--validation-rolls", "10001"]), "validation rolls");
+    let e = tmp.path().join("e");
+    fails(
+        &[
+            "eval",
+            "--detect",
+            "--rolls",
+            "18446744073709551615",
+            "--out",
+            e.to_str().unwrap(),
+        ],
+        "held-out rolls",
+    );
+    assert!(!model.exists() && !e.exists());
+}
+
 #[test]
 fn bad_images_are_one_clear_line() {
     let tmp = tempfile::tempdir().unwrap();

@@ -105,6 +105,15 @@ fn simulate_fuse_and_splice_leave_their_outputs_whole_on_a_full_disk() {
             &[&[command], &frames[1..7], &out].concat(),
         );
     }
+    // A roll cut into segments, then another of other bits over it: the older strip's
+    // segments and index stay whole until the new strip is.
+    let roll = tmp.path().join("roll.png");
+    let roll = ["--mode", "roll", "--segment-rows", "16", "--out", s(&roll)];
+    survives_a_full_disk(
+        tmp.path(),
+        &[&["fuse"], &frames[..], &roll].concat(),
+        &[&["fuse"], &frames[..], &roll, &["--out-bits", "16"]].concat(),
+    );
 }
 
 #[test]

@@ -431,7 +431,7 @@ fn a_roll_needs_alignment_and_its_options_are_checked() {
     for (option, value) in [
         ("--search-rows", "4611686018427387904"),
         ("--search-rows", "241"),
-        ("--max-shift", "0"),
+        ("--search-rows", "0"),
         ("--max-shift", "18446744073709551615"),
         ("--max-drift-cols", "321"),
     ] {

@@ -56,6 +56,7 @@ class RollReport(TypedDict):
     bands: int
     bands_outside_window: int
     gap_bands: int
+    frames_behind: int
 
 def fuse_roll(
     frames: Frames,

@@ -57,22 +57,23 @@ impl TrackParams {
         }
     }
 
-    /// Refuses a reach past frames of `width × height`: the searches along the belt
-    /// (`--search-rows`, `--max-shift`) from 1 to the height, the sideways drift
-    /// (`--max-drift-cols`) at most the width. A search past the frame finds nothing more,
-    /// and costs time and memory in proportion.
+    /// Refuses a reach past frames of `width × height`: the search around a prediction
+    /// (`--search-rows`) from 1 to the height, the first search (`--max-shift`, 0: the
+    /// frames taken as they lie) and the sideways drift (`--max-drift-cols`) at most the
+    /// height and the width. A search past the frame finds nothing more, and costs time
+    /// and memory in proportion.
     pub fn check(&self, width: usize, height: usize) -> anyhow::Result<()> {
-        for (name, reach) in [
-            ("--search-rows", self.search_rows),
-            ("--max-shift", Some(self.first_search_rows)),
-        ] {
-            if let Some(r) = reach {
-                anyhow::ensure!(
-                    (1..=height).contains(&r),
-                    "{name} must be from 1 to the frames' height ({height} rows), got {r}"
-                );
-            }
+        if let Some(r) = self.search_rows {
+            anyhow::ensure!(
+                (1..=height).contains(&r),
+                "--search-rows must be from 1 to the frames' height ({height} rows), got {r}"
+            );
         }
+        anyhow::ensure!(
+            self.first_search_rows <= height,
+            "--max-shift must be at most the frames' height ({height} rows), got {}",
+            self.first_search_rows
+        );
         anyhow::ensure!(
             self.max_drift_cols <= width,
             "--max-drift-cols must be at most the frames' width ({width}), got {}",
