@@ -8,7 +8,7 @@ use common::*;
 use embassy_time::{Duration, Instant};
 use rollfuse_core::protocol::{Command, RollerCommand};
 use rollfuse_fw::link;
-use rollfuse_fw::liveness::{self, Task};
+use rollfuse_fw::liveness::Task;
 use rollfuse_fw::outbox::{self, Kind};
 use rollfuse_fw::roller::{self, ORDERS, Order};
 use rollfuse_fw::signals::STOP_STREAM;
@@ -45,14 +45,7 @@ fn a_host_that_stops_reading_stops_the_roller_within_the_heartbeat() {
         let gone_at = Instant::now();
         // While its write waits on the silent host, the link keeps beating: the watchdog
         // (1 s) must not restart the board before the heartbeat (3 s) has acted.
-        for _ in 0..5 {
-            let before = liveness::beats(Task::Link);
-            wait(Duration::from_millis(400)).await;
-            assert!(
-                liveness::beats(Task::Link) > before,
-                "the link stopped beating while its write waited"
-            );
-        }
+        beats_throughout(Task::Link, 5, "its write waited").await;
         let stopped = until(link::HEARTBEAT + Duration::from_secs(1), || {
             !DRIVER_ON.load(Relaxed)
         })

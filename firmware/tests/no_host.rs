@@ -7,21 +7,14 @@ mod common;
 use common::*;
 use embassy_time::Duration;
 use rollfuse_core::protocol::Command;
-use rollfuse_fw::liveness::{self, Task};
+use rollfuse_fw::liveness::Task;
 use std::sync::atomic::Ordering::Relaxed;
 
 #[test]
 fn the_link_beats_while_no_host_is_there() {
     HOST_CONFIGURED.store(false, Relaxed);
     let test = async {
-        for _ in 0..10 {
-            let before = liveness::beats(Task::Link);
-            wait(Duration::from_millis(400)).await;
-            assert!(
-                liveness::beats(Task::Link) > before,
-                "the link stopped beating while it waited for a host"
-            );
-        }
+        beats_throughout(Task::Link, 10, "it waited for a host").await;
         HOST_CONFIGURED.store(true, Relaxed);
         host_sends(1, &Command::Status);
         assert!(

@@ -6,7 +6,7 @@ mod common;
 use common::*;
 use embassy_time::{Duration, Instant};
 use rollfuse_core::protocol::RollerCommand;
-use rollfuse_fw::liveness::{self, Task};
+use rollfuse_fw::liveness::Task;
 use rollfuse_fw::roller::{self, ORDERS, Order};
 use std::sync::atomic::Ordering::Relaxed;
 
@@ -17,14 +17,7 @@ fn one_step_a_second_beats_between_steps_and_stops_within_one() {
         let command = RollerCommand::Start { speed_um_s: 30 };
         let stops = roller::stops_requested();
         ORDERS.send(Order::Roller { command, stops }).await;
-        for _ in 0..8 {
-            let before = liveness::beats(Task::Motion);
-            wait(Duration::from_millis(400)).await;
-            assert!(
-                liveness::beats(Task::Motion) > before,
-                "the step generator stopped beating between steps"
-            );
-        }
+        beats_throughout(Task::Motion, 8, "it waited between steps").await;
         assert!(STEPS.load(Relaxed) >= 2, "the roller did not step");
         roller::stop();
         let asked = Instant::now();

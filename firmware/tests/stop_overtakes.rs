@@ -8,7 +8,7 @@ use common::*;
 use embassy_time::Duration;
 use rollfuse_core::device::Order;
 use rollfuse_core::protocol::{Command, RollerCommand};
-use rollfuse_fw::liveness::{self, Task};
+use rollfuse_fw::liveness::Task;
 use rollfuse_fw::signals::STREAM;
 use std::sync::atomic::Ordering::Relaxed;
 
@@ -29,14 +29,7 @@ fn a_stop_drops_the_roller_orders_accepted_before_it() {
             .await
         );
         // The effects task waits on the full queue, beating: the watchdog would be fed.
-        for _ in 0..4 {
-            let before = liveness::beats(Task::Effects);
-            wait(Duration::from_millis(400)).await;
-            assert!(
-                liveness::beats(Task::Effects) > before,
-                "the effects task stopped beating behind the full queue"
-            );
-        }
+        beats_throughout(Task::Effects, 4, "it waited behind the full queue").await;
         // The pipeline catches up: the effects task queues its order, then hands the
         // roller the Start accepted before the Stop.
         let drained = until(Duration::from_secs(1), || {

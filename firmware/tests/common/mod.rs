@@ -29,6 +29,19 @@ pub async fn wait(d: Duration) {
     embassy_time::Timer::after(d).await
 }
 
+/// Requires `task` to beat within each of `spans` spans of 400 ms (as often as the
+/// watchdog's feeder looks): what the watchdog sees of a task that waits `while`.
+pub async fn beats_throughout(task: rollfuse_fw::liveness::Task, spans: usize, while_: &str) {
+    for _ in 0..spans {
+        let before = rollfuse_fw::liveness::beats(task);
+        wait(Duration::from_millis(400)).await;
+        assert!(
+            rollfuse_fw::liveness::beats(task) > before,
+            "{task:?} stopped beating while {while_}"
+        );
+    }
+}
+
 /// Waits until `cond` holds, for at most `limit` of virtual time; whether it held.
 pub async fn until(limit: Duration, cond: impl Fn() -> bool) -> bool {
     let end = Instant::now() + limit;
