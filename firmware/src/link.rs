@@ -8,8 +8,9 @@
 
 use crate::counters::COUNTERS;
 use crate::outbox::{self, Kind};
-use crate::signals::{Accepted, EFFECTS, STOP_STREAM};
+use crate::signals::{Accepted, BUS_LOST, EFFECTS, STOP_STREAM};
 use crate::{fw_info, fw_warn, liveness, roller};
+use core::sync::atomic::Ordering;
 use embassy_futures::select::{Either3, select3};
 use embassy_time::{Duration, Instant, Timer};
 use embassy_usb_driver::{EndpointError, EndpointIn, EndpointOut};
@@ -69,6 +70,10 @@ pub async fn serve(
     loop {
         let mut packet = [0u8; PACKET];
         liveness::beat(liveness::Task::Link);
+        // A suspended or unconfigured bus stopped both already; the controller is told.
+        if BUS_LOST.swap(false, Ordering::AcqRel) {
+            host_gone(controller);
+        }
         // Wake for the next beat, or for the heartbeat's deadline if it comes first and
         // has not passed yet (a passed one would wake at once, again and again).
         let beat = Instant::now() + liveness::BEAT;

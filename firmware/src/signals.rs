@@ -1,6 +1,7 @@
 //! How the tasks reach each other: queues for orders that may wait, signals for what must
 //! never be lost or delayed behind them.
 
+use core::sync::atomic::AtomicBool;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
@@ -11,6 +12,11 @@ pub static STREAM: Channel<CriticalSectionRawMutex, Order, 4> = Channel::new();
 
 /// The host is gone: streaming ends. A signal, not a queued order, so nothing can drop it.
 pub static STOP_STREAM: Signal<CriticalSectionRawMutex, ()> = Signal::new();
+
+/// The bus was suspended or unconfigured (set by the USB stack's events, which stop the
+/// roller and streaming at once): the link takes it to mark the host gone in the
+/// controller too, so a host that comes back is told the truth.
+pub static BUS_LOST: AtomicBool = AtomicBool::new(false);
 
 /// Accepted commands' effects, for the task that carries them out ([`crate::effects`]).
 /// The link checks for room before accepting a command that needs it.

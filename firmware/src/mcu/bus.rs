@@ -4,12 +4,13 @@
 //! roller and streaming.
 
 use super::Irqs;
+use core::sync::atomic::Ordering;
 use embassy_stm32::peripherals::{PA11, PA12, USB_OTG_FS};
 use embassy_stm32::{Peri, usb};
 use embassy_usb::UsbDevice;
 use rollfuse_core::protocol::usb as wire;
 use rollfuse_fw::roller;
-use rollfuse_fw::signals::STOP_STREAM;
+use rollfuse_fw::signals::{BUS_LOST, STOP_STREAM};
 use static_cell::ConstStaticCell;
 
 /// The USB peripheral's driver.
@@ -25,17 +26,23 @@ struct BusEvents;
 impl embassy_usb::Handler for BusEvents {
     fn suspended(&mut self, suspended: bool) {
         if suspended {
-            roller::stop();
-            STOP_STREAM.signal(());
+            bus_lost();
         }
     }
 
     fn configured(&mut self, configured: bool) {
         if !configured {
-            roller::stop();
-            STOP_STREAM.signal(());
+            bus_lost();
         }
     }
+}
+
+/// Stops the roller and streaming at once, and tells the link (which keeps the
+/// controller's state) that the host is gone.
+fn bus_lost() {
+    roller::stop();
+    STOP_STREAM.signal(());
+    BUS_LOST.store(true, Ordering::Release);
 }
 
 /// The stack's buffers: the OUT endpoints' packet memory, the descriptors, control
