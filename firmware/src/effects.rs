@@ -3,7 +3,7 @@
 
 use crate::liveness::{self, Task};
 use crate::roller::{self, Order};
-use crate::signals::{Accepted, EFFECTS, STREAM};
+use crate::signals::{Accepted, EFFECTS, STREAM, StreamOrder};
 use embassy_futures::select::{Either, select};
 use embassy_time::Timer;
 use rollfuse_core::device::{Effect, session as stream};
@@ -21,7 +21,12 @@ pub async fn run(leds: &mut impl Leds) {
     loop {
         liveness::beat(Task::Effects);
         let next = select(EFFECTS.receive(), Timer::after(liveness::BEAT)).await;
-        let Either::First(Accepted { effect, stops }) = next else {
+        let Either::First(Accepted {
+            effect,
+            stops,
+            stream_stops,
+        }) = next
+        else {
             continue;
         };
         let order = |order| liveness::waiting(Task::Effects, roller::ORDERS.send(order));
@@ -35,6 +40,10 @@ pub async fn run(leds: &mut impl Leds) {
             Effect::StreamStart | Effect::StreamStop | Effect::CaptureRaw(_) | Effect::None => {}
         }
         if let Some(order) = stream::Order::of(effect) {
+            let order = StreamOrder {
+                order,
+                stops: stream_stops,
+            };
             liveness::waiting(Task::Effects, STREAM.send(order)).await;
         }
     }

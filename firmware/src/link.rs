@@ -8,7 +8,7 @@
 
 use crate::counters::COUNTERS;
 use crate::outbox::{self, Kind};
-use crate::signals::{Accepted, BUS_LOST, EFFECTS, STOP_STREAM};
+use crate::signals::{self, Accepted, BUS_LOST, EFFECTS};
 use crate::{fw_info, fw_warn, liveness, roller};
 use core::sync::atomic::Ordering;
 use embassy_futures::select::{Either3, select3};
@@ -31,7 +31,7 @@ pub const HEARTBEAT: Duration = Duration::from_secs(3);
 /// Stops the roller and streaming, and clears the controller's flags, once.
 fn host_gone(controller: &mut Controller) {
     roller::stop();
-    STOP_STREAM.signal(());
+    signals::stop_stream();
     if controller.host_lost() {
         fw_warn!("host gone: roller and streaming stopped");
     }

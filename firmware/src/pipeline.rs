@@ -5,8 +5,8 @@
 
 use crate::counters::COUNTERS;
 use crate::outbox::{self, Kind};
-use crate::signals::{STOP_STREAM, STREAM, TRIGGERS};
-use crate::{frame_clock, fw_warn, liveness, roller};
+use crate::signals::{self, STOP_STREAM, STREAM, StreamOrder, TRIGGERS};
+use crate::{frame_clock, fw_info, fw_warn, liveness, roller};
 use embassy_futures::select::{Either4, select4};
 use embassy_time::{Duration, Timer, with_timeout};
 use rollfuse_core::device::{
@@ -131,10 +131,11 @@ enum Wake {
     /// A frame trigger.
     Trigger,
     /// An order.
-    Order(Order),
+    Order(StreamOrder),
 }
 
 /// The next thing to do: an order, a frame trigger, or nothing yet (a beat passed).
+/// `streaming`: a stream runs that a stop signalled now would end.
 async fn wake(streaming: bool) -> Option<Wake> {
     liveness::beat(liveness::Task::Pipeline);
     // Orders first: with captures of up to 150 ms and triggers every few tens of ms, a
@@ -149,7 +150,10 @@ async fn wake(streaming: bool) -> Option<Wake> {
     match wake.await {
         Either4::First(order) => Some(Wake::Order(order)),
         // The host is gone: stop as if it had asked.
-        Either4::Second(()) if streaming => Some(Wake::Order(Order::Stop)),
+        Either4::Second(()) if streaming => Some(Wake::Order(StreamOrder {
+            order: Order::Stop,
+            stops: signals::stream_stops_requested(),
+        })),
         Either4::Third(()) => Some(Wake::Trigger),
         Either4::Second(()) | Either4::Fourth(()) => None,
     }
@@ -185,8 +189,12 @@ pub async fn run(
         fw_warn!("pipeline buffers too small for the configuration");
         return;
     };
+    // The stream stops requested when the running stream's start was accepted: a stop
+    // signalled since ends it, one from before does not.
+    let mut started_after = 0;
     loop {
-        let Some(woken) = wake(session.streaming()).await else {
+        let live = session.streaming() && started_after != signals::stream_stops_requested();
+        let Some(woken) = wake(live).await else {
             continue;
         };
         let order = match woken {
@@ -194,7 +202,16 @@ pub async fn run(
                 on_trigger(&mut session, camera, frame).await;
                 continue;
             }
-            Wake::Order(order) => order,
+            Wake::Order(StreamOrder { order, stops }) => {
+                if matches!(order, Order::Start) {
+                    if stops != signals::stream_stops_requested() {
+                        fw_info!("a stream start from before a stop dropped");
+                        continue;
+                    }
+                    started_after = stops;
+                }
+                order
+            }
         };
         match session.order(order, &mut Outbox) {
             Ok(Next::Nothing) => {}

@@ -1,17 +1,45 @@
 //! How the tasks reach each other: queues for orders that may wait, signals for what must
 //! never be lost or delayed behind them.
 
-use core::sync::atomic::AtomicBool;
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
 use rollfuse_core::device::{Effect, Order};
 
 /// The pipeline's orders: the stream's part of accepted commands.
-pub static STREAM: Channel<CriticalSectionRawMutex, Order, 4> = Channel::new();
+pub static STREAM: Channel<CriticalSectionRawMutex, StreamOrder, 4> = Channel::new();
 
-/// The host is gone: streaming ends. A signal, not a queued order, so nothing can drop it.
+/// A stream order, with the stream stops requested when its command was accepted
+/// ([`stream_stops_requested`]).
+#[derive(Debug, Clone, Copy)]
+pub struct StreamOrder {
+    /// The order.
+    pub order: Order,
+    /// Stream stops requested before its command was accepted.
+    pub stops: u32,
+}
+
+/// Wakes the pipeline when the host is gone ([`stop_stream`]).
 pub static STOP_STREAM: Signal<CriticalSectionRawMutex, ()> = Signal::new();
+
+/// Stream stops requested since start-up (wrapping).
+static STREAM_STOPS: AtomicU32 = AtomicU32::new(0);
+
+/// The host is gone: streaming ends. Counted and signalled, never queued, so no full queue
+/// can lose it. The counts keep it to the stream it was meant for: a stream started by a
+/// command accepted before it is not started when its order comes, and one started by a
+/// command accepted after it is not ended by it.
+pub fn stop_stream() {
+    STREAM_STOPS.fetch_add(1, Ordering::AcqRel);
+    STOP_STREAM.signal(());
+}
+
+/// Stream stops requested since start-up (wrapping): what an order accepted now is tagged
+/// with.
+pub fn stream_stops_requested() -> u32 {
+    STREAM_STOPS.load(Ordering::Acquire)
+}
 
 /// The bus was suspended or unconfigured (set by the USB stack's events, which stop the
 /// roller and streaming at once): the link takes it to mark the host gone in the
@@ -22,15 +50,17 @@ pub static BUS_LOST: AtomicBool = AtomicBool::new(false);
 /// The link checks for room before accepting a command that needs it.
 pub static EFFECTS: Channel<CriticalSectionRawMutex, Accepted, 8> = Channel::new();
 
-/// An accepted command's effect, with the roller stops requested when it was accepted
-/// ([`crate::roller::stops_requested`]): a roller order that a later stop overtook in the
-/// queues is dropped, not carried out after it.
+/// An accepted command's effect, with the roller and stream stops requested when it was
+/// accepted ([`crate::roller::stops_requested`], [`stream_stops_requested`]): an order that
+/// a later stop overtook in the queues is dropped, not carried out after it.
 #[derive(Debug, Clone, Copy)]
 pub struct Accepted {
     /// What the command does.
     pub effect: Effect,
     /// Roller stops requested before the command was accepted.
     pub stops: u32,
+    /// Stream stops requested before the command was accepted.
+    pub stream_stops: u32,
 }
 
 impl Accepted {
@@ -39,6 +69,7 @@ impl Accepted {
         Self {
             effect,
             stops: crate::roller::stops_requested(),
+            stream_stops: stream_stops_requested(),
         }
     }
 }

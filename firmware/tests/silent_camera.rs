@@ -13,7 +13,7 @@ use rollfuse_core::protocol::{DeviceConfig, LedDuty, RollerCommand};
 use rollfuse_fw::counters::COUNTERS;
 use rollfuse_fw::effects::{self, Leds};
 use rollfuse_fw::pipeline::{self, Camera, FRAME_WORDS};
-use rollfuse_fw::signals::{Accepted, EFFECTS, STREAM};
+use rollfuse_fw::signals::{self, Accepted, EFFECTS, STREAM, StreamOrder};
 use rollfuse_fw::{liveness, outbox, roller};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
@@ -51,7 +51,12 @@ fn a_silent_camera_blocks_no_order_and_is_reported() {
     let buffers = Box::leak(Box::new(ModuleBuffers::new())).buffers();
     let (mut camera, mut leds, mut pins) = (Silent, MockLeds, Pins);
     let test = async {
-        STREAM.send(Order::Start).await;
+        STREAM
+            .send(StreamOrder {
+                order: Order::Start,
+                stops: signals::stream_stops_requested(),
+            })
+            .await;
         EFFECTS
             .send(Accepted::now(Effect::Roller(RollerCommand::Start {
                 speed_um_s: 20_000,

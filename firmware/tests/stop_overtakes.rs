@@ -9,7 +9,7 @@ use embassy_time::Duration;
 use rollfuse_core::device::Order;
 use rollfuse_core::protocol::{Command, RollerCommand};
 use rollfuse_fw::liveness::Task;
-use rollfuse_fw::signals::STREAM;
+use rollfuse_fw::signals::{self, STREAM, StreamOrder};
 use std::sync::atomic::Ordering::Relaxed;
 
 #[test]
@@ -17,7 +17,11 @@ fn a_stop_drops_the_roller_orders_accepted_before_it() {
     let test = async {
         // The pipeline is busy (sending raw frames, say): its queue is full and nothing
         // takes from it, so the effects task waits to queue the stream's next order.
-        while STREAM.try_send(Order::Stop).is_ok() {}
+        let stop = StreamOrder {
+            order: Order::Stop,
+            stops: signals::stream_stops_requested(),
+        };
+        while STREAM.try_send(stop).is_ok() {}
         host_sends(1, &Command::StreamStart);
         let start = Command::Roller(RollerCommand::Start { speed_um_s: 20_000 });
         host_sends(2, &start);

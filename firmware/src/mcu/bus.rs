@@ -10,7 +10,7 @@ use embassy_stm32::{Peri, usb};
 use embassy_usb::UsbDevice;
 use rollfuse_core::protocol::usb as wire;
 use rollfuse_fw::roller;
-use rollfuse_fw::signals::{BUS_LOST, STOP_STREAM};
+use rollfuse_fw::signals::{self, BUS_LOST};
 use static_cell::ConstStaticCell;
 
 /// The USB peripheral's driver.
@@ -41,7 +41,7 @@ impl embassy_usb::Handler for BusEvents {
 /// controller's state) that the host is gone.
 fn bus_lost() {
     roller::stop();
-    STOP_STREAM.signal(());
+    signals::stop_stream();
     BUS_LOST.store(true, Ordering::Release);
 }
 
