@@ -478,6 +478,7 @@ impl<'a> Session<'a> {
             Vec::new()
         };
         progress.start("receiving tiles", None, "tiles");
+        let [strip_path, _, manifest_path] = output_files(&opts.out);
         Ok(Self {
             opts,
             progress,
@@ -486,8 +487,8 @@ impl<'a> Session<'a> {
             started,
             recorder,
             manifest: Manifest::default(),
-            manifest_path: output_files(&opts.out)[2].clone(),
-            strip: StreamedStrip::new(output_files(&opts.out)[0].clone()),
+            manifest_path,
+            strip: StreamedStrip::new(strip_path),
             seqs: SeqTracker::new(),
             cmd_seq,
             essential,
