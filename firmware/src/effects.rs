@@ -34,7 +34,7 @@ pub async fn run(leds: &mut impl Leds) {
             Effect::Leds(duty) => leds.set(duty),
             Effect::Roller(command) => order(Order::Roller { command, stops }).await,
             Effect::Configure(cfg) => {
-                let px = u16::try_from(cfg.spacing_px).unwrap_or(u16::MAX);
+                let px = u16::try_from(cfg.spacing_px()).unwrap_or(u16::MAX);
                 order(Order::FrameSpacing(px)).await;
             }
             Effect::StreamStart | Effect::StreamStop | Effect::CaptureRaw(_) | Effect::None => {}

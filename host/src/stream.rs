@@ -21,6 +21,7 @@ use crate::link::{Received, Transport};
 use crate::progress::Progress;
 use crate::strip_file::{DEFAULT_SEGMENT_ROWS, StripWriter};
 use anyhow::{Context, bail};
+use rollfuse_core::device::{PipelineConfig, Sensor};
 use rollfuse_core::protocol::{
     self, Command, DecodeError, DeviceConfig, DeviceInfo, DeviceMessage, MAX_MESSAGE, NakReason,
     SeqEvent, SeqTracker, StatusCounters,
@@ -215,6 +216,15 @@ impl StreamedStrip {
         }
     }
 
+    /// Fixes the tile size before the first tile, where the device's configuration says
+    /// it (else the first tile sets it): a stray tile of another size that comes first
+    /// is then the one counted mismatched, not every tile after it.
+    fn expect(&mut self, size: (u16, u16)) {
+        if self.writer.is_none() && self.pending.is_empty() {
+            self.size = Some(size);
+        }
+    }
+
     /// Takes a tile; writes every tile that is now in order.
     fn take(
         &mut self,
@@ -386,6 +396,23 @@ fn in_sequence(
             true
         }
     }
+}
+
+/// The size of the tiles a device of `info` makes once `configured` (if sent; else the
+/// configuration `info` reports) is in force; `None` for a configuration it would refuse.
+fn configured_tile(info: &DeviceInfo, configured: Option<DeviceConfig>) -> Option<(u16, u16)> {
+    let sensor = Sensor {
+        width: usize::from(info.sensor_width),
+        height: usize::from(info.sensor_height),
+        format: info.pixel_format,
+    };
+    let tile = PipelineConfig::from_wire(&configured.unwrap_or(info.config), sensor)
+        .ok()?
+        .tile_dims();
+    Some((
+        u16::try_from(tile.width()).ok()?,
+        u16::try_from(tile.height()).ok()?,
+    ))
 }
 
 /// Places a tile in the strip, or counts why not; whether it was placed.
@@ -572,7 +599,16 @@ impl<'a> Session<'a> {
     /// Acts on a sound message.
     fn on_message(&mut self, msg: DeviceMessage<'_>) -> anyhow::Result<Flow> {
         match msg {
-            DeviceMessage::Info(info) => self.manifest.device = Some(info),
+            DeviceMessage::Info(info) => {
+                // A live device's tiles have the size of the configuration it runs; a
+                // recording's Info predates the configuration its session sent.
+                if self.live
+                    && let Some(size) = configured_tile(&info, self.opts.config)
+                {
+                    self.strip.expect(size);
+                }
+                self.manifest.device = Some(info);
+            }
             DeviceMessage::Ack { .. } | DeviceMessage::RawChunk(_) => {}
             DeviceMessage::Nak {
                 command_seq,

@@ -685,3 +685,74 @@ fn a_failed_session_keeps_its_recording_but_never_over_an_older_one() {
         .collect();
     assert!(leftovers.is_empty(), "temporaries left: {leftovers:?}");
 }
+
+/// A live device whose first tile is replaced by one of another size (a stray tile, as a
+/// session before this one could leave in flight), same number and index.
+struct StrayFirstTile<T> {
+    link: T,
+    replaced: bool,
+}
+
+impl<T: Transport> Transport for StrayFirstTile<T> {
+    fn send(&mut self, message: &[u8]) -> anyhow::Result<()> {
+        self.link.send(message)
+    }
+
+    fn receive(&mut self, buf: &mut [u8], timeout: Duration) -> anyhow::Result<Received> {
+        let got = self.link.receive(buf, timeout)?;
+        let Received::Message(n) = got else {
+            return Ok(got);
+        };
+        let stray = match protocol::decode::<DeviceMessage>(&buf[..n]) {
+            Ok((header, DeviceMessage::Tile(t))) if !self.replaced => {
+                tile_message(header.seq, t.index, (t.width / 2, t.height), 200)
+            }
+            _ => return Ok(got),
+        };
+        self.replaced = true;
+        buf[..stray.len()].copy_from_slice(&stray);
+        Ok(Received::Message(stray.len()))
+    }
+
+    fn is_live(&self) -> bool {
+        true
+    }
+}
+
+#[test]
+fn a_stray_first_tile_of_another_size_is_the_one_refused() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/letters.toml");
+    let mut scene = Scene::load(&path).unwrap();
+    scene.sensor.frames = 10;
+    let tmp = tempfile::tempdir().unwrap();
+    let clean = stream::run(
+        &mut SimDevice::start(&scene).unwrap(),
+        &options(&tmp.path().join("clean"), None),
+        &Silent,
+    )
+    .unwrap();
+    let mut link = StrayFirstTile {
+        link: SimDevice::start(&scene).unwrap(),
+        replaced: false,
+    };
+    let out = stream::run(
+        &mut link,
+        &options(&tmp.path().join("stray"), None),
+        &Silent,
+    )
+    .unwrap();
+    assert!(link.replaced);
+    let (m, c) = (&out.manifest, &clean.manifest);
+    assert_eq!(m.faults.mismatched_tiles, 1);
+    assert_eq!(m.tiles_received + 1, c.tiles_received);
+    // The strip is the clean run's from its second tile on.
+    let strip = |dir: &str| {
+        image::open(tmp.path().join(dir).join("strip.png"))
+            .unwrap()
+            .to_luma8()
+            .into_raw()
+    };
+    let (clean_strip, stray_strip) = (strip("clean"), strip("stray"));
+    let tile_bytes = clean_strip.len() / c.tiles_received as usize;
+    assert_eq!(clean_strip[tile_bytes..], stray_strip[..]);
+}

@@ -113,7 +113,7 @@ fn full_resolution_fits_the_module() {
                     ..DeviceConfig::default()
                 };
                 let cfg = PipelineConfig::from_wire(&wire, QVGA).unwrap();
-                assert_eq!(cfg.precision, Precision::Fixed);
+                assert_eq!(cfg.precision(), Precision::Fixed);
                 assert!(
                     cfg.memory().fits(&MCU_CAPACITY),
                     "{wire:?}: {:?}",
@@ -191,7 +191,7 @@ fn interior_tiles_get_exactly_their_observations_in_belt_order() {
 /// moving `spacing` rows per frame, each frame with noise of its own (so a tile's
 /// observations differ): (index, observations, pixels).
 fn run_tiles(cfg: PipelineConfig, frames: usize, spacing: usize) -> Vec<(u32, u8, Vec<u8>)> {
-    let (w, h) = (cfg.sensor.width, cfg.sensor.height);
+    let (w, h) = (cfg.sensor().width, cfg.sensor().height);
     let mut s = Storage::new(&cfg);
     let mut p = Pipeline::new(cfg, s.buffers()).unwrap();
     let mut tiles = Vec::new();
@@ -228,8 +228,7 @@ fn the_f32_pipeline_emits_what_the_integer_one_does_up_to_rounding() {
         ..DeviceConfig::default()
     };
     let fixed = PipelineConfig::from_wire(&wire, sensor).unwrap();
-    let mut float = fixed;
-    float.precision = Precision::F32;
+    let float = fixed.with_precision(Precision::F32);
     assert!(
         float.memory().work_words > fixed.memory().work_words,
         "a second transform line"
@@ -405,7 +404,7 @@ fn every_command_is_validated_with_a_reason() {
         ..d
     };
     assert!(
-        matches!(ok(&mut ctl, Command::Configure(smaller)), Effect::Configure(p) if p.downsample == 4)
+        matches!(ok(&mut ctl, Command::Configure(smaller)), Effect::Configure(p) if p.downsample() == 4)
     );
     assert_eq!(
         ok(&mut ctl, Command::Leds(LedDuty::ALL_ON)),

@@ -192,9 +192,9 @@ pub struct DeviceRun {
 /// Runs the device pipeline of `setup` over the acquisition, `repeats` times.
 pub fn run_device(acq: &Acquisition, setup: &Setup, repeats: usize) -> anyhow::Result<DeviceRun> {
     let wire = setup.wire(&acq.base);
-    let mut cfg = PipelineConfig::from_wire(&wire, acq.sensor)
-        .map_err(|r| anyhow::anyhow!("{}: the device refuses it ({r:?})", setup.label()))?;
-    cfg.precision = setup.precision;
+    let cfg = PipelineConfig::from_wire(&wire, acq.sensor)
+        .map_err(|r| anyhow::anyhow!("{}: the device refuses it ({r:?})", setup.label()))?
+        .with_precision(setup.precision);
     let mut memory = PipelineMemory::new(&cfg.memory());
     let tile = cfg.tile_dims();
     let mut best = f64::INFINITY;
@@ -275,7 +275,7 @@ pub fn reference(acq: &Acquisition, setup: &Setup, offsets: &[u64]) -> anyhow::R
         };
         let cfg = FuseConfig {
             norm: SaliencyNorm::Reference(norm),
-            ..dev.fuse
+            ..dev.fuse()
         };
         for index in schedule.observed(at) {
             let row = schedule.frame_row(index, at);

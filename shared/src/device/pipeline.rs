@@ -65,29 +65,50 @@ impl Sensor {
     }
 }
 
-/// A validated pipeline configuration.
+/// A validated pipeline configuration: made only by [`PipelineConfig::from_wire`], read
+/// through its getters, so every value in it is one that validation accepted and no
+/// computation on it (memory, schedule) can divide by zero or underflow.
+///
+/// ```
+/// use rollfuse_core::device::{CAMERA, PipelineConfig};
+/// use rollfuse_core::protocol::DeviceConfig;
+///
+/// let cfg = PipelineConfig::from_wire(&DeviceConfig::default(), CAMERA).unwrap();
+/// assert_eq!(cfg.downsample(), 2);
+/// assert_eq!(cfg.memory().total_bytes(), 53_272);
+/// ```
+///
+/// A validated configuration cannot be changed out of range afterwards:
+///
+/// ```compile_fail,E0616
+/// use rollfuse_core::device::{CAMERA, PipelineConfig};
+/// use rollfuse_core::protocol::DeviceConfig;
+///
+/// let mut cfg = PipelineConfig::from_wire(&DeviceConfig::default(), CAMERA).unwrap();
+/// cfg.downsample = 0;
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PipelineConfig {
     /// The camera.
-    pub sensor: Sensor,
+    sensor: Sensor,
     /// Wavelet, levels, LL weighting (normalization is set per frame or per tile).
-    pub fuse: FuseConfig,
+    fuse: FuseConfig,
     /// Saliency normalized per frame (else per tile).
-    pub per_frame_norm: bool,
+    per_frame_norm: bool,
     /// Box downsampling factor: 1, 2 or 4.
-    pub downsample: usize,
+    downsample: usize,
     /// Tile height, downsampled rows.
-    pub tile_rows: usize,
+    tile_rows: usize,
     /// Observations per tile.
-    pub frames_per_tile: usize,
+    frames_per_tile: usize,
     /// Nominal belt travel between frames, camera pixels.
-    pub spacing_px: usize,
+    spacing_px: usize,
     /// Refinement search, ± downsampled rows.
-    pub refine_rows: usize,
+    refine_rows: usize,
     /// The arithmetic of the fuse step. The wire has no field for it: a device runs
     /// [`Precision::Fixed`]; the host's trade-off study and the Cortex-M7 bench set
     /// [`Precision::F32`] to measure the alternative.
-    pub precision: Precision,
+    precision: Precision,
     /// The downsampled frame.
     frame: Dims,
     /// One tile.
@@ -182,6 +203,58 @@ impl PipelineConfig {
             return Err(NakReason::FramesPerTile);
         }
         Ok(out)
+    }
+
+    /// The same configuration with the fuse step's arithmetic set to `precision` (the
+    /// wire's configurations run [`Precision::Fixed`]). The memory it needs changes with
+    /// it: [`Self::memory`].
+    pub fn with_precision(self, precision: Precision) -> Self {
+        Self { precision, ..self }
+    }
+
+    /// The camera.
+    pub fn sensor(&self) -> Sensor {
+        self.sensor
+    }
+
+    /// Wavelet, levels, LL weighting (normalization is set per frame or per tile).
+    pub fn fuse(&self) -> FuseConfig {
+        self.fuse
+    }
+
+    /// Saliency normalized per frame (else per tile).
+    pub fn per_frame_norm(&self) -> bool {
+        self.per_frame_norm
+    }
+
+    /// Box downsampling factor: 1, 2 or 4.
+    pub fn downsample(&self) -> usize {
+        self.downsample
+    }
+
+    /// Tile height, downsampled rows (at least 1).
+    pub fn tile_rows(&self) -> usize {
+        self.tile_rows
+    }
+
+    /// Observations per tile (1 to [`MAX_FRAMES_PER_TILE`]).
+    pub fn frames_per_tile(&self) -> usize {
+        self.frames_per_tile
+    }
+
+    /// Nominal belt travel between frames, camera pixels (1 to the sensor's height).
+    pub fn spacing_px(&self) -> usize {
+        self.spacing_px
+    }
+
+    /// Refinement search, ± downsampled rows (at most [`MAX_REFINE_ROWS`]).
+    pub fn refine_rows(&self) -> usize {
+        self.refine_rows
+    }
+
+    /// The arithmetic of the fuse step.
+    pub fn precision(&self) -> Precision {
+        self.precision
     }
 
     /// The downsampled frame size.

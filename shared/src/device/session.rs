@@ -36,7 +36,7 @@
 //! let frame = vec![128u8; CAMERA.frame_bytes()];
 //! for k in 0..12 {
 //!     if Capture::Done.delivered(&mut kept) {
-//!         session.fuse(&frame, k * config.spacing_px as u64, &mut kept);
+//!         session.fuse(&frame, k * config.spacing_px() as u64, &mut kept);
 //!     }
 //! }
 //! assert_eq!(session.order(Order::Stop, &mut kept), Ok(Next::SendStatus));

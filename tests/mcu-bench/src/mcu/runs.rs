@@ -177,10 +177,10 @@ fn pipeline(
     precision: Precision,
     out: &mut impl FnMut(&Row),
 ) -> bool {
-    let Some(mut cfg) = setup.config() else {
+    let Some(cfg) = setup.config() else {
         return false;
     };
-    cfg.precision = precision;
+    let cfg = cfg.with_precision(precision);
     let mem = cfg.memory();
     let bufs = PipelineBuffers {
         frame: &mut b.frame[..mem.frame_bytes],
@@ -238,7 +238,7 @@ fn tile_fuse(clock: &Clock, b: &mut Buffers, setup: Setup, out: &mut impl FnMut(
     } else {
         SaliencyNorm::Local
     };
-    let fuse = FuseConfig { norm, ..cfg.fuse };
+    let fuse = FuseConfig { norm, ..cfg.fuse() };
     let (ta, tb) = (&b.frame[..n], &b.frame[n..2 * n]);
     let mut fixed = 0;
     for _ in 0..FUSE_CALLS {
@@ -365,7 +365,7 @@ fn kernels(clock: &Clock, b: &mut Buffers, setup: Setup, out: &mut impl FnMut(&R
     // maps, weights or blend); the `tile` rows have the full step on the same tiles.
     let fuse = FuseConfig {
         ablation: Ablation::MaxHigh,
-        ..cfg.fuse
+        ..cfg.fuse()
     };
     let (a, rest) = b.work.split_at_mut(n);
     let (b_work, scratch) = rest.split_at_mut(n);
