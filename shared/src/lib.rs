@@ -6,9 +6,10 @@
 //! saliency — keeps the deepest, sharpest contact of every frame.
 //!
 //! `#![no_std]`, no allocation, and no panics on any input: bad sizes and parameters come
-//! back as [`Error`] values. Buffers are the caller's. No `unsafe` either, but for one
-//! kind of call on x86-64 hosts: a hot loop's AVX2 or AVX-512 copy, run where the CPU has
-//! that unit ([`simd`]); elsewhere, the firmware included, the crate forbids `unsafe`.
+//! back as [`Error`] values. Buffers are the caller's. No `unsafe` either, but for two
+//! units: on x86-64 hosts a hot loop's AVX2 or AVX-512 copy, run where the CPU has that
+//! unit ([`simd`]); on Arm cores with the DSP extension the one-instruction operations on
+//! two 16-bit lanes ([`lanes`]). Every other target forbids `unsafe`.
 //!
 //! # Layers
 //!
@@ -24,11 +25,12 @@
 //!   model) and the device's command handling.
 //! - [`protocol`]: the messages of the USB link, their framing, CRC and limits.
 //! - [`motion`]: the roller's trapezoidal step profile and frame triggers.
+//! - [`lanes`]: two 16-bit samples a word and the Cortex-M7's DSP instructions on them.
 //! - [`simd`]: the run-time choice between baseline, AVX2 and AVX-512 copies of the hot
 //!   loops.
 #![no_std]
-#![cfg_attr(not(target_arch = "x86_64"), forbid(unsafe_code))]
-#![cfg_attr(target_arch = "x86_64", deny(unsafe_code))]
+#![cfg_attr(not(any(target_arch = "x86_64", rollfuse_dsp)), forbid(unsafe_code))]
+#![cfg_attr(any(target_arch = "x86_64", rollfuse_dsp), deny(unsafe_code))]
 // The core must never panic: public entry points validate sizes and return `Error`s.
 #![cfg_attr(
     not(test),
@@ -39,6 +41,7 @@ pub mod device;
 pub mod error;
 pub mod fusion;
 pub mod geometry;
+pub mod lanes;
 pub mod lifting;
 pub mod motion;
 mod packed;

@@ -21,6 +21,7 @@
 
 pub mod bounds;
 mod db2;
+pub(crate) mod db2_lanes;
 #[cfg(any(test, feature = "pywt"))]
 pub mod filter_bank;
 mod haar;
@@ -28,6 +29,7 @@ mod haar;
 use crate::fusion::GUARD_BITS;
 #[cfg(test)]
 use crate::geometry::Line;
+use crate::lanes::I16x2;
 use crate::{Dims, Error, MAX_LEVELS, simd};
 pub use bounds::{LevelBounds, MAX_SAMPLE, level_bounds};
 
@@ -168,6 +170,46 @@ impl Lift for i32 {
     #[inline(always)]
     fn to_byte(self) -> u8 {
         ((self + (1 << (GUARD_BITS - 1))) >> GUARD_BITS).clamp(0, 255) as u8
+    }
+}
+
+/// Two samples a word in 16-bit lanes ([`I16x2`]), each product by a Q16 constant and
+/// rounded down on its own (what `SMULWB`/`SMLAWB` give): the db2 level 1 of the 8-bit
+/// fuse step, two samples an instruction on the Cortex-M7 ([`db2_lanes`]). The column
+/// sweeps run on whole rows of such words through the generic code (two columns a word);
+/// a word holding one sample in both lanes is the scalar version of the same arithmetic.
+/// Every value of that level fits a lane (`docs/numerics.md`), so nothing is saturated.
+impl Lift for I16x2 {
+    const ROW_PASSES: bool = false;
+    #[inline(always)]
+    fn half(self) -> Self {
+        self.halving_add(Self::default())
+    }
+    type Constants = db2_lanes::Constants;
+    #[inline(always)]
+    fn constants() -> db2_lanes::Constants {
+        core::hint::black_box(db2_lanes::CONSTANTS)
+    }
+    #[inline(always)]
+    fn sqrt3(self, k: db2_lanes::Constants) -> Self {
+        self.mul_q16(k.sqrt3)
+    }
+    #[inline(always)]
+    fn predict(s: Self, s_prev: Self, k: db2_lanes::Constants) -> Self {
+        s.mul_q16_add(k.a, s_prev, k.b)
+    }
+    #[inline(always)]
+    fn saturate(self, _bound: i32) -> Self {
+        self
+    }
+    const SATURATES: bool = false;
+    #[inline(always)]
+    fn from_guarded_byte(v: u8) -> Self {
+        Self::splat(i16::from(v) << GUARD_BITS)
+    }
+    #[inline(always)]
+    fn to_byte(self) -> u8 {
+        Self::to_bytes::<GUARD_BITS>(self, self) as u8
     }
 }
 

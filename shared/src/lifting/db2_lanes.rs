@@ -1,0 +1,318 @@
+//! db2's level 1 on 8-bit rows in 16-bit lanes ([`I16x2`]): the row pass from bytes and
+//! the inverse row pass to bytes, four samples a word, for rows whose length is a
+//! multiple of 4 (the device's tiles: 320, 160 or 80 pixels). The column passes run on
+//! the same words through the generic sweeps ([`super::db2::forward_columns`],
+//! [`super::db2::inverse_columns`]), two columns a word.
+//!
+//! A row of `4q` bytes is `q` words, each giving the lanes of its even samples
+//! `(e₂ₖ, e₂ₖ₊₁)` and of its odd ones `(o₂ₖ, o₂ₖ₊₁)` (pairs `2k` and `2k + 1`). The
+//! lifting steps run on those pairs of pairs: `s¹ = e + ⌊√3·o⌋`,
+//! `d¹ₗ = o − (⌊a·s¹ₗ⌋ + ⌊b·s¹ₗ₋₁⌋)`, `s²ₗ = s¹ₗ − d¹ₗ₊₁`, with `s¹₋₁` and `d¹ₙₕ` mirrored
+//! as in [`super::db2`] (whole-sample symmetric extension), which at a row's ends is a
+//! swap of a word's lanes. The output words hold the low band's coefficients two a word,
+//! then the high band's: the layout of [`super::db2::forward_line`], packed.
+//!
+//! Same bits as the generic one-sample sweeps run on `I16x2` words holding one sample
+//! (test `lane_rows_are_the_generic_sweep_two_pairs_a_word`).
+
+use super::{ColumnBounds, RowsPrepared, RowsReady, Unsaturated, db2};
+use crate::Dims;
+use crate::lanes::I16x2;
+
+/// The db2 constants in Q16, the 32-bit operand of `SMULWB`/`SMLAWB`.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Constants {
+    /// √3.
+    pub(crate) sqrt3: i32,
+    /// √3/4.
+    pub(crate) a: i32,
+    /// (√3 − 2)/4 (negative).
+    pub(crate) b: i32,
+}
+
+/// [`Constants`]' values: `round(c · 2¹⁶)`.
+pub(crate) const CONSTANTS: Constants = Constants {
+    sqrt3: 113_512,
+    a: 28_378,
+    b: -4_390,
+};
+
+/// Forward row pass of `src` (a multiple of 4 bytes, at least 4) into `dst`: the low
+/// band's `len/2` coefficients then the high band's, two a word (`len/2` words). The bytes
+/// take the fusion's guard bits (`GUARD`). Other lengths, or a short `dst`, write nothing
+/// and return `false`.
+#[inline(always)]
+pub(crate) fn forward_row_from_bytes<const GUARD: u32>(src: &[u8], dst: &mut [I16x2]) -> bool {
+    let k = <I16x2 as super::Lift>::constants();
+    let (words, []) = src.as_chunks::<4>() else {
+        return false;
+    };
+    let q = words.len();
+    let Some((low, high)) = dst.get_mut(..2 * q).map(|d| d.split_at_mut(q)) else {
+        return false;
+    };
+    let Some((first, rest)) = words.split_first() else {
+        return false;
+    };
+    let pairs = |w: &[u8; 4]| {
+        let [e, o] = I16x2::from_bytes(u32::from_le_bytes(*w));
+        (e.shl_small(GUARD), o.shl_small(GUARD))
+    };
+    let s1 = |(e, o): (I16x2, I16x2)| e + o.mul_q16(k.sqrt3);
+    let d1 = |o: I16x2, s: I16x2, s_prev: I16x2| o - s.mul_q16_add(k.a, s_prev, k.b);
+    // Word 0: s¹₋₁ is s¹₁, the other lane of the same word.
+    let (e, o) = pairs(first);
+    let mut s = s1((e, o));
+    let mut d = d1(o, s, s.swap());
+    for ((w, lo), hi) in rest.iter().zip(low.iter_mut()).zip(high.iter_mut()) {
+        let (e, o) = pairs(w);
+        let s_next = s1((e, o));
+        let d_next = d1(o, s_next, I16x2::straddle(s, s_next));
+        *lo = s - I16x2::straddle(d, d_next);
+        *hi = d;
+        (s, d) = (s_next, d_next);
+    }
+    // The last word: d¹ past the end is its mirror d¹ₙₕ₋₂, the other lane.
+    if let (Some(lo), Some(hi)) = (low.last_mut(), high.last_mut()) {
+        *lo = s - d.swap();
+        *hi = d;
+    }
+    true
+}
+
+/// Inverse of [`forward_row_from_bytes`]: `src` holds the low band's words then the high
+/// band's (`len/4` each), `dst` (a multiple of 4 bytes, at least 4) gets the samples
+/// rounded from the guard bits and clamped to bytes ([`I16x2::to_bytes`]). Other lengths,
+/// or a short `src`, write nothing and return `false`.
+#[inline(always)]
+pub(crate) fn inverse_row_to_bytes<const GUARD: u32>(src: &[I16x2], dst: &mut [u8]) -> bool {
+    let k = <I16x2 as super::Lift>::constants();
+    let (words, []) = dst.as_chunks_mut::<4>() else {
+        return false;
+    };
+    let q = words.len();
+    let Some((low, high)) = src.get(..2 * q).map(|s| s.split_at(q)) else {
+        return false;
+    };
+    let Some((&d_first, high_rest)) = high.split_first() else {
+        return false;
+    };
+    let unlift = |s: I16x2, s_prev: I16x2, d: I16x2| {
+        let o = d + s.mul_q16_add(k.a, s_prev, k.b);
+        I16x2::to_bytes::<GUARD>(s - o.mul_q16(k.sqrt3), o).to_le_bytes()
+    };
+    // s¹ₗ = s²ₗ + d¹ₗ₊₁; the sweep carries the word before's s¹ and this word's d¹.
+    let (mut s_prev, mut d) = (None, d_first);
+    let ahead = low.iter().zip(high_rest.iter().map(Some).chain([None]));
+    for (out, (&l, d_next)) in words.iter_mut().zip(ahead) {
+        // Past the last word, d¹ₙₕ is its mirror d¹ₙₕ₋₂: the other lane.
+        let d_after = d_next.map_or(d.swap(), |&n| I16x2::straddle(d, n));
+        let s = l + d_after;
+        // Before the first word, s¹₋₁ is s¹₁: the other lane.
+        let sp = s_prev.map_or(s.swap(), |p| I16x2::straddle(p, s));
+        *out = unlift(s, sp, d);
+        s_prev = Some(s);
+        d = d_next.copied().unwrap_or(d);
+    }
+    true
+}
+
+/// The words region of a `w × h` level-1 image in lanes: `w/2` words a row; `None` unless
+/// `w` is a multiple of 4.
+fn word_region(dims: Dims) -> Option<Dims> {
+    let w = dims.width();
+    if !w.is_multiple_of(4) {
+        return None;
+    }
+    Dims::new(w / 2, dims.height()).ok()
+}
+
+/// Forward level 1 of the 8-bit image in `src` (laid out as `src_dims` says; its width a
+/// multiple of 4) into `buf`: `h` rows of `w/2` words, in the layout of
+/// [`crate::geometry`] two coefficients a word (rows `2l` the column-low band: LL words,
+/// then HL; rows `2l + 1` LH, then HH). Each row is lifted from its bytes just before the
+/// column sweep first reads it. Returns `false`, writing nothing, for another width or a
+/// `buf` too short.
+pub(crate) fn forward_from_bytes<const GUARD: u32>(
+    (src, src_dims): (&[u8], Dims),
+    buf: &mut [I16x2],
+) -> bool {
+    let Some(region) = word_region(src_dims) else {
+        return false;
+    };
+    if buf.len() < region.pixels() || src_dims.check_buffer("image", src.len()).is_err() {
+        return false;
+    }
+    let mut row_pass = |y: usize, row: &mut [I16x2]| {
+        if let Some(bytes) = src_dims.row(src, y) {
+            forward_row_from_bytes::<GUARD>(bytes, row);
+        }
+    };
+    db2::forward_columns(buf, region, &mut RowsReady::new(&mut row_pass));
+    true
+}
+
+/// Inverse of [`forward_from_bytes`] into the 8-bit image in `dst` (laid out as
+/// `dst_dims` says), rounded from the guard bits and clamped; `prepare(y, row y)` runs on
+/// each row of `buf` before the sweep first reads it (the fusion blends the bands there).
+/// Nothing saturates: the level's values all fit a lane (`docs/numerics.md`). Returns
+/// `false`, writing nothing, for another width or a buffer too short.
+pub(crate) fn inverse_to_bytes<const GUARD: u32>(
+    buf: &mut [I16x2],
+    (dst, dst_dims): (&mut [u8], Dims),
+    mut prepare: impl FnMut(usize, &mut [I16x2]),
+) -> bool {
+    let Some(region) = word_region(dst_dims) else {
+        return false;
+    };
+    if buf.len() < region.pixels() || dst_dims.check_buffer("image", dst.len()).is_err() {
+        return false;
+    }
+    let mut done = |y: usize, row: &mut [I16x2]| {
+        if let Some(bytes) = dst_dims.row_mut(dst, y) {
+            inverse_row_to_bytes::<GUARD>(row, bytes);
+        }
+    };
+    let bounds = ColumnBounds::split_at_half(region.width(), [0, 0], Unsaturated);
+    let mut prepared = RowsPrepared::new(&mut prepare, buf, region);
+    db2::inverse_columns(buf, region, bounds, &mut prepared, &mut done);
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use crate::fusion::GUARD_BITS;
+    use crate::lifting::db2::{forward_line_bytes, inverse_line_into};
+    use crate::lifting::Lift;
+    use std::vec::Vec;
+
+    /// A deterministic row of bytes with edges, flats and noise.
+    fn row(len: usize, seed: u32) -> Vec<u8> {
+        let mut x = seed.wrapping_mul(2_654_435_761).max(1);
+        (0..len)
+            .map(|i| {
+                x ^= x << 13;
+                x ^= x >> 17;
+                x ^= x << 5;
+                match (i / 7 + seed as usize) % 4 {
+                    0 => 0,
+                    1 => 255,
+                    _ => x as u8,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn lane_rows_are_the_generic_sweep_two_pairs_a_word() {
+        for len in (4..=64).step_by(4).chain([160, 320]) {
+            for seed in 0..20 {
+                let src = row(len, seed);
+                // The generic sweep, one sample a word (both lanes alike).
+                let mut generic = std::vec![I16x2::default(); len];
+                forward_line_bytes::<I16x2>(&src, &mut generic);
+                let mut packed = std::vec![I16x2::default(); len / 2];
+                assert!(forward_row_from_bytes::<GUARD_BITS>(&src, &mut packed));
+                let unpacked: Vec<i16> = packed.iter().flat_map(|w| [w.lo(), w.hi()]).collect();
+                let expected: Vec<i16> = generic.iter().map(|w| w.lo()).collect();
+                assert_eq!(unpacked, expected, "forward, length {len}, seed {seed}");
+                // Back: the generic inverse, and the lanes' to bytes.
+                let mut generic_bytes = std::vec![0u8; len];
+                inverse_line_into(&generic, &mut generic_bytes, |v: I16x2| v.to_byte());
+                let mut bytes = std::vec![0u8; len];
+                assert!(inverse_row_to_bytes::<GUARD_BITS>(&packed, &mut bytes));
+                assert_eq!(bytes, generic_bytes, "inverse, length {len}, seed {seed}");
+                assert_eq!(bytes, src, "round trip, length {len}, seed {seed}");
+            }
+        }
+    }
+
+    /// A `w × h` tile of [`row`]s, with a smooth ramp under some of them.
+    fn tile(w: usize, h: usize, seed: u32) -> Vec<u8> {
+        (0..h as u32)
+            .flat_map(|y| {
+                let mut r = row(w, seed * 31 + y);
+                if y % 3 == 0 {
+                    for (x, v) in r.iter_mut().enumerate() {
+                        *v = ((x * 255) / w.max(1)) as u8;
+                    }
+                }
+                r
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_lane_level_is_the_generic_level_and_comes_back_exactly() {
+        use crate::Wavelet;
+        use crate::lifting::{Coefficients, Saturation, forward_level_from_bytes, inverse_level, level_bounds};
+        for w in [4, 8, 12, 20, 80, 160] {
+            for h in 1..=18 {
+                let dims = Dims::new(w, h).unwrap();
+                let src = tile(w, h, (w * 100 + h) as u32);
+                let mut packed = std::vec![I16x2::default(); w * h / 2];
+                assert!(forward_from_bytes::<GUARD_BITS>((&src, dims), &mut packed));
+                // The generic level, one sample a word.
+                let mut generic = std::vec![I16x2::default(); w * h];
+                let mut scratch = std::vec![I16x2::default(); w];
+                forward_level_from_bytes(Wavelet::Db2, &mut generic, dims, &mut scratch, (&src, dims));
+                let lanes: Vec<i16> = packed.iter().flat_map(|v| [v.lo(), v.hi()]).collect();
+                let expected: Vec<i16> = generic.iter().map(|v| v.lo()).collect();
+                assert_eq!(lanes, expected, "forward {w}x{h}");
+                // Back to bytes: the generic inverse's, and the tile itself.
+                let mut out = std::vec![0u8; w * h];
+                let mut rows_prepared = 0;
+                assert!(inverse_to_bytes::<GUARD_BITS>(&mut packed, (&mut out, dims), |_, _| {
+                    rows_prepared += 1
+                }));
+                assert_eq!(rows_prepared, h, "{w}x{h}");
+                let bounds = level_bounds(Wavelet::Db2, 1)[0];
+                let mut generic_out = std::vec![0u8; w * h];
+                inverse_level(
+                    Wavelet::Db2,
+                    &mut generic,
+                    dims,
+                    &mut scratch,
+                    Saturation {
+                        bounds: &bounds,
+                        coefficients: Coefficients::InBounds,
+                    },
+                    &mut |_, _| {},
+                    Some((&mut generic_out, dims)),
+                );
+                assert_eq!(out, generic_out, "inverse {w}x{h}");
+                assert_eq!(out, src, "round trip {w}x{h}");
+            }
+        }
+    }
+
+    #[test]
+    fn other_lengths_are_refused_untouched() {
+        let mut dst = [I16x2::splat(7); 8];
+        for len in [0, 1, 2, 3, 5, 6, 7] {
+            assert!(!forward_row_from_bytes::<GUARD_BITS>(&row(len, 1), &mut dst));
+        }
+        // Too short a destination.
+        assert!(!forward_row_from_bytes::<GUARD_BITS>(&row(20, 1), &mut dst));
+        assert_eq!(dst, [I16x2::splat(7); 8]);
+        let mut bytes = [9u8; 6];
+        assert!(!inverse_row_to_bytes::<GUARD_BITS>(&dst, &mut bytes));
+        assert!(!inverse_row_to_bytes::<GUARD_BITS>(&dst[..1], &mut bytes[..4]));
+        assert_eq!(bytes, [9; 6]);
+    }
+
+    #[test]
+    fn the_constants_are_the_rounded_q16_values() {
+        let sqrt3 = 3f64.sqrt();
+        for (c, x) in [
+            (CONSTANTS.sqrt3, sqrt3),
+            (CONSTANTS.a, sqrt3 / 4.0),
+            (CONSTANTS.b, (sqrt3 - 2.0) / 4.0),
+        ] {
+            assert_eq!(c, (x * 65_536.0).round() as i32);
+        }
+        let _ = <I16x2 as Lift>::constants();
+    }
+}
