@@ -98,7 +98,8 @@ impl I16x2 {
     #[inline(always)]
     pub fn to_bytes<const GUARD: u32>(even: Self, odd: Self) -> u32 {
         let half = Self::splat(1 << (GUARD - 1));
-        let byte = |v: Self| (v.saturating_add(half).clamp_unsigned::<GUARD>().0 >> GUARD) & 0x00FF_00FF;
+        let byte =
+            |v: Self| (v.saturating_add(half).clamp_unsigned::<GUARD>().0 >> GUARD) & 0x00FF_00FF;
         byte(even) | (byte(odd) << 8)
     }
 }
@@ -202,7 +203,10 @@ lane_ops!(portable);
 pub mod portable {
     #[inline(always)]
     fn lanes(w: u32) -> [i32; 2] {
-        [i32::from(w as u16 as i16), i32::from((w >> 16) as u16 as i16)]
+        [
+            i32::from(w as u16 as i16),
+            i32::from((w >> 16) as u16 as i16),
+        ]
     }
 
     #[inline(always)]
@@ -390,11 +394,17 @@ mod tests {
         for (x, y) in pairs() {
             let ([a0, a1], [b0, b1]) = (lanes(x), lanes(y));
             let check = |got: I16x2, f: &dyn Fn(i32, i32) -> i64| {
-                assert_eq!(lanes(got), [wrap(f(a0, b0)), wrap(f(a1, b1))], "{x:?} {y:?}");
+                assert_eq!(
+                    lanes(got),
+                    [wrap(f(a0, b0)), wrap(f(a1, b1))],
+                    "{x:?} {y:?}"
+                );
             };
             check(x.wrapping_add(y), &|a, b| i64::from(a + b));
             check(x.wrapping_sub(y), &|a, b| i64::from(a - b));
-            check(x.saturating_add(y), &|a, b| i64::from((a + b).clamp(-32_768, 32_767)));
+            check(x.saturating_add(y), &|a, b| {
+                i64::from((a + b).clamp(-32_768, 32_767))
+            });
             check(x.halving_add(y), &|a, b| i64::from(a + b).div_euclid(2));
             for c in [113_512, 28_378, -4_392, 0, 65_536, i32::MIN, i32::MAX] {
                 let q = |a: i32, c: i32| (i64::from(c) * i64::from(a)).div_euclid(1 << 16);
@@ -420,7 +430,10 @@ mod tests {
         for (x, y) in pairs() {
             let bytes = I16x2::to_bytes::<3>(x, y).to_le_bytes();
             let byte = |v: i16| ((i32::from(v) + 4) >> 3).clamp(0, 255) as u8;
-            assert_eq!(bytes, [byte(x.lo()), byte(y.lo()), byte(x.hi()), byte(y.hi())]);
+            assert_eq!(
+                bytes,
+                [byte(x.lo()), byte(y.lo()), byte(x.hi()), byte(y.hi())]
+            );
         }
     }
 

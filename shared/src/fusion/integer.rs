@@ -244,6 +244,16 @@ pub fn fuse_u8(
         first_level_maps(images, cfg, parts.maps.space, table, parts.lines.line)?;
         parts.maps.first_ready = true;
     }
+    if takes_lanes(cfg, packed) {
+        let images = ((a, a_dims), (b, b_dims));
+        return super::lanes::fuse_one_level(
+            images.0,
+            images.1,
+            parts.maps.space,
+            ll_weight,
+            [work.a, work.b],
+        );
+    }
     let images = ImagePair {
         a: &mut *work.a,
         b: &mut *work.b,
@@ -286,12 +296,21 @@ pub fn fuse_u8(
     Ok(())
 }
 
+/// Whether [`fuse_u8`] runs in 16-bit lanes ([`super::lanes`]): db2 at one level, the
+/// full method, a width that is a multiple of 4.
+pub(crate) fn takes_lanes(cfg: &FuseConfig, dims: Dims) -> bool {
+    cfg.wavelet == Wavelet::Db2
+        && cfg.levels == 1
+        && cfg.ablation == Ablation::None
+        && dims.width().is_multiple_of(4)
+}
+
 /// Level 1's two window maps of saliency sums ([`WindowLayout`]) of the 8-bit images, into
 /// `maps` as the generic step lays them out; `table` ([`TABLE_WORDS`]) holds the saliency
 /// table, filled once for both images where they share a normalizer (a reference
 /// maximum), and `line` (the image's width) one row of saliencies at a time. `cfg.norm`
 /// is in units of the samples with the guard bits.
-fn first_level_maps(
+pub(crate) fn first_level_maps(
     images: [(&[u8], Dims); 2],
     cfg: &FuseConfig,
     maps: &mut [i32],

@@ -94,25 +94,39 @@ pub(crate) fn inverse_row_to_bytes<const GUARD: u32>(src: &[I16x2], dst: &mut [u
     let Some((low, high)) = src.get(..2 * q).map(|s| s.split_at(q)) else {
         return false;
     };
-    let Some((&d_first, high_rest)) = high.split_first() else {
-        return false;
-    };
     let unlift = |s: I16x2, s_prev: I16x2, d: I16x2| {
         let o = d + s.mul_q16_add(k.a, s_prev, k.b);
         I16x2::to_bytes::<GUARD>(s - o.mul_q16(k.sqrt3), o).to_le_bytes()
     };
-    // s¹ₗ = s²ₗ + d¹ₗ₊₁; the sweep carries the word before's s¹ and this word's d¹.
-    let (mut s_prev, mut d) = (None, d_first);
-    let ahead = low.iter().zip(high_rest.iter().map(Some).chain([None]));
-    for (out, (&l, d_next)) in words.iter_mut().zip(ahead) {
-        // Past the last word, d¹ₙₕ is its mirror d¹ₙₕ₋₂: the other lane.
-        let d_after = d_next.map_or(d.swap(), |&n| I16x2::straddle(d, n));
-        let s = l + d_after;
-        // Before the first word, s¹₋₁ is s¹₁: the other lane.
-        let sp = s_prev.map_or(s.swap(), |p| I16x2::straddle(p, s));
-        *out = unlift(s, sp, d);
-        s_prev = Some(s);
-        d = d_next.copied().unwrap_or(d);
+    // s¹ₗ = s²ₗ + d¹ₗ₊₁. Past the last word d¹ₙₕ is its mirror d¹ₙₕ₋₂, and before the
+    // first s¹₋₁ is s¹₁: each the other lane of the same word.
+    let (Some((first, inner_out)), Some((&l_first, low_rest)), Some((&d_first, high_rest))) = (
+        words.split_first_mut(),
+        low.split_first(),
+        high.split_first(),
+    ) else {
+        return false;
+    };
+    let d_after = high_rest
+        .first()
+        .map_or(d_first.swap(), |&n| I16x2::straddle(d_first, n));
+    let mut s_prev = l_first + d_after;
+    *first = unlift(s_prev, s_prev.swap(), d_first);
+    let Some((last, inner_out)) = inner_out.split_last_mut() else {
+        return true;
+    };
+    // Words 1 … q − 2, each with the next word's d¹.
+    let ahead = low_rest
+        .iter()
+        .zip(high_rest.iter().zip(high_rest.get(1..).unwrap_or_default()));
+    for (out, (&l, (&d, &d_next))) in inner_out.iter_mut().zip(ahead) {
+        let s = l + I16x2::straddle(d, d_next);
+        *out = unlift(s, I16x2::straddle(s_prev, s), d);
+        s_prev = s;
+    }
+    if let (Some(&l), Some(&d)) = (low_rest.last(), high_rest.last()) {
+        let s = l + d.swap();
+        *last = unlift(s, I16x2::straddle(s_prev, s), d);
     }
     true
 }
@@ -184,8 +198,8 @@ mod tests {
     extern crate std;
     use super::*;
     use crate::fusion::GUARD_BITS;
-    use crate::lifting::db2::{forward_line_bytes, inverse_line_into};
     use crate::lifting::Lift;
+    use crate::lifting::db2::{forward_line_bytes, inverse_line_into};
     use std::vec::Vec;
 
     /// A deterministic row of bytes with edges, flats and noise.
@@ -247,7 +261,9 @@ mod tests {
     #[test]
     fn a_lane_level_is_the_generic_level_and_comes_back_exactly() {
         use crate::Wavelet;
-        use crate::lifting::{Coefficients, Saturation, forward_level_from_bytes, inverse_level, level_bounds};
+        use crate::lifting::{
+            Coefficients, Saturation, forward_level_from_bytes, inverse_level, level_bounds,
+        };
         for w in [4, 8, 12, 20, 80, 160] {
             for h in 1..=18 {
                 let dims = Dims::new(w, h).unwrap();
@@ -257,16 +273,24 @@ mod tests {
                 // The generic level, one sample a word.
                 let mut generic = std::vec![I16x2::default(); w * h];
                 let mut scratch = std::vec![I16x2::default(); w];
-                forward_level_from_bytes(Wavelet::Db2, &mut generic, dims, &mut scratch, (&src, dims));
+                forward_level_from_bytes(
+                    Wavelet::Db2,
+                    &mut generic,
+                    dims,
+                    &mut scratch,
+                    (&src, dims),
+                );
                 let lanes: Vec<i16> = packed.iter().flat_map(|v| [v.lo(), v.hi()]).collect();
                 let expected: Vec<i16> = generic.iter().map(|v| v.lo()).collect();
                 assert_eq!(lanes, expected, "forward {w}x{h}");
                 // Back to bytes: the generic inverse's, and the tile itself.
                 let mut out = std::vec![0u8; w * h];
                 let mut rows_prepared = 0;
-                assert!(inverse_to_bytes::<GUARD_BITS>(&mut packed, (&mut out, dims), |_, _| {
-                    rows_prepared += 1
-                }));
+                assert!(inverse_to_bytes::<GUARD_BITS>(
+                    &mut packed,
+                    (&mut out, dims),
+                    |_, _| { rows_prepared += 1 }
+                ));
                 assert_eq!(rows_prepared, h, "{w}x{h}");
                 let bounds = level_bounds(Wavelet::Db2, 1)[0];
                 let mut generic_out = std::vec![0u8; w * h];
@@ -292,14 +316,20 @@ mod tests {
     fn other_lengths_are_refused_untouched() {
         let mut dst = [I16x2::splat(7); 8];
         for len in [0, 1, 2, 3, 5, 6, 7] {
-            assert!(!forward_row_from_bytes::<GUARD_BITS>(&row(len, 1), &mut dst));
+            assert!(!forward_row_from_bytes::<GUARD_BITS>(
+                &row(len, 1),
+                &mut dst
+            ));
         }
         // Too short a destination.
         assert!(!forward_row_from_bytes::<GUARD_BITS>(&row(20, 1), &mut dst));
         assert_eq!(dst, [I16x2::splat(7); 8]);
         let mut bytes = [9u8; 6];
         assert!(!inverse_row_to_bytes::<GUARD_BITS>(&dst, &mut bytes));
-        assert!(!inverse_row_to_bytes::<GUARD_BITS>(&dst[..1], &mut bytes[..4]));
+        assert!(!inverse_row_to_bytes::<GUARD_BITS>(
+            &dst[..1],
+            &mut bytes[..4]
+        ));
         assert_eq!(bytes, [9; 6]);
     }
 
