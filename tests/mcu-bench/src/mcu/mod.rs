@@ -3,6 +3,7 @@
 
 mod clock;
 mod frames;
+mod lanes;
 mod runs;
 
 use cortex_m_rt::entry;
@@ -25,6 +26,9 @@ fn main() -> ! {
         clock.per_tick(),
         clock.per_tick()
     );
+    if !lanes::agree() {
+        halt(false)
+    }
     let mut print = |row: &runs::Row| hprintln!("{}", row);
     // Profiling (tests/mcu-bench/profile.sh) runs one configuration: its log stays small.
     let ok = if cfg!(feature = "profile") {
