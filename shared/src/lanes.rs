@@ -177,6 +177,14 @@ macro_rules! lane_ops {
                 Self::pack($imp::smulwb(w0, self.0), $imp::smulwt(w1, self.0))
             }
 
+            /// `w₀·lo / 2¹⁶` and `w₁·hi / 2¹⁶` rounded to nearest (halves up), for lanes
+            /// whose double fits a lane: `⌊w·2v / 2¹⁶⌋` made odd-rounded by a halving add
+            /// of 1 (`SADD16`, `SMULWB`, `SMULWT`, `PKHBT`, `SHADD16`).
+            #[inline(always)]
+            pub fn mul_q16_each_rounded(self, w: [i32; 2]) -> Self {
+                (self + self).mul_q16_each(w).halving_add(Self::splat(1))
+            }
+
             /// Each lane clamped to `0..=2^(8 + GUARD) − 1` (`USAT16`).
             #[inline(always)]
             fn clamp_unsigned<const GUARD: u32>(self) -> Self {
@@ -415,6 +423,16 @@ mod tests {
                 });
                 let each = x.mul_q16_each([c, c / 3]);
                 assert_eq!(lanes(each), [wrap(q(a0, c)), wrap(q(a1, c / 3))]);
+                // Rounded to nearest, for lanes whose double fits a lane.
+                if [a0, a1].iter().all(|v| (2 * v).abs() < 32_768) && (0..=65_536).contains(&c) {
+                    let r = |a: i32, c: i32| (i64::from(c) * i64::from(a) + (1 << 15)) >> 16;
+                    let rounded = x.mul_q16_each_rounded([c, c / 3]);
+                    assert_eq!(
+                        lanes(rounded),
+                        [wrap(r(a0, c)), wrap(r(a1, c / 3))],
+                        "{x:?} {c}"
+                    );
+                }
             }
         }
     }

@@ -6,8 +6,8 @@
 //!
 //! The arithmetic differs from the 32-bit path's in its rounding, not in its method:
 //! lifting products by Q16 constants rounded down ([`db2_lanes`]); each high-band
-//! coefficient `b + ⌊W₁·(a − b)⌋` with `W₁` in Q16; LL `⌊(a + b)/2⌋` for the paper's mean,
-//! else `⌊(1 − w)·a⌋ + ⌊w·b⌋`.
+//! coefficient `b + R(W₁·(a − b))` with `W₁` in Q16; LL `⌊(a + b + 1)/2⌋` for the paper's
+//! mean, else `⌊(1 − w)·a⌋ + ⌊w·b⌋` (`R` rounds to nearest, halves up).
 
 use super::{LlWeight, WindowLayout, split_maps};
 use crate::lanes::I16x2;
@@ -111,23 +111,26 @@ impl Bands<'_> {
     }
 }
 
-/// `a = b + ⌊W₁·(a − b)⌋` coefficient by coefficient, two a word. High-band coefficients
-/// of two images differ by less than a lane holds (twice the band's bound).
+/// `a = b + R(W₁·(a − b))` coefficient by coefficient, two a word. Rounded, not floored:
+/// a floor's bias of half a step in every blend cost the study 1.1 dB. High-band
+/// coefficients of two images differ by at most twice the band's bound (12 864), so the
+/// difference doubled still fits a lane.
 #[inline(always)]
 fn blend_band(a: &mut [I16x2], b: &[I16x2], weights: &[i32]) {
     let (pairs, _) = weights.as_chunks::<2>();
     for ((x, &y), &w) in a.iter_mut().zip(b).zip(pairs) {
-        *x = y + (*x - y).mul_q16_each(w);
+        *x = y + (*x - y).mul_q16_each_rounded(w);
     }
 }
 
-/// LL: `⌊(a + b)/2⌋` for the paper's mean, else `⌊(1 − w)·a⌋ + ⌊w·b⌋` (LL coefficients of
-/// two images can differ by more than a lane holds, so no difference is taken).
+/// LL: `⌊(a + b + 1)/2⌋` for the paper's mean, else `⌊(1 − w)·a⌋ + ⌊w·b⌋` (LL
+/// coefficients of two images can differ by more than a lane holds, so no difference is
+/// taken).
 #[inline(always)]
 fn mix_ll(a: &mut [I16x2], b: &[I16x2], ll_weight: LlWeight) {
     if ll_weight == LlWeight::HALF {
         for (x, &y) in a.iter_mut().zip(b) {
-            *x = x.halving_add(y);
+            *x = x.halving_add(y + I16x2::splat(1));
         }
     } else {
         let w = i32::from(ll_weight.0) << 1;
@@ -254,17 +257,18 @@ mod tests {
         let [hl, lh, hh] = layout.shifts;
         let weight = |(sx, sy): (usize, usize), j: usize, i: usize| map_a[(j + sy) * mw + sx + i];
         let lw = i32::from(ll.0) << 1;
+        let rounded = |w: i32, v: i64| (i64::from(w) * v + (1 << 15)) >> 16;
         for y in 0..h {
             let (ra, rb) = (&mut ca[y * w..][..w], &cb[y * w..][..w]);
             for x in 0..w {
                 let (low, i, j) = (x < w / 2, x % (w / 2), y / 2);
                 let (p, q) = (ra[x].0, rb[x].0);
                 ra[x] = Wide(match (y % 2, low) {
-                    (0, true) if ll == LlWeight::HALF => (p + q) >> 1,
+                    (0, true) if ll == LlWeight::HALF => (p + q + 1) >> 1,
                     (0, true) => Wide::q16((1 << 16) - lw, p) + Wide::q16(lw, q),
-                    (0, false) => q + Wide::q16(weight(hl, j, i), p - q),
-                    (_, true) => q + Wide::q16(weight(lh, j, i), p - q),
-                    (_, false) => q + Wide::q16(weight(hh, j, i), p - q),
+                    (0, false) => q + rounded(weight(hl, j, i), p - q),
+                    (_, true) => q + rounded(weight(lh, j, i), p - q),
+                    (_, false) => q + rounded(weight(hh, j, i), p - q),
                 });
             }
         }

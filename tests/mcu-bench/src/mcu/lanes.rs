@@ -80,6 +80,15 @@ pub fn agree() -> bool {
                         ),
                     ),
                     (
+                        "mul_q16_each_rounded",
+                        x.mul_q16_each_rounded([c, c / 5]).to_bits(),
+                        {
+                            let d = portable::sadd16(a, a);
+                            let t = pack(portable::smulwb(c, d), portable::smulwt(c / 5, d));
+                            portable::shadd16(t, 0x0001_0001)
+                        },
+                    ),
+                    (
                         "mul_q16_each",
                         x.mul_q16_each([c, c / 5]).to_bits(),
                         pack(portable::smulwb(c, a), portable::smulwt(c / 5, a)),
