@@ -31,10 +31,16 @@ run() {
         -semihosting-config enable=on,target=native -kernel "$elf"
 }
 
-{
+if ! {
     echo "# build $build_id"
     run
-} > "$out.part"
+} > "$out.part"; then
+    # The bench says why on its `#` lines (an instruction that disagrees with its
+    # definition, a panic).
+    grep '^# ' "$out.part" | grep -v '^# \(build\|rollfuse-mcu-bench\|board\|section\)' >&2 || true
+    echo "mcu-bench: the bench failed" >&2
+    exit 1
+fi
 mv "$out.part" "$out"
 
 if $check; then
