@@ -66,3 +66,40 @@ pub(crate) fn test_bytes(mut seed: u32) -> impl FnMut() -> u8 {
         (seed >> 16) as u8
     }
 }
+
+/// `w × h` images of 0 and 255 that give the largest coefficients 8-bit samples can, for
+/// tests: a checkerboard, column stripes, row stripes, a checkerboard of 2 × 1 cells, then
+/// `noise` images of binary noise from [`test_bytes`]`(seed)`.
+#[cfg(test)]
+pub(crate) fn extreme_tiles(w: usize, h: usize, noise: usize, seed: u32) -> TestImages {
+    let patterns: [fn(usize, usize) -> bool; 4] = [
+        |x, y| (x + y) % 2 == 0,
+        |x, _| x % 2 == 0,
+        |_, y| y % 2 == 0,
+        |x, y| (x / 2 + y) % 2 == 0,
+    ];
+    let mut bytes = test_bytes(seed);
+    let mut images: TestImages = patterns
+        .iter()
+        .map(|p| {
+            (0..w * h)
+                .map(|i| [0, 255][usize::from(p(i % w, i / w))])
+                .collect()
+        })
+        .collect();
+    for _ in 0..noise {
+        images.push(
+            (0..w * h)
+                .map(|_| [0, 255][usize::from(bytes() > 127)])
+                .collect(),
+        );
+    }
+    images
+}
+
+/// Images of bytes, for tests.
+#[cfg(test)]
+type TestImages = std::vec::Vec<std::vec::Vec<u8>>;
+
+#[cfg(test)]
+extern crate std;

@@ -145,9 +145,8 @@ mod tests {
     extern crate std;
     use super::*;
     use crate::fusion::integer::first_level_maps;
-    use crate::fusion::{
-        FuseConfig, GUARD_BITS, TABLE_WORDS, U8Pair, U8Work, fuse_scratch_len, fuse_u8,
-    };
+    use crate::fusion::tests::fuse_u8_alone;
+    use crate::fusion::{FuseConfig, GUARD_BITS, TABLE_WORDS, U8Pair};
     use crate::lifting::{
         Coefficients, Lift, Saturation, db2_lanes, forward_level_from_bytes, inverse_level,
         level_bounds,
@@ -292,28 +291,10 @@ mod tests {
         out
     }
 
-    /// Tiles of 0 and 255 (checkers, stripes, noise) and of random bytes.
+    /// Tiles of 0 and 255 (checkers, stripes, binary noise), of random bytes and a ramp.
     fn tiles(w: usize, h: usize) -> Vec<Vec<u8>> {
-        let patterns: [fn(usize, usize) -> bool; 4] = [
-            |x, y| (x + y) % 2 == 0,
-            |x, _| x % 2 == 0,
-            |_, y| y % 2 == 0,
-            |x, y| (x / 2 + y) % 2 == 0,
-        ];
-        let mut noise = crate::test_bytes(7);
-        let mut out: Vec<Vec<u8>> = patterns
-            .iter()
-            .map(|p| {
-                (0..w * h)
-                    .map(|i| [0, 255][usize::from(p(i % w, i / w))])
-                    .collect()
-            })
-            .collect();
-        out.push(
-            (0..w * h)
-                .map(|_| [0, 255][usize::from(noise() > 127)])
-                .collect(),
-        );
+        let mut out = crate::extreme_tiles(w, h, 1, 7);
+        let mut noise = crate::test_bytes(8);
         out.push((0..w * h).map(|_| noise()).collect());
         out.push((0..w * h).map(|i| ((i % w) * 255 / w) as u8).collect());
         out
@@ -351,14 +332,7 @@ mod tests {
                     assert!(crate::fusion::integer::takes_lanes(&cfg, dims));
                     let want = wide_step(a, b, dims, &cfg, ll);
                     let mut got = a.clone();
-                    let (mut ua, mut ub) = (vec![0; w * h], vec![0; w * h]);
-                    let mut scratch = vec![0i32; fuse_scratch_len(dims)];
-                    let work = U8Work {
-                        a: &mut ua,
-                        b: &mut ub,
-                        scratch: &mut scratch,
-                    };
-                    fuse_u8(U8Pair::same(&mut got, b, dims), &cfg, ll, work).unwrap();
+                    fuse_u8_alone(U8Pair::same(&mut got, b, dims), &cfg, ll);
                     assert_eq!(got, want, "{w}×{h} images {i} {norm:?} {ll:?}");
                 }
             }
@@ -379,21 +353,13 @@ mod tests {
             for (dst, src) in padded.chunks_mut(stride).zip(img.chunks(w)) {
                 dst[..w].copy_from_slice(src);
             }
-            let (mut ua, mut ub) = (vec![0; w * h], vec![0; w * h]);
-            let mut scratch = vec![0i32; fuse_scratch_len(dims)];
-            let work = U8Work {
-                a: &mut ua,
-                b: &mut ub,
-                scratch: &mut scratch,
-            };
             let pair = U8Pair {
                 a: &mut padded,
                 a_dims: strided,
                 b: &img,
                 b_dims: dims,
             };
-            let cfg = FuseConfig::default();
-            fuse_u8(pair, &cfg, LlWeight::HALF, work).unwrap();
+            fuse_u8_alone(pair, &FuseConfig::default(), LlWeight::HALF);
             for (row, want) in padded.chunks(stride).zip(img.chunks(w)) {
                 assert_eq!(&row[..w], want);
                 assert_eq!(&row[w..], &[9, 9, 9][..row.len() - w]);

@@ -1066,6 +1066,11 @@ mod tests {
 
     /// [`fuse_u8`] of `pair` under `cfg`, LL weighted ½, on work buffers of its own.
     fn fuse_u8_half(pair: U8Pair<'_>, cfg: &FuseConfig) {
+        fuse_u8_alone(pair, cfg, LlWeight::HALF);
+    }
+
+    /// [`fuse_u8`] of `pair` under `cfg` and `ll`, on work buffers of its own.
+    pub(super) fn fuse_u8_alone(pair: U8Pair<'_>, cfg: &FuseConfig, ll: LlWeight) {
         let dims = Dims::new(pair.a_dims.width(), pair.a_dims.height()).unwrap();
         let (mut ua, mut ub) = (vec![0; dims.pixels()], vec![0; dims.pixels()]);
         let mut scratch = vec![0i32; fuse_scratch_len(dims)];
@@ -1074,7 +1079,7 @@ mod tests {
             b: &mut ub,
             scratch: &mut scratch,
         };
-        fuse_u8(pair, cfg, LlWeight::HALF, work).unwrap();
+        fuse_u8(pair, cfg, ll, work).unwrap();
     }
 
     #[test]
@@ -1164,28 +1169,7 @@ mod tests {
     fn fuse_u8_of_extreme_tiles_matches_the_saturating_step() {
         let (w, h) = (64, 24);
         let dims = Dims::new(w, h).unwrap();
-        let patterns: [fn(usize, usize) -> bool; 4] = [
-            |x, y| (x + y) % 2 == 0,
-            |x, _| x % 2 == 0,
-            |_, y| y % 2 == 0,
-            |x, y| (x / 2 + y) % 2 == 0,
-        ];
-        let mut noise = crate::test_bytes(99);
-        let mut images: Vec<Vec<u8>> = patterns
-            .iter()
-            .map(|p| {
-                (0..w * h)
-                    .map(|i| [0, 255][usize::from(p(i % w, i / w))])
-                    .collect()
-            })
-            .collect();
-        for _ in 0..4 {
-            images.push(
-                (0..w * h)
-                    .map(|_| [0, 255][usize::from(noise() > 127)])
-                    .collect(),
-            );
-        }
+        let images = crate::extreme_tiles(w, h, 4, 99);
         for (i, a) in images.iter().enumerate() {
             let b = &images[(i + 3) % images.len()];
             for wavelet in [Wavelet::Haar, Wavelet::Db2] {
