@@ -3,8 +3,8 @@
 
 use super::{
     Ablation, Arith, ByteImages, FuseConfig, ImagePair, LlWeight, ScratchLayout, Sequential,
-    TABLE_WORDS, WindowLayout, WindowMap, fuse_generic, fuse_pair_checked, maps_len, split_maps,
-    split_scratch,
+    StepStart, TABLE_WORDS, WindowLayout, WindowMap, fuse_generic, fuse_pair_checked, maps_len,
+    split_maps, split_scratch,
 };
 use crate::lifting::{self, LevelBounds, bounds::level_bounds};
 use crate::packed::widen_shifted;
@@ -246,13 +246,8 @@ pub fn fuse_u8(
     }
     if takes_lanes(cfg, packed) {
         let images = ((a, a_dims), (b, b_dims));
-        return super::lanes::fuse_one_level(
-            images.0,
-            images.1,
-            parts.maps.space,
-            ll_weight,
-            [work.a, work.b],
-        );
+        let work = [work.a, work.b];
+        return super::lanes::fuse_in_lanes(images.0, images.1, cfg, ll_weight, parts, work);
     }
     let images = ImagePair {
         a: &mut *work.a,
@@ -269,15 +264,8 @@ pub fn fuse_u8(
             b,
             b_dims,
         };
-        return fuse_generic(
-            images,
-            cfg,
-            ll_weight,
-            parts,
-            [None; 2],
-            &Sequential,
-            Some(bytes),
-        );
+        let start = StepStart::level_one([None; 2], Some(bytes));
+        return fuse_generic(images, cfg, ll_weight, parts, start, &Sequential);
     }
     // Without the wavelet the samples are mixed as they are.
     // Every buffer was checked to hold its region above: the zips pair all `h` rows.
@@ -286,7 +274,8 @@ pub fn fuse_u8(
             widen_shifted::<GUARD_BITS>(row, dst_row);
         }
     }
-    fuse_generic(images, cfg, ll_weight, parts, [None; 2], &Sequential, None)?;
+    let start = StepStart::level_one([None; 2], None);
+    fuse_generic(images, cfg, ll_weight, parts, start, &Sequential)?;
     let half = 1 << (GUARD_BITS - 1);
     for (row, fused) in a_dims.rows_mut(a).zip(work.a.chunks_exact(w)) {
         for (d, &v) in row.iter_mut().zip(fused) {
@@ -296,13 +285,13 @@ pub fn fuse_u8(
     Ok(())
 }
 
-/// Whether [`fuse_u8`] runs in 16-bit lanes ([`super::lanes`]): db2 at one level, the
-/// full method, a width that is a multiple of 4.
+/// Whether [`fuse_u8`] runs level 1 in 16-bit lanes ([`super::lanes`]): the full method,
+/// a width that is a multiple of 4, and for more levels than one room for their maps
+/// beside level 1's weights.
 pub(crate) fn takes_lanes(cfg: &FuseConfig, dims: Dims) -> bool {
-    cfg.wavelet == Wavelet::Db2
-        && cfg.levels == 1
-        && cfg.ablation == Ablation::None
+    cfg.ablation == Ablation::None
         && dims.width().is_multiple_of(4)
+        && (cfg.levels == 1 || super::lanes::deeper_maps_fit(cfg.wavelet, dims))
 }
 
 /// Level 1's two window maps of saliency sums ([`WindowLayout`]) of the 8-bit images, into

@@ -23,6 +23,8 @@ pub use integer::{
     GUARD_BITS, U8Pair, U8Work, fuse_pair, fuse_scratch_len, fuse_scratch_words, fuse_u8,
 };
 
+use core::ops::RangeInclusive;
+
 use crate::lifting::{self, Coefficients, LevelBounds, Lift, Saturation};
 use crate::saliency::{LAPLACIAN_TABLE_LEN, SaliencyNorm, row_and_neighbours};
 use crate::{Dims, Error, MAX_LEVELS, Wavelet, simd};
@@ -164,20 +166,19 @@ impl WindowLayout {
 pub(crate) trait Arith: Lift + Send + Sync + core::ops::AddAssign {
     /// The bounds the inverse of a `levels`-deep transform saturates each level to.
     fn inverse_bounds(wavelet: Wavelet, levels: u8) -> [LevelBounds; MAX_LEVELS as usize];
-    /// All inverse levels of a fused `levels`-deep transform of `dims` in `buf`, deepest
-    /// first; `prepare(level, y, row y)` runs on each row of each level's region before
-    /// that level reads it. With `out` the result goes there as bytes
-    /// ([`Lift::to_byte`]) instead of into `buf`.
+    /// The inverse levels `levels` (deepest first) of a fused transform whose level
+    /// `levels.start()` has the input region `dims` in `buf`; `prepare(level, y, row y)`
+    /// runs on each row of each level's region before that level reads it. With `out` the
+    /// result goes there as bytes ([`Lift::to_byte`]) instead of into `buf`.
     fn inverse(
         wavelet: Wavelet,
-        buf: &mut [Self],
-        dims: Dims,
-        levels: u8,
+        (buf, dims): (&mut [Self], Dims),
+        levels: RangeInclusive<u8>,
         scratch: &mut [Self],
         prepare: &mut impl FnMut(u8, usize, &mut [Self]),
         out: Option<lifting::ByteRows<'_>>,
     ) {
-        let bounds = Self::inverse_bounds(wavelet, levels);
+        let bounds = Self::inverse_bounds(wavelet, *levels.end());
         // Fused coefficients are convex combinations of forward-transform outputs of the
         // same band (weights and the LL mix lie in 0..=1), so within its bound.
         let saturation = Saturation {
@@ -268,6 +269,39 @@ pub(crate) struct ByteImages<'i> {
     pub b_dims: Dims,
 }
 
+/// Where a fuse step starts ([`fuse_generic`]): at level 1 on the images themselves
+/// (with their level-1 `|∇²I|` maxima where the checks found them, and the 8-bit images
+/// to read, where given), or at a deeper level on the LL bands of a level fused
+/// elsewhere ([`lanes`]).
+pub(crate) struct StepStart<'i, T> {
+    /// The level whose input the step's images are.
+    pub level: u8,
+    /// The images' level-1 `|∇²I|` maxima (level 1 only).
+    pub maxima: [Option<T>; 2],
+    /// The 8-bit images behind the buffers (level 1 only).
+    pub bytes: Option<ByteImages<'i>>,
+}
+
+impl<'i, T> StepStart<'i, T> {
+    /// Level 1, with what the checks found and the bytes to read, if any.
+    pub fn level_one(maxima: [Option<T>; 2], bytes: Option<ByteImages<'i>>) -> Self {
+        Self {
+            level: 1,
+            maxima,
+            bytes,
+        }
+    }
+
+    /// Level `level`'s input: LL bands, no bytes.
+    pub fn deeper(level: u8) -> Self {
+        Self {
+            level,
+            maxima: [None, None],
+            bytes: None,
+        }
+    }
+}
+
 /// The checks and the call shared by both paths' public `fuse_pair`, with the scratch laid
 /// out as `layout` says.
 pub(crate) fn fuse_pair_checked<T: Arith>(
@@ -291,7 +325,8 @@ pub(crate) fn fuse_pair_checked<T: Arith>(
     let max_a = T::check_and_max(a, dims, local_max)?;
     let max_b = T::check_and_max(b, dims, local_max)?;
     let images = ImagePair { a, b, dims };
-    fuse_generic(images, cfg, ll_weight, work, [max_a, max_b], join, None)
+    let start = StepStart::level_one([max_a, max_b], None);
+    fuse_generic(images, cfg, ll_weight, work, start, join)
 }
 
 /// Scratch a fuse step needs besides its transform line: one window map per image, each
@@ -704,8 +739,8 @@ simd::kernel! {
     }
 }
 
-/// The fuse step, generic over the path, on two images already validated (with their
-/// level-1 `|∇²I|` `maxima` where the check found them). The shallower levels' bands are
+/// The fuse step, generic over the path, on two images already validated, from the
+/// level `start` says to `cfg.levels`. The shallower levels' bands are
 /// fused as soon as both images are transformed (the deeper levels' maps reuse their maps'
 /// memory); the deepest level's bands are fused in the inverse's sweep, as it first reads
 /// each row, which saves a pass over the image (for one level, a read and a write of all
@@ -716,10 +751,14 @@ pub(crate) fn fuse_generic<T: Arith>(
     cfg: &FuseConfig,
     ll_weight: LlWeight,
     work: Work<'_, T>,
-    maxima: [Option<T>; 2],
+    start: StepStart<'_, T>,
     join: &impl Join,
-    mut bytes: Option<ByteImages<'_>>,
 ) -> Result<(), Error> {
+    let StepStart {
+        level: first,
+        maxima,
+        mut bytes,
+    } = start;
     let ImagePair { a, b, dims } = images;
     let Work {
         mut lines,
@@ -732,7 +771,7 @@ pub(crate) fn fuse_generic<T: Arith>(
     let mut d = dims;
     // Level 1 reads the images' bytes, where given.
     let mut sources = bytes.as_ref().map(|i| [(&*i.a, i.a_dims), (i.b, i.b_dims)]);
-    for level in 1..cfg.levels {
+    for level in first..cfg.levels {
         let level_images = ImagePair {
             a: &mut *a,
             b: &mut *b,
@@ -789,9 +828,8 @@ pub(crate) fn fuse_generic<T: Arith>(
     let out = bytes.take().map(|i| (i.a, i.a_dims));
     T::inverse(
         cfg.wavelet,
-        a,
-        dims,
-        cfg.levels,
+        (a, dims),
+        first..=cfg.levels,
         lines.line,
         &mut fuse_deepest,
         out,
@@ -1082,6 +1120,103 @@ mod tests {
         fuse_u8(pair, cfg, ll, work).unwrap();
     }
 
+    /// The generic step from `level` on the level inputs (LL bands) `images`, on scratch
+    /// laid out as [`fuse_u8`]'s.
+    pub(super) fn fuse_from_level(
+        level: u8,
+        images: ImagePair<'_, i32>,
+        cfg: &FuseConfig,
+        ll: LlWeight,
+    ) {
+        let dims = images.dims;
+        let mut scratch = vec![0i32; fuse_scratch_len(dims)];
+        let layout = ScratchLayout {
+            second_line: false,
+            rings: false,
+            table: false,
+        };
+        let line = lifting::scratch_len(dims);
+        let (work, _) = split_scratch(&mut scratch, line, layout, dims).unwrap();
+        let start = StepStart::deeper(level);
+        fuse_generic(images, cfg, ll, work, start, &Sequential).unwrap();
+    }
+
+    /// The step started at level 2 on two LL₁ bands is the step of one level fewer on
+    /// them as images, with its reference maximum carried down a level
+    /// (`saliency::level_max`): the level count, the saliency's normalization and which
+    /// level mixes LL follow the level the step starts at.
+    #[test]
+    fn a_step_from_level_two_is_the_shallower_step_on_the_ll_bands() {
+        for (w, h) in [(64, 24), (40, 30), (61, 47), (12, 9)] {
+            let dims = Dims::new(w, h).unwrap();
+            let mut images = crate::extreme_tiles(w, h, 1, 5);
+            let mut noise = crate::test_bytes(3);
+            images.push((0..w * h).map(|_| noise()).collect());
+            let band = dims.low_band();
+            let ll = Dims::new(band.width(), band.height()).unwrap();
+            for wavelet in [Wavelet::Haar, Wavelet::Db2] {
+                // An 8-bit image's LL₁ band (no guard bits: within `MAX_SAMPLE`).
+                let ll_of = |img: &[u8]| -> Vec<i32> {
+                    let mut buf: Vec<i32> = img.iter().map(|&v| i32::from(v)).collect();
+                    let mut line = vec![0; lifting::scratch_len(dims)];
+                    lifting::forward_level(wavelet, &mut buf, dims, &mut line);
+                    (0..ll.height())
+                        .flat_map(|y| band.row(&buf, y).unwrap().to_vec())
+                        .collect()
+                };
+                for levels in 2..=3 {
+                    if dims.check_levels(levels).is_err() {
+                        continue;
+                    }
+                    for norm in [SaliencyNorm::Local, SaliencyNorm::Reference(40)] {
+                        let cfg = FuseConfig {
+                            wavelet,
+                            levels,
+                            norm,
+                            ..FuseConfig::default()
+                        };
+                        let carried = match norm {
+                            SaliencyNorm::Reference(_) => SaliencyNorm::Reference(
+                                crate::saliency::level_max(&[], ll, norm, wavelet, 2),
+                            ),
+                            local => local,
+                        };
+                        let shallower = FuseConfig {
+                            levels: levels - 1,
+                            norm: carried,
+                            ..cfg
+                        };
+                        for (i, a) in images.iter().enumerate() {
+                            let b = &images[(i + 2) % images.len()];
+                            let (mut got, mut got_b) = (ll_of(a), ll_of(b));
+                            let pair = ImagePair {
+                                a: &mut got,
+                                b: &mut got_b,
+                                dims: ll,
+                            };
+                            fuse_from_level(2, pair, &cfg, LlWeight(9_000));
+                            let (mut want, mut want_b) = (ll_of(a), ll_of(b));
+                            let mut scratch = vec![0; fuse_scratch_len(ll)];
+                            let weight = LlWeight(9_000);
+                            fuse_pair(&mut want, &mut want_b, ll, &shallower, weight, &mut scratch)
+                                .unwrap();
+                            let what = std::format!("{w}×{h} {wavelet:?} L{levels} {norm:?} {i}");
+                            assert_eq!(got, want, "{what}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Whether `fuse_u8` runs `cfg` on `dims` in lanes and rounds otherwise than the
+    /// 32-bit step there (`lanes::tests`): db2's lifting, and Haar's LL at one level
+    /// weighted other than ½. Haar in lanes otherwise gives the step's bytes.
+    fn lanes_round_otherwise(cfg: &FuseConfig, dims: Dims, ll: LlWeight) -> bool {
+        integer::takes_lanes(cfg, dims)
+            && (cfg.wavelet == Wavelet::Db2 || (cfg.levels == 1 && ll != LlWeight::HALF))
+    }
+
     #[test]
     fn fuse_u8_matches_the_step_on_samples_with_guard_bits() {
         // 8-bit samples with 0/255 dots: Laplacians up to the largest.
@@ -1134,8 +1269,7 @@ mod tests {
                             norm,
                             ..FuseConfig::default()
                         };
-                        // Lanes round otherwise: `lanes::tests`.
-                        if integer::takes_lanes(&cfg, dims) {
+                        if lanes_round_otherwise(&cfg, dims, LlWeight::HALF) {
                             continue;
                         }
                         let mut scratch = vec![0i32; fuse_scratch_len(dims)];
@@ -1179,8 +1313,7 @@ mod tests {
                         levels,
                         ..FuseConfig::default()
                     };
-                    // Lanes round otherwise: `lanes::tests`.
-                    if integer::takes_lanes(&cfg, dims) {
+                    if lanes_round_otherwise(&cfg, dims, LlWeight::HALF) {
                         continue;
                     }
                     let mut scratch = vec![0i32; fuse_scratch_len(dims)];
@@ -1256,8 +1389,7 @@ mod tests {
                                 ..FuseConfig::default()
                             };
                             let ll = LlWeight((random() >> 17) as u16);
-                            // Lanes round otherwise: `lanes::tests`.
-                            if integer::takes_lanes(&cfg, dims) {
+                            if lanes_round_otherwise(&cfg, dims, ll) {
                                 continue;
                             }
                             let mut scratch = vec![0i32; fuse_scratch_len(dims)];

@@ -21,10 +21,12 @@
 
 pub mod bounds;
 mod db2;
-pub(crate) mod db2_lanes;
 #[cfg(any(test, feature = "pywt"))]
 pub mod filter_bank;
 mod haar;
+pub(crate) mod lanes;
+
+use core::ops::RangeInclusive;
 
 use crate::fusion::GUARD_BITS;
 #[cfg(test)]
@@ -174,8 +176,8 @@ impl Lift for i32 {
 }
 
 /// Two samples a word in 16-bit lanes ([`I16x2`]), each product by a Q16 constant and
-/// rounded down on its own (what `SMULWB`/`SMLAWB` give): the db2 level 1 of the 8-bit
-/// fuse step, two samples an instruction on the Cortex-M7 ([`db2_lanes`]). The column
+/// rounded down on its own (what `SMULWB`/`SMLAWB` give): level 1 of the 8-bit fuse
+/// step, two samples an instruction on the Cortex-M7 ([`lanes`]). The column
 /// sweeps run on whole rows of such words through the generic code (two columns a word);
 /// a word holding one sample in both lanes is the scalar version of the same arithmetic.
 /// Every value of that level fits a lane (`docs/numerics.md`), so nothing is saturated.
@@ -185,17 +187,17 @@ impl Lift for I16x2 {
     fn half(self) -> Self {
         self.halving_add(Self::default())
     }
-    type Constants = db2_lanes::Constants;
+    type Constants = lanes::Constants;
     #[inline(always)]
-    fn constants() -> db2_lanes::Constants {
-        core::hint::black_box(db2_lanes::CONSTANTS)
+    fn constants() -> lanes::Constants {
+        core::hint::black_box(lanes::CONSTANTS)
     }
     #[inline(always)]
-    fn sqrt3(self, k: db2_lanes::Constants) -> Self {
+    fn sqrt3(self, k: lanes::Constants) -> Self {
         self.mul_q16(k.sqrt3)
     }
     #[inline(always)]
-    fn predict(s: Self, s_prev: Self, k: db2_lanes::Constants) -> Self {
+    fn predict(s: Self, s_prev: Self, k: lanes::Constants) -> Self {
         s.mul_q16_add(k.a, s_prev, k.b)
     }
     #[inline(always)]
@@ -1117,7 +1119,7 @@ pub(crate) fn inverse_levels<T: Lift>(
     prepare: &mut impl FnMut(u8, usize, &mut [T]),
 ) {
     let hooks = RowHooks { prepare, out: None };
-    inverse_levels_into(wavelet, buf, dims, levels, scratch, saturation, hooks);
+    inverse_levels_into(wavelet, buf, dims, 1..=levels, scratch, saturation, hooks);
 }
 
 /// What an inverse transform does besides lifting: `prepare(level, y, row y)` runs on each
@@ -1131,12 +1133,14 @@ pub(crate) struct RowHooks<'o, P> {
     pub out: Option<ByteRows<'o>>,
 }
 
-/// [`inverse_levels`] with its rows' [`RowHooks`].
+/// [`inverse_levels`] of the levels `levels` (deepest first) of a transform whose level
+/// `levels.start()` has the input region `dims`, with its rows' [`RowHooks`]; entry `k` of
+/// the bounds is level `k + 1`'s, and `prepare` is given each level's number.
 pub(crate) fn inverse_levels_into<T: Lift, P: FnMut(u8, usize, &mut [T])>(
     wavelet: Wavelet,
     buf: &mut [T],
     dims: Dims,
-    levels: u8,
+    levels: RangeInclusive<u8>,
     scratch: &mut [T],
     saturation: Saturation<&[LevelBounds; MAX_LEVELS as usize]>,
     hooks: RowHooks<'_, P>,
@@ -1145,15 +1149,19 @@ pub(crate) fn inverse_levels_into<T: Lift, P: FnMut(u8, usize, &mut [T])>(
         mut prepare,
         mut out,
     } = hooks;
+    let first = *levels.start();
     let sizes = level_sizes(dims);
-    let levels = sizes.iter().zip(saturation.bounds).zip(1..=levels);
-    for ((&d, bounds), level) in levels.rev() {
+    let bounds = saturation
+        .bounds
+        .iter()
+        .skip(usize::from(first.saturating_sub(1)));
+    for ((&d, bounds), level) in sizes.iter().zip(bounds).zip(levels).rev() {
         let mut prepare_level = |y: usize, row: &mut [T]| prepare(level, y, row);
         let level_saturation = Saturation {
             bounds,
             coefficients: saturation.coefficients,
         };
-        let level_out = if level == 1 { out.take() } else { None };
+        let level_out = if level == first { out.take() } else { None };
         inverse_level(
             wavelet,
             buf,

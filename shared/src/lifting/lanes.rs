@@ -1,23 +1,25 @@
-//! db2's level 1 on 8-bit rows in 16-bit lanes ([`I16x2`]): the row pass from bytes and
-//! the inverse row pass to bytes, four samples a word, for rows whose length is a
-//! multiple of 4 (the device's tiles: 320, 160 or 80 pixels). The column passes run on
-//! the same words through the generic sweeps ([`super::db2::forward_columns`],
-//! [`super::db2::inverse_columns`]), two columns a word.
+//! Level 1 of db2 or Haar on 8-bit rows in 16-bit lanes ([`I16x2`]): the row pass from
+//! bytes and the inverse row pass to bytes, four samples a word, for rows whose length is
+//! a multiple of 4 (the device's tiles: 320, 160 or 80 pixels). The column passes run on
+//! the same words through the generic sweeps ([`super::db2`], [`super::haar`]), two
+//! columns a word.
 //!
 //! A row of `4q` bytes is `q` words, each giving the lanes of its even samples
 //! `(e₂ₖ, e₂ₖ₊₁)` and of its odd ones `(o₂ₖ, o₂ₖ₊₁)` (pairs `2k` and `2k + 1`). The
-//! lifting steps run on those pairs of pairs: `s¹ = e + ⌊√3·o⌋`,
+//! lifting steps run on those pairs of pairs. db2: `s¹ = e + ⌊√3·o⌋`,
 //! `d¹ₗ = o − (⌊a·s¹ₗ⌋ + ⌊b·s¹ₗ₋₁⌋)`, `s²ₗ = s¹ₗ − d¹ₗ₊₁`, with `s¹₋₁` and `d¹ₙₕ` mirrored
 //! as in [`super::db2`] (whole-sample symmetric extension), which at a row's ends is a
-//! swap of a word's lanes. The output words hold the low band's coefficients two a word,
-//! then the high band's: the layout of [`super::db2::forward_line`], packed.
+//! swap of a word's lanes. Haar: `d = o − e`, `s = ⌊(e + o)/2⌋` (`SSUB16`, `SHADD16`),
+//! the integer path's arithmetic exactly. The output words hold the low band's
+//! coefficients two a word, then the high band's: the layout of the generic line
+//! passes, packed.
 //!
 //! Same bits as the generic one-sample sweeps run on `I16x2` words holding one sample
 //! (test `lane_rows_are_the_generic_sweep_two_pairs_a_word`).
 
-use super::{ColumnBounds, RowsPrepared, RowsReady, Unsaturated, db2};
-use crate::Dims;
+use super::{ColumnBounds, RowsPrepared, RowsReady, Unsaturated, db2, haar};
 use crate::lanes::I16x2;
+use crate::{Dims, Wavelet};
 
 /// The db2 constants in Q16, the 32-bit operand of `SMULWB`/`SMLAWB`.
 #[derive(Debug, Clone, Copy)]
@@ -37,12 +39,12 @@ pub(crate) const CONSTANTS: Constants = Constants {
     b: -4_390,
 };
 
-/// Forward row pass of `src` (a multiple of 4 bytes, at least 4) into `dst`: the low
-/// band's `len/2` coefficients then the high band's, two a word (`len/2` words). The bytes
-/// take the fusion's guard bits (`GUARD`). Other lengths, or a short `dst`, write nothing
-/// and return `false`.
+/// db2's forward row pass of `src` (a multiple of 4 bytes, at least 4) into `dst`: the
+/// low band's `len/2` coefficients then the high band's, two a word (`len/2` words). The
+/// bytes take the fusion's guard bits (`GUARD`). Other lengths, or a short `dst`, write
+/// nothing and return `false`.
 #[inline(always)]
-pub(crate) fn forward_row_from_bytes<const GUARD: u32>(src: &[u8], dst: &mut [I16x2]) -> bool {
+pub(crate) fn db2_forward_row<const GUARD: u32>(src: &[u8], dst: &mut [I16x2]) -> bool {
     let k = <I16x2 as super::Lift>::constants();
     let (words, []) = src.as_chunks::<4>() else {
         return false;
@@ -80,12 +82,12 @@ pub(crate) fn forward_row_from_bytes<const GUARD: u32>(src: &[u8], dst: &mut [I1
     true
 }
 
-/// Inverse of [`forward_row_from_bytes`]: `src` holds the low band's words then the high
+/// Inverse of [`db2_forward_row`]: `src` holds the low band's words then the high
 /// band's (`len/4` each), `dst` (a multiple of 4 bytes, at least 4) gets the samples
 /// rounded from the guard bits and clamped to bytes ([`I16x2::to_bytes`]). Other lengths,
 /// or a short `src`, write nothing and return `false`.
 #[inline(always)]
-pub(crate) fn inverse_row_to_bytes<const GUARD: u32>(src: &[I16x2], dst: &mut [u8]) -> bool {
+pub(crate) fn db2_inverse_row<const GUARD: u32>(src: &[I16x2], dst: &mut [u8]) -> bool {
     let k = <I16x2 as super::Lift>::constants();
     let (words, []) = dst.as_chunks_mut::<4>() else {
         return false;
@@ -131,38 +133,82 @@ pub(crate) fn inverse_row_to_bytes<const GUARD: u32>(src: &[I16x2], dst: &mut [u
     true
 }
 
-/// The words region of a `w × h` level-1 image in lanes: `w/2` words a row; `None` unless
-/// `w` is a multiple of 4.
-fn word_region(dims: Dims) -> Option<Dims> {
-    let w = dims.width();
-    if !w.is_multiple_of(4) {
-        return None;
+/// Haar's forward row pass, as [`db2_forward_row`]: `d = o − e`, `s = ⌊(e + o)/2⌋`.
+#[inline(always)]
+pub(crate) fn haar_forward_row<const GUARD: u32>(src: &[u8], dst: &mut [I16x2]) -> bool {
+    let (words, []) = src.as_chunks::<4>() else {
+        return false;
+    };
+    let q = words.len();
+    let Some((low, high)) = dst.get_mut(..2 * q).map(|d| d.split_at_mut(q)) else {
+        return false;
+    };
+    for ((w, s), d) in words.iter().zip(low).zip(high) {
+        let [e, o] = I16x2::from_bytes(u32::from_le_bytes(*w));
+        let (e, o) = (e.shl_small(GUARD), o.shl_small(GUARD));
+        *d = o - e;
+        *s = e.halving_add(o);
     }
-    Dims::new(w / 2, dims.height()).ok()
+    q > 0
 }
 
-/// Forward level 1 of the 8-bit image in `src` (laid out as `src_dims` says; its width a
-/// multiple of 4) into `buf`: `h` rows of `w/2` words, in the layout of
+/// Inverse of [`haar_forward_row`], as [`db2_inverse_row`]: `e = s − ⌊d/2⌋`, `o = e + d`.
+#[inline(always)]
+pub(crate) fn haar_inverse_row<const GUARD: u32>(src: &[I16x2], dst: &mut [u8]) -> bool {
+    let (words, []) = dst.as_chunks_mut::<4>() else {
+        return false;
+    };
+    let q = words.len();
+    let Some((low, high)) = src.get(..2 * q).map(|s| s.split_at(q)) else {
+        return false;
+    };
+    for ((out, &s), &d) in words.iter_mut().zip(low).zip(high) {
+        let even = s - d.halving_add(I16x2::default());
+        *out = I16x2::to_bytes::<GUARD>(even, d + even).to_le_bytes();
+    }
+    q > 0
+}
+
+/// The words region of the `w × h` level-1 image laid out as `dims` says in a buffer of
+/// `image_len` bytes, in lanes: `w/2` words a row. `None` unless `w` is a multiple of 4,
+/// the image's buffer holds it and the lanes' buffer (`words_len`) holds the region.
+fn word_region(dims: Dims, image_len: usize, words_len: usize) -> Option<Dims> {
+    let w = dims.width();
+    if !w.is_multiple_of(4) || dims.check_buffer("image", image_len).is_err() {
+        return None;
+    }
+    Dims::new(w / 2, dims.height())
+        .ok()
+        .filter(|region| words_len >= region.pixels())
+}
+
+/// Forward level 1 of `wavelet` of the 8-bit image in `src` (laid out as `src_dims` says;
+/// its width a multiple of 4) into `buf`: `h` rows of `w/2` words, in the layout of
 /// [`crate::geometry`] two coefficients a word (rows `2l` the column-low band: LL words,
 /// then HL; rows `2l + 1` LH, then HH). Each row is lifted from its bytes just before the
 /// column sweep first reads it. Returns `false`, writing nothing, for another width or a
 /// `buf` too short.
 pub(crate) fn forward_from_bytes<const GUARD: u32>(
+    wavelet: Wavelet,
     (src, src_dims): (&[u8], Dims),
     buf: &mut [I16x2],
 ) -> bool {
-    let Some(region) = word_region(src_dims) else {
+    let Some(region) = word_region(src_dims, src.len(), buf.len()) else {
         return false;
     };
-    if buf.len() < region.pixels() || src_dims.check_buffer("image", src.len()).is_err() {
-        return false;
-    }
     let mut row_pass = |y: usize, row: &mut [I16x2]| {
         if let Some(bytes) = src_dims.row(src, y) {
-            forward_row_from_bytes::<GUARD>(bytes, row);
+            match wavelet {
+                Wavelet::Db2 => db2_forward_row::<GUARD>(bytes, row),
+                Wavelet::Haar => haar_forward_row::<GUARD>(bytes, row),
+            };
         }
     };
-    db2::forward_columns(buf, region, &mut RowsReady::new(&mut row_pass));
+    let ready = &mut RowsReady::new(&mut row_pass);
+    match wavelet {
+        Wavelet::Db2 => db2::forward_columns(buf, region, ready),
+        Wavelet::Haar => haar::forward_columns(buf, region, ready),
+    }
     true
 }
 
@@ -172,24 +218,28 @@ pub(crate) fn forward_from_bytes<const GUARD: u32>(
 /// Nothing saturates: the level's values all fit a lane (`docs/numerics.md`). Returns
 /// `false`, writing nothing, for another width or a buffer too short.
 pub(crate) fn inverse_to_bytes<const GUARD: u32>(
+    wavelet: Wavelet,
     buf: &mut [I16x2],
     (dst, dst_dims): (&mut [u8], Dims),
     mut prepare: impl FnMut(usize, &mut [I16x2]),
 ) -> bool {
-    let Some(region) = word_region(dst_dims) else {
+    let Some(region) = word_region(dst_dims, dst.len(), buf.len()) else {
         return false;
     };
-    if buf.len() < region.pixels() || dst_dims.check_buffer("image", dst.len()).is_err() {
-        return false;
-    }
     let mut done = |y: usize, row: &mut [I16x2]| {
         if let Some(bytes) = dst_dims.row_mut(dst, y) {
-            inverse_row_to_bytes::<GUARD>(row, bytes);
+            match wavelet {
+                Wavelet::Db2 => db2_inverse_row::<GUARD>(row, bytes),
+                Wavelet::Haar => haar_inverse_row::<GUARD>(row, bytes),
+            };
         }
     };
     let bounds = ColumnBounds::split_at_half(region.width(), [0, 0], Unsaturated);
     let mut prepared = RowsPrepared::new(&mut prepare, buf, region);
-    db2::inverse_columns(buf, region, bounds, &mut prepared, &mut done);
+    match wavelet {
+        Wavelet::Db2 => db2::inverse_columns(buf, region, bounds, &mut prepared, &mut done),
+        Wavelet::Haar => haar::inverse_columns(buf, region, bounds, &mut prepared, &mut done),
+    }
     true
 }
 
@@ -199,7 +249,6 @@ mod tests {
     use super::*;
     use crate::fusion::GUARD_BITS;
     use crate::lifting::Lift;
-    use crate::lifting::db2::{forward_line_bytes, inverse_line_into};
     use std::vec::Vec;
 
     /// A deterministic row of bytes with edges, flats and noise.
@@ -219,26 +268,50 @@ mod tests {
             .collect()
     }
 
+    /// Both wavelets' lane row passes, forward and inverse.
+    const ROWS: [(Wavelet, Forward, Inverse); 2] = [
+        (
+            Wavelet::Db2,
+            db2_forward_row::<GUARD_BITS>,
+            db2_inverse_row::<GUARD_BITS>,
+        ),
+        (
+            Wavelet::Haar,
+            haar_forward_row::<GUARD_BITS>,
+            haar_inverse_row::<GUARD_BITS>,
+        ),
+    ];
+    type Forward = fn(&[u8], &mut [I16x2]) -> bool;
+    type Inverse = fn(&[I16x2], &mut [u8]) -> bool;
+
     #[test]
     fn lane_rows_are_the_generic_sweep_two_pairs_a_word() {
-        for len in (4..=64).step_by(4).chain([160, 320]) {
-            for seed in 0..20 {
-                let src = row(len, seed);
-                // The generic sweep, one sample a word (both lanes alike).
-                let mut generic = std::vec![I16x2::default(); len];
-                forward_line_bytes::<I16x2>(&src, &mut generic);
-                let mut packed = std::vec![I16x2::default(); len / 2];
-                assert!(forward_row_from_bytes::<GUARD_BITS>(&src, &mut packed));
-                let unpacked: Vec<i16> = packed.iter().flat_map(|w| [w.lo(), w.hi()]).collect();
-                let expected: Vec<i16> = generic.iter().map(|w| w.lo()).collect();
-                assert_eq!(unpacked, expected, "forward, length {len}, seed {seed}");
-                // Back: the generic inverse, and the lanes' to bytes.
-                let mut generic_bytes = std::vec![0u8; len];
-                inverse_line_into(&generic, &mut generic_bytes, |v: I16x2| v.to_byte());
-                let mut bytes = std::vec![0u8; len];
-                assert!(inverse_row_to_bytes::<GUARD_BITS>(&packed, &mut bytes));
-                assert_eq!(bytes, generic_bytes, "inverse, length {len}, seed {seed}");
-                assert_eq!(bytes, src, "round trip, length {len}, seed {seed}");
+        for (wavelet, forward, inverse) in ROWS {
+            for len in (4..=64).step_by(4).chain([160, 320]) {
+                for seed in 0..20 {
+                    let src = row(len, seed);
+                    let what = std::format!("{wavelet:?}, length {len}, seed {seed}");
+                    // The generic sweep, one sample a word (both lanes alike).
+                    let mut generic = std::vec![I16x2::default(); len];
+                    let mut scratch = std::vec![I16x2::default(); len];
+                    super::super::forward_row_from_bytes(wavelet, &src, &mut generic, &mut scratch);
+                    let mut packed = std::vec![I16x2::default(); len / 2];
+                    assert!(forward(&src, &mut packed));
+                    let unpacked: Vec<i16> = packed.iter().flat_map(|w| [w.lo(), w.hi()]).collect();
+                    let expected: Vec<i16> = generic.iter().map(|w| w.lo()).collect();
+                    assert_eq!(unpacked, expected, "forward, {what}");
+                    // Back: the generic inverse, and the lanes' to bytes.
+                    let mut generic_bytes = std::vec![0u8; len];
+                    let put = |v: I16x2| v.to_byte();
+                    match wavelet {
+                        Wavelet::Db2 => db2::inverse_line_into(&generic, &mut generic_bytes, put),
+                        Wavelet::Haar => haar::inverse_line_into(&generic, &mut generic_bytes, put),
+                    }
+                    let mut bytes = std::vec![0u8; len];
+                    assert!(inverse(&packed, &mut bytes));
+                    assert_eq!(bytes, generic_bytes, "inverse, {what}");
+                    assert_eq!(bytes, src, "round trip, {what}");
+                }
             }
         }
     }
@@ -260,42 +333,43 @@ mod tests {
 
     #[test]
     fn a_lane_level_is_the_generic_level_and_comes_back_exactly() {
-        use crate::Wavelet;
         use crate::lifting::{
             Coefficients, Saturation, forward_level_from_bytes, inverse_level, level_bounds,
         };
-        for w in [4, 8, 12, 20, 80, 160] {
+        for (wavelet, w) in [Wavelet::Db2, Wavelet::Haar]
+            .into_iter()
+            .flat_map(|wl| [4, 8, 12, 20, 80, 160].map(|w| (wl, w)))
+        {
             for h in 1..=18 {
                 let dims = Dims::new(w, h).unwrap();
                 let src = tile(w, h, (w * 100 + h) as u32);
                 let mut packed = std::vec![I16x2::default(); w * h / 2];
-                assert!(forward_from_bytes::<GUARD_BITS>((&src, dims), &mut packed));
+                assert!(forward_from_bytes::<GUARD_BITS>(
+                    wavelet,
+                    (&src, dims),
+                    &mut packed
+                ));
                 // The generic level, one sample a word.
                 let mut generic = std::vec![I16x2::default(); w * h];
                 let mut scratch = std::vec![I16x2::default(); w];
-                forward_level_from_bytes(
-                    Wavelet::Db2,
-                    &mut generic,
-                    dims,
-                    &mut scratch,
-                    (&src, dims),
-                );
+                forward_level_from_bytes(wavelet, &mut generic, dims, &mut scratch, (&src, dims));
                 let lanes: Vec<i16> = packed.iter().flat_map(|v| [v.lo(), v.hi()]).collect();
                 let expected: Vec<i16> = generic.iter().map(|v| v.lo()).collect();
-                assert_eq!(lanes, expected, "forward {w}x{h}");
+                assert_eq!(lanes, expected, "{wavelet:?} forward {w}x{h}");
                 // Back to bytes: the generic inverse's, and the tile itself.
                 let mut out = std::vec![0u8; w * h];
                 let mut rows_prepared = 0;
                 assert!(inverse_to_bytes::<GUARD_BITS>(
+                    wavelet,
                     &mut packed,
                     (&mut out, dims),
                     |_, _| { rows_prepared += 1 }
                 ));
-                assert_eq!(rows_prepared, h, "{w}x{h}");
-                let bounds = level_bounds(Wavelet::Db2, 1)[0];
+                assert_eq!(rows_prepared, h, "{wavelet:?} {w}x{h}");
+                let bounds = level_bounds(wavelet, 1)[0];
                 let mut generic_out = std::vec![0u8; w * h];
                 inverse_level(
-                    Wavelet::Db2,
+                    wavelet,
                     &mut generic,
                     dims,
                     &mut scratch,
@@ -306,31 +380,27 @@ mod tests {
                     &mut |_, _| {},
                     Some((&mut generic_out, dims)),
                 );
-                assert_eq!(out, generic_out, "inverse {w}x{h}");
-                assert_eq!(out, src, "round trip {w}x{h}");
+                assert_eq!(out, generic_out, "{wavelet:?} inverse {w}x{h}");
+                assert_eq!(out, src, "{wavelet:?} round trip {w}x{h}");
             }
         }
     }
 
     #[test]
     fn other_lengths_are_refused_untouched() {
-        let mut dst = [I16x2::splat(7); 8];
-        for len in [0, 1, 2, 3, 5, 6, 7] {
-            assert!(!forward_row_from_bytes::<GUARD_BITS>(
-                &row(len, 1),
-                &mut dst
-            ));
+        for (wavelet, forward, inverse) in ROWS {
+            let mut dst = [I16x2::splat(7); 8];
+            for len in [0, 1, 2, 3, 5, 6, 7] {
+                assert!(!forward(&row(len, 1), &mut dst), "{wavelet:?} {len}");
+            }
+            // Too short a destination.
+            assert!(!forward(&row(20, 1), &mut dst), "{wavelet:?}");
+            assert_eq!(dst, [I16x2::splat(7); 8], "{wavelet:?}");
+            let mut bytes = [9u8; 6];
+            assert!(!inverse(&dst, &mut bytes), "{wavelet:?}");
+            assert!(!inverse(&dst[..1], &mut bytes[..4]), "{wavelet:?}");
+            assert_eq!(bytes, [9; 6], "{wavelet:?}");
         }
-        // Too short a destination.
-        assert!(!forward_row_from_bytes::<GUARD_BITS>(&row(20, 1), &mut dst));
-        assert_eq!(dst, [I16x2::splat(7); 8]);
-        let mut bytes = [9u8; 6];
-        assert!(!inverse_row_to_bytes::<GUARD_BITS>(&dst, &mut bytes));
-        assert!(!inverse_row_to_bytes::<GUARD_BITS>(
-            &dst[..1],
-            &mut bytes[..4]
-        ));
-        assert_eq!(bytes, [9; 6]);
     }
 
     #[test]
