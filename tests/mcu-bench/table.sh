@@ -38,10 +38,9 @@ awk -F, '
         printf "| whole pipeline | %d | %.1f (per downsampled pixel) | 1 |\n", frame, per
         split("downsample row_profile refine_shift laplacian_max", names, " ")
         for (i = 1; i <= 4; i++) printf "| %s | %d | %.2f | 1 |\n", names[i], k[names[i]], kp[names[i]]
-        printf "| fuse step, integer (one %d-pixel tile) | %d | %.1f | %.2f |\n", tilepx, fuse, fusepx, obs
-        printf "| … of which forward lifting, one image | %d | %.1f | |\n", k["forward_2d"], kp["forward_2d"]
-        printf "| … of which inverse lifting (saturating every load; the fuse step saturates none) | %d | %.1f | |\n", k["inverse_2d"], kp["inverse_2d"]
-        printf "| the fuse step with max-abs(coefficient) selection: transforms and glue, no saliency | %d | %.1f | |\n", k["fuse_max_high"], kp["fuse_max_high"]
-        printf "| … so saliency maps, weights and blend (the difference of the two rows) | %d | %.1f | |\n", fuse - k["fuse_max_high"], fusepx - kp["fuse_max_high"]
+        printf "| fuse step, integer (one %d-pixel tile; level 1 in 16-bit lanes, level 2 in 32 bits) | %d | %.1f | %.2f |\n", tilepx, fuse, fusepx, obs
+        printf "| 32-bit forward lifting of one image, both levels (lifting::forward_2d) | %d | %.1f | |\n", k["forward_2d"], kp["forward_2d"]
+        printf "| its inverse (lifting::inverse_2d, saturating every load) | %d | %.1f | |\n", k["inverse_2d"], kp["inverse_2d"]
+        printf "| the fuse step with max-abs(coefficient) selection, no saliency (32-bit at both levels: the ablations do not run in lanes) | %d | %.1f | |\n", k["fuse_max_high"], kp["fuse_max_high"]
         printf "| fuse step, f32 on the FPU (same tile) | %d | %.1f | |\n", fuse32, fuse32px
     }' "$csv"
