@@ -151,21 +151,33 @@ fn options(out: &Path, config: Option<DeviceConfig>, record: Option<&Path>) -> O
     }
 }
 
+/// A change to the device's default configuration.
+type Adjust = fn(DeviceConfig) -> DeviceConfig;
+
 #[test]
 fn the_streamed_strip_matches_the_reference_tile_by_tile_and_replays_identically() {
     let scene = letters(14);
     let tmp = std::env::temp_dir().join(format!("rollfuse-link-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
-    for (k, norm) in [NormMode::PerFrame, NormMode::PerTile]
-        .into_iter()
-        .enumerate()
-    {
+    // The device's default both ways of normalizing, and at the camera's full resolution
+    // (where the offset refinement meets the sensor's noise undamped by downsampling).
+    let full_resolution = |d: DeviceConfig| DeviceConfig {
+        levels: 1,
+        downsample: 1,
+        ..d
+    };
+    let runs: [(NormMode, Adjust); 3] = [
+        (NormMode::PerFrame, |d| d),
+        (NormMode::PerTile, |d| d),
+        (NormMode::PerFrame, full_resolution),
+    ];
+    for (k, (norm, config)) in runs.into_iter().enumerate() {
         let (live, replayed) = (tmp.join(format!("live{k}")), tmp.join(format!("replay{k}")));
         let recording = tmp.join(format!("stream{k}.bin"));
         let mut dev = SimDevice::start(&scene).unwrap();
         let cfg = DeviceConfig {
             norm,
-            ..dev.default_config()
+            ..config(dev.default_config())
         };
         let out = stream::run(
             &mut dev,
@@ -186,7 +198,7 @@ fn the_streamed_strip_matches_the_reference_tile_by_tile_and_replays_identically
             assert_eq!(
                 &strip.as_raw()[at..at + tile_bytes],
                 &pixels[..],
-                "tile {index} ({obs} observations) differs from the reference ({norm:?})"
+                "tile {index} ({obs} observations) differs from the reference ({cfg:?})"
             );
         }
         // Interior tiles have all their observations.
