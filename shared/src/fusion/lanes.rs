@@ -1,17 +1,18 @@
 //! The 8-bit fuse step with level 1 in 16-bit lanes: both images' level 1 from their
-//! bytes ([`crate::lifting::lanes`]), the bands blended two coefficients a word, the result back
-//! to bytes; the deeper levels, if any, by the 32-bit step on the two LL₁ bands widened
-//! ([`fuse_generic`] from level 2), narrowed back before the lanes' inverse. What
-//! [`super::fuse_u8`] runs with the full method on images whose width is a multiple of 4
-//! (every device tile); the saliency maps are the same as on the 32-bit path.
+//! bytes ([`crate::lifting::lanes`]), the bands blended two coefficients a word, the
+//! result back to bytes; the deeper levels, if any, by the 32-bit step on the two LL₁
+//! bands widened ([`fuse_generic`] from level 2), narrowed back before the lanes'
+//! inverse. What [`super::fuse_u8`] runs with the full method on images whose width is a
+//! multiple of 4 (every device tile); the saliency maps are the same as on the 32-bit
+//! path.
 //!
-//! Level 1's arithmetic differs from the 32-bit path's in its rounding, not in its method,
-//! and only where the 32-bit path rounds otherwise: db2's lifting products by Q16
-//! constants rounded down ([`crate::lifting::lanes`]); at one level and an LL weight other than
-//! the paper's mean, LL `⌊(1 − w)·a⌋ + ⌊w·b⌋`. Each high-band coefficient is
-//! `b + R(W₁·(a − b))` with `W₁` in Q16 and the paper's mean `⌊(a + b + 1)/2⌋`, as on the
-//! 32-bit path (`R` rounds to nearest, halves up). Haar's lifting is exact in lanes: with
-//! the mean, or more than one level, a Haar step gives the 32-bit path's bytes.
+//! Level 1's arithmetic differs from the 32-bit path's in its rounding, not in its
+//! method, and only where the 32-bit path rounds otherwise: db2's lifting products by Q16
+//! constants rounded down ([`crate::lifting::lanes`]); at one level and an LL weight other
+//! than the paper's mean, LL `⌊(1 − w)·a⌋ + ⌊w·b⌋`. Each high-band coefficient is
+//! `b + R(W₁·(a − b))` with `W₁` in Q16, and the paper's mean `⌊(a + b + 1)/2⌋`, as on
+//! the 32-bit path (`R` rounds to nearest, halves up). Haar's lifting is exact in lanes:
+//! with the mean, or more than one level, a Haar step gives the 32-bit path's bytes.
 
 use super::{
     FuseConfig, ImagePair, LlWeight, Maps, Sequential, StepStart, WindowLayout, Work, fuse_generic,
