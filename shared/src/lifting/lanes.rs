@@ -46,11 +46,7 @@ pub(crate) const CONSTANTS: Constants = Constants {
 #[inline(always)]
 pub(crate) fn db2_forward_row<const GUARD: u32>(src: &[u8], dst: &mut [I16x2]) -> bool {
     let k = <I16x2 as super::Lift>::constants();
-    let (words, []) = src.as_chunks::<4>() else {
-        return false;
-    };
-    let q = words.len();
-    let Some((low, high)) = dst.get_mut(..2 * q).map(|d| d.split_at_mut(q)) else {
+    let Some((words, low, high)) = forward_halves(src, dst) else {
         return false;
     };
     let Some((first, rest)) = words.split_first() else {
@@ -89,11 +85,7 @@ pub(crate) fn db2_forward_row<const GUARD: u32>(src: &[u8], dst: &mut [I16x2]) -
 #[inline(always)]
 pub(crate) fn db2_inverse_row<const GUARD: u32>(src: &[I16x2], dst: &mut [u8]) -> bool {
     let k = <I16x2 as super::Lift>::constants();
-    let (words, []) = dst.as_chunks_mut::<4>() else {
-        return false;
-    };
-    let q = words.len();
-    let Some((low, high)) = src.get(..2 * q).map(|s| s.split_at(q)) else {
+    let Some((low, high, words)) = inverse_halves(src, dst) else {
         return false;
     };
     let unlift = |s: I16x2, s_prev: I16x2, d: I16x2| {
@@ -136,11 +128,7 @@ pub(crate) fn db2_inverse_row<const GUARD: u32>(src: &[I16x2], dst: &mut [u8]) -
 /// Haar's forward row pass, as [`db2_forward_row`]: `d = o − e`, `s = ⌊(e + o)/2⌋`.
 #[inline(always)]
 pub(crate) fn haar_forward_row<const GUARD: u32>(src: &[u8], dst: &mut [I16x2]) -> bool {
-    let (words, []) = src.as_chunks::<4>() else {
-        return false;
-    };
-    let q = words.len();
-    let Some((low, high)) = dst.get_mut(..2 * q).map(|d| d.split_at_mut(q)) else {
+    let Some((words, low, high)) = forward_halves(src, dst) else {
         return false;
     };
     for ((w, s), d) in words.iter().zip(low).zip(high) {
@@ -149,24 +137,51 @@ pub(crate) fn haar_forward_row<const GUARD: u32>(src: &[u8], dst: &mut [I16x2]) 
         *d = o - e;
         *s = e.halving_add(o);
     }
-    q > 0
+    true
 }
 
 /// Inverse of [`haar_forward_row`], as [`db2_inverse_row`]: `e = s − ⌊d/2⌋`, `o = e + d`.
 #[inline(always)]
 pub(crate) fn haar_inverse_row<const GUARD: u32>(src: &[I16x2], dst: &mut [u8]) -> bool {
-    let (words, []) = dst.as_chunks_mut::<4>() else {
-        return false;
-    };
-    let q = words.len();
-    let Some((low, high)) = src.get(..2 * q).map(|s| s.split_at(q)) else {
+    let Some((low, high, words)) = inverse_halves(src, dst) else {
         return false;
     };
     for ((out, &s), &d) in words.iter_mut().zip(low).zip(high) {
         let even = s - d.halving_add(I16x2::default());
         *out = I16x2::to_bytes::<GUARD>(even, d + even).to_le_bytes();
     }
-    q > 0
+    true
+}
+
+/// A row of bytes as words, and the low and high bands' words ([`forward_halves`]).
+type ForwardRow<'r> = (&'r [[u8; 4]], &'r mut [I16x2], &'r mut [I16x2]);
+
+/// The low and high bands' words, and a row of bytes as words ([`inverse_halves`]).
+type InverseRow<'r> = (&'r [I16x2], &'r [I16x2], &'r mut [[u8; 4]]);
+
+/// A forward row pass's operands: the row of `4q` bytes as its `q` words, and the low
+/// and high bands' `q` words each at the front of `dst`. `None` for a row that is not a
+/// multiple of 4 bytes or is empty, or a `dst` too short.
+#[inline(always)]
+fn forward_halves<'r>(src: &'r [u8], dst: &'r mut [I16x2]) -> Option<ForwardRow<'r>> {
+    let (words, []) = src.as_chunks::<4>() else {
+        return None;
+    };
+    let q = words.len();
+    let (low, high) = dst.get_mut(..2 * q)?.split_at_mut(q);
+    (q > 0).then_some((words, low, high))
+}
+
+/// An inverse row pass's operands, as [`forward_halves`]: the low and high bands' `q`
+/// words each at the front of `src`, and the row of `4q` bytes as its `q` words.
+#[inline(always)]
+fn inverse_halves<'r>(src: &'r [I16x2], dst: &'r mut [u8]) -> Option<InverseRow<'r>> {
+    let (words, []) = dst.as_chunks_mut::<4>() else {
+        return None;
+    };
+    let q = words.len();
+    let (low, high) = src.get(..2 * q)?.split_at(q);
+    (q > 0).then_some((low, high, words))
 }
 
 /// The words region of the `w × h` level-1 image laid out as `dims` says in a buffer of
