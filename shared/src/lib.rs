@@ -97,6 +97,16 @@ pub(crate) fn extreme_tiles(w: usize, h: usize, noise: usize, seed: u32) -> Test
     images
 }
 
+/// `img` (`w` bytes a row) in rows of `stride` bytes, the bytes between them `fill`.
+#[cfg(test)]
+pub(crate) fn padded_rows(img: &[u8], w: usize, stride: usize, fill: u8) -> std::vec::Vec<u8> {
+    let mut padded = std::vec![fill; stride * img.len().div_ceil(w.max(1))];
+    for (dst, src) in padded.chunks_mut(stride).zip(img.chunks(w)) {
+        dst[..w].copy_from_slice(src);
+    }
+    padded
+}
+
 /// Images of bytes, for tests.
 #[cfg(test)]
 type TestImages = std::vec::Vec<std::vec::Vec<u8>>;

@@ -503,10 +503,7 @@ mod tests {
         let dims = Dims::new(w, h).unwrap();
         let strided = Dims::with_stride(w, h, stride).unwrap();
         for img in tiles(w, h) {
-            let mut padded = vec![9u8; stride * h];
-            for (dst, src) in padded.chunks_mut(stride).zip(img.chunks(w)) {
-                dst[..w].copy_from_slice(src);
-            }
+            let padded = crate::padded_rows(&img, w, stride, 9);
             for (wavelet, levels) in [(Wavelet::Db2, 1), (Wavelet::Haar, 1), (Wavelet::Db2, 2)] {
                 let cfg = FuseConfig {
                     wavelet,

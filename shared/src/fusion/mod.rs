@@ -1252,10 +1252,7 @@ mod tests {
             let (a, b) = (bytes(w, h, 0), bytes(w, h, 5));
             // `a` again with two bytes of padding after each row.
             let stride = w + 2;
-            let mut padded = vec![7u8; stride * h];
-            for (dst, src) in padded.chunks_mut(stride).zip(a.chunks(w)) {
-                dst[..w].copy_from_slice(src);
-            }
+            let padded = crate::padded_rows(&a, w, stride, 7);
             let strided = Dims::with_stride(w, h, stride).unwrap();
             for wavelet in [Wavelet::Haar, Wavelet::Db2] {
                 for levels in 1..=2 {
