@@ -38,14 +38,10 @@ unsafe impl cortex_m::interrupt::InterruptNumber for Irq {
 static EXECUTOR_HIGH: InterruptExecutor = InterruptExecutor::new();
 
 #[exception]
-unsafe fn SysTick() {
-    time::on_systick();
-}
-
-#[exception]
 unsafe fn DefaultHandler(irqn: i16) {
     match irqn as u16 {
         time::TIMER0_IRQ => time::on_timer0(),
+        time::TIMER1_IRQ => fail("the board clock ran out"),
         // SAFETY: the executor was started on this interrupt before it was enabled.
         ROLLER_IRQ => unsafe { EXECUTOR_HIGH.on_interrupt() },
         _ => fail("unexpected interrupt"),
@@ -132,13 +128,14 @@ async fn main(spawner: Spawner) {
     if cfg!(feature = "touch-guard") {
         stack::touch_guard();
     }
-    time::start(core.SYST);
+    time::start();
     // SAFETY: priorities set before the interrupts are first raised; the alarm's above the
     // roller's executor, as the board's timer is.
     unsafe {
         core.NVIC.set_priority(Irq(time::TIMER0_IRQ), 0x40);
         core.NVIC.set_priority(Irq(ROLLER_IRQ), 0x60);
         NVIC::unmask(Irq(time::TIMER0_IRQ));
+        NVIC::unmask(Irq(time::TIMER1_IRQ));
     }
     let Some(mut controller) = rollfuse_fw::controller() else {
         fail("default configuration refused");

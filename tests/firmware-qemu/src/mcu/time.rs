@@ -3,15 +3,15 @@
 //! instructions as a microsecond, so the tasks see the time a 400 MHz STM32H743 would
 //! (at one instruction a cycle).
 //!
-//! `now` counts SysTick (25 MHz: 10 ticks a board microsecond) wrapping every
-//! millisecond; alarms are one-shot countdowns of the CMSDK APB timer 0 (also 25 MHz),
-//! exact to the tick rather than rounded to SysTick's period.
+//! `now` reads the CMSDK APB timer 1 (25 MHz: 10 ticks a board microsecond) counting down
+//! from `u32::MAX` without reloading, which outlasts any run (429 board seconds; the
+//! timer's interrupt at 0 ends the run). A clock extended by counting SysTick's periods in
+//! its interrupt went back a whole period when read as it wrapped — an alarm set from such
+//! a reading came a millisecond late, and the step lateness measured the clock, not the
+//! firmware. Alarms are one-shot countdowns of timer 0 (also 25 MHz), exact to the tick.
 
 use core::cell::RefCell;
-use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
 use core::task::Waker;
-use cortex_m::peripheral::syst::SystClkSource;
-use cortex_m::peripheral::{SCB, SYST};
 use critical_section::{CriticalSection, Mutex};
 use embassy_time_driver::Driver as _;
 use embassy_time_queue_utils::Queue;
@@ -19,13 +19,13 @@ use embassy_time_queue_utils::Queue;
 /// Timer ticks (25 MHz) per board microsecond (400 instructions at 40 a tick).
 const TICKS_PER_US: u64 = 10;
 
-/// SysTick wraps once a board millisecond.
-const PERIOD_US: u64 = 1000;
-
-/// The CMSDK APB timer 0 and its interrupt.
+/// The CMSDK APB timers: 0 for alarms, 1 for the clock, and their interrupts.
 const TIMER0: usize = 0x4000_0000;
+const TIMER1: usize = 0x4000_1000;
 /// Timer 0's interrupt number.
 pub const TIMER0_IRQ: u16 = 8;
+/// Timer 1's interrupt number: the clock ran out.
+pub const TIMER1_IRQ: u16 = 9;
 const CTRL: usize = 0x00;
 const VALUE: usize = 0x04;
 const RELOAD: usize = 0x08;
@@ -38,7 +38,15 @@ fn timer0(offset: usize, value: u32) {
     unsafe { core::ptr::write_volatile((TIMER0 + offset) as *mut u32, value) }
 }
 
-static PERIODS: AtomicU32 = AtomicU32::new(0);
+fn write_timer1(offset: usize, value: u32) {
+    // SAFETY: a register of the board's timer 1, which only this driver uses.
+    unsafe { core::ptr::write_volatile((TIMER1 + offset) as *mut u32, value) }
+}
+
+fn timer1_value() -> u32 {
+    // SAFETY: timer 1's current value, read-only here.
+    unsafe { core::ptr::read_volatile((TIMER1 + VALUE) as *const u32) }
+}
 
 struct Driver {
     queue: Mutex<RefCell<Queue>>,
@@ -48,18 +56,12 @@ embassy_time_driver::time_driver_impl!(static DRIVER: Driver = Driver {
     queue: Mutex::new(RefCell::new(Queue::new())),
 });
 
-/// Starts the clock: SysTick from the core clock, its interrupt every board millisecond.
-pub fn start(mut syst: SYST) {
-    syst.set_clock_source(SystClkSource::Core);
-    syst.set_reload((PERIOD_US * TICKS_PER_US - 1) as u32);
-    syst.clear_current();
-    syst.enable_interrupt();
-    syst.enable_counter();
-}
-
-/// SysTick: a millisecond went by.
-pub fn on_systick() {
-    PERIODS.fetch_add(1, Relaxed);
+/// Starts the clock: timer 1 counting down from `u32::MAX`.
+pub fn start() {
+    write_timer1(CTRL, 0);
+    write_timer1(RELOAD, u32::MAX);
+    write_timer1(VALUE, u32::MAX);
+    write_timer1(CTRL, CTRL_ENABLE | CTRL_IRQ);
 }
 
 /// Timer 0: an alarm is due.
@@ -98,21 +100,7 @@ impl Driver {
 
 impl embassy_time_driver::Driver for Driver {
     fn now(&self) -> u64 {
-        critical_section::with(|_| {
-            let mut periods = u64::from(PERIODS.load(Relaxed));
-            let mut current = SYST::get_current();
-            // The interrupt is pending from the tick that reached 0 (interrupts are masked
-            // here): read again; past 0 the counter has reloaded and the period ended, at
-            // 0 it is the period's last tick.
-            if SCB::is_pendst_pending() {
-                current = SYST::get_current();
-                if current != 0 {
-                    periods += 1;
-                }
-            }
-            let reload = PERIOD_US * TICKS_PER_US - 1;
-            periods * PERIOD_US + (reload - u64::from(current)) / TICKS_PER_US
-        })
+        u64::from(u32::MAX - timer1_value()) / TICKS_PER_US
     }
 
     fn schedule_wake(&self, at: u64, waker: &Waker) {
