@@ -7,6 +7,7 @@ use crate::counters::COUNTERS;
 use crate::outbox::{self, Kind};
 use crate::signals::{self, STOP_STREAM, STREAM, StreamOrder, TRIGGERS};
 use crate::{frame_clock, fw_info, fw_warn, liveness, roller};
+use embassy_futures::join::join;
 use embassy_futures::select::{Either4, select4};
 use embassy_time::{Duration, Timer, with_timeout};
 use rollfuse_core::device::{
@@ -24,7 +25,8 @@ pub const CAPTURE_TIMEOUT: Duration = Duration::from_millis(150);
 
 /// The camera, as the pipeline uses it.
 pub trait Camera {
-    /// Captures one frame into `frame`; `false` on a DMA or synchronization error.
+    /// Captures one frame into `frame`; `false` on a DMA or synchronization error. The
+    /// capture is armed when the future is first polled.
     fn capture(&mut self, frame: &mut [u32; FRAME_WORDS]) -> impl Future<Output = bool>;
     /// Makes the interface ready for the next capture after one was abandoned.
     fn reset(&mut self);
@@ -160,7 +162,10 @@ async fn wake(streaming: bool) -> Option<Wake> {
 }
 
 /// On a frame trigger while streaming: one snapshot, fused at the belt position of its
-/// first row.
+/// first row. The frame's window is taken out of the camera's buffer before it is fused,
+/// so when the next trigger is already waiting (and no order is), its capture is armed
+/// first and fills the buffer while this frame is fused: a fusion longer than the
+/// sensor's vertical blanking then does not miss the next frame.
 async fn on_trigger(
     session: &mut Session<'_>,
     camera: &mut impl Camera,
@@ -170,12 +175,34 @@ async fn on_trigger(
     if !session.streaming() {
         return;
     }
-    let armed = frame_clock::arm();
-    if !snapshot(camera, frame).await.delivered(&mut Outbox) {
-        return;
+    let mut armed = frame_clock::arm();
+    let mut capture = snapshot(camera, frame).await;
+    while capture.delivered(&mut Outbox) {
+        let position_px = roller::belt_px(armed.frame_start());
+        if !session.take(frame_bytes(frame), &mut Outbox) {
+            return;
+        }
+        if !next_capture_waits() {
+            session.fuse_taken(position_px, &mut Outbox);
+            return;
+        }
+        liveness::beat(liveness::Task::Pipeline);
+        armed = frame_clock::arm();
+        // The capture is armed when first polled, which `join` does before the fusion.
+        let fusion = async {
+            session.fuse_taken(position_px, &mut Outbox);
+        };
+        (capture, ()) = join(snapshot(camera, frame), fusion).await;
     }
-    let position_px = roller::belt_px(armed.frame_start());
-    session.fuse(frame_bytes(frame), position_px, &mut Outbox);
+}
+
+/// Whether a frame trigger is waiting and no order is; if so, the trigger is taken.
+fn next_capture_waits() -> bool {
+    let waits = STREAM.is_empty() && !STOP_STREAM.signaled() && TRIGGERS.try_take().is_some();
+    if waits {
+        roller::trigger_taken();
+    }
+    waits
 }
 
 /// Runs the stream forever on the camera's frames, starting with `initial`.

@@ -197,16 +197,56 @@ fn run_tiles(cfg: PipelineConfig, frames: usize, spacing: usize) -> Vec<(u32, u8
     let mut tiles = Vec::new();
     let mut keep = |t: protocol::Tile<'_>| tiles.push((t.index, t.observations, t.pixels.to_vec()));
     for k in 0..frames {
-        let mut frame = belt_frame(spacing * k, w, h);
-        for (i, v) in frame.iter_mut().enumerate() {
-            let noise = ((i * 2_654_435_761) ^ (k * 40_503)) >> 7 & 15;
-            *v = v.saturating_add(noise as u8);
-        }
+        let frame = noisy_belt_frame(k, spacing, w, h);
         p.push_frame(&frame, (spacing * k) as u64, &mut keep)
             .unwrap();
     }
     p.finish(&mut keep);
     tiles
+}
+
+/// Frame `k` of a textured belt moving `spacing` rows a frame, with noise of its own.
+fn noisy_belt_frame(k: usize, spacing: usize, w: usize, h: usize) -> Vec<u8> {
+    let mut frame = belt_frame(spacing * k, w, h);
+    for (i, v) in frame.iter_mut().enumerate() {
+        let noise = ((i * 2_654_435_761) ^ (k * 40_503)) >> 7 & 15;
+        *v = v.saturating_add(noise as u8);
+    }
+    frame
+}
+
+/// A frame taken, then fused while the next capture overwrites the camera's buffer (as
+/// the firmware overlaps them), gives the tiles of frames pushed whole; a fusion with no
+/// frame taken is refused; a frame taken twice is fused once.
+#[test]
+fn fusing_a_taken_frame_needs_the_camera_buffer_no_more() {
+    let gray = Sensor {
+        format: PixelFormat::Gray8,
+        ..QVGA
+    };
+    let cfg = PipelineConfig::from_wire(&DeviceConfig::default(), gray).unwrap();
+    let spacing = cfg.spacing_px();
+    let mut s = Storage::new(&cfg);
+    let mut p = Pipeline::new(cfg, s.buffers()).unwrap();
+    let mut tiles = Vec::new();
+    let mut keep = |t: protocol::Tile<'_>| tiles.push((t.index, t.observations, t.pixels.to_vec()));
+    assert_eq!(p.fuse_taken(0, &mut keep), Err(FrameError::NothingTaken));
+    let mut camera = noisy_belt_frame(0, spacing, 320, 240);
+    for k in 0..12 {
+        p.take_frame(&camera).unwrap();
+        if k == 3 {
+            p.take_frame(&camera).unwrap();
+        }
+        camera = noisy_belt_frame(k + 1, spacing, 320, 240);
+        p.fuse_taken((spacing * k) as u64, &mut keep).unwrap();
+        assert_eq!(
+            p.fuse_taken((spacing * k) as u64, &mut keep),
+            Err(FrameError::NothingTaken)
+        );
+    }
+    p.finish(&mut keep);
+    assert!(tiles.len() > 4);
+    assert_eq!(tiles, run_tiles(cfg, 12, spacing));
 }
 
 /// The `f32` fuse step in the pipeline: the same tiles, the same observations, pixels

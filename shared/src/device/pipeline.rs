@@ -436,6 +436,8 @@ pub enum FrameError {
     Size(Error),
     /// The belt moved backwards.
     Backwards,
+    /// [`Pipeline::fuse_taken`] without a frame taken since the last fusion.
+    NothingTaken,
 }
 
 /// The device pipeline: frames in, fused tiles out.
@@ -447,6 +449,8 @@ pub struct Pipeline<'a> {
     last: Option<(u64, u64)>,
     /// Which half of `profiles` holds the previous frame's.
     previous_profile_first: bool,
+    /// The size of the band [`Pipeline::take_frame`] took and no fusion used yet.
+    taken: Option<Dims>,
 }
 
 impl<'a> Pipeline<'a> {
@@ -460,6 +464,7 @@ impl<'a> Pipeline<'a> {
             slots: [None; MAX_ACTIVE_TILES],
             last: None,
             previous_profile_first: true,
+            taken: None,
         })
     }
 
@@ -477,6 +482,7 @@ impl<'a> Pipeline<'a> {
         self.slots = [None; MAX_ACTIVE_TILES];
         self.last = None;
         self.previous_profile_first = true;
+        self.taken = None;
         Ok(())
     }
 
@@ -488,38 +494,30 @@ impl<'a> Pipeline<'a> {
 
     /// Takes one camera frame, taken when the commanded belt position was `position_px`
     /// camera pixels from the start of the run, and calls `emit` for every tile it
-    /// completes, in belt order.
+    /// completes, in belt order: [`Self::take_frame`] then [`Self::fuse_taken`].
     pub fn push_frame(
         &mut self,
         camera: &[u8],
         position_px: u64,
-        mut emit: impl FnMut(Tile<'_>),
+        emit: impl FnMut(Tile<'_>),
     ) -> Result<FrameReport, FrameError> {
+        self.take_frame(camera)?;
+        self.fuse_taken(position_px, emit)
+    }
+
+    /// The first half of [`Self::push_frame`]: converts the frame's window band (and its
+    /// row profile) out of `camera` into the pipeline's memory. From its return on the
+    /// camera's buffer is not read again, so the next capture may fill it while
+    /// [`Self::fuse_taken`] runs. A frame taken and not fused is replaced by the next.
+    pub fn take_frame(&mut self, camera: &[u8]) -> Result<(), FrameError> {
+        self.taken = None;
         let cfg = self.cfg;
         let schedule = cfg.schedule();
         let window = schedule.window_top..schedule.window_top + schedule.window_rows;
-        // The band's height: `downsample_rows_profiled` checks it fits the frame.
-        let h = window.len();
-        let f = cfg.downsample as u64;
-        let p = h - 1;
-        // `new` checked the profiles hold two of `p` words (`cfg.memory()`).
-        let profiles_error = FrameError::Size(Error::BufferTooSmall {
-            which: "profiles",
-            needed: 2 * p,
-            got: self.bufs.profiles.len(),
-        });
-        let (first, second) = self
-            .bufs
-            .profiles
-            .split_at_mut_checked(p)
-            .ok_or(profiles_error)?;
-        let second = second.get_mut(..p).ok_or(profiles_error)?;
-        let (previous, current) = if self.previous_profile_first {
-            (&*first, second)
-        } else {
-            (&*second, first)
-        };
-        // The band and its row profile, the profile's sums taken while converting at 1×.
+        let p = window.len().saturating_sub(1);
+        let (_, current) = profile_halves(self.bufs.profiles, p, self.previous_profile_first)?;
+        // The band and its row profile, the profile's sums taken while converting at 1×;
+        // `downsample_rows_profiled` checks the band fits the frame.
         let dims = downsample_rows_profiled(
             camera,
             cfg.sensor.format,
@@ -530,6 +528,25 @@ impl<'a> Pipeline<'a> {
             current,
         )
         .map_err(FrameError::Size)?;
+        self.taken = Some(dims);
+        Ok(())
+    }
+
+    /// The second half of [`Self::push_frame`]: fuses the frame [`Self::take_frame`] took,
+    /// at commanded belt position `position_px`, calling `emit` for every tile it
+    /// completes, in belt order.
+    pub fn fuse_taken(
+        &mut self,
+        position_px: u64,
+        mut emit: impl FnMut(Tile<'_>),
+    ) -> Result<FrameReport, FrameError> {
+        let dims = self.taken.take().ok_or(FrameError::NothingTaken)?;
+        let cfg = self.cfg;
+        let schedule = cfg.schedule();
+        let f = cfg.downsample as u64;
+        let p = schedule.window_rows.saturating_sub(1);
+        let (previous, current) =
+            profile_halves(self.bufs.profiles, p, self.previous_profile_first)?;
         let (offset, shift) = match self.last {
             None => (0, 0),
             Some((offset, commanded_at)) => {
@@ -588,6 +605,7 @@ impl<'a> Pipeline<'a> {
     pub fn finish(&mut self, mut emit: impl FnMut(Tile<'_>)) -> usize {
         let n = self.emit_where(|_| true, &mut emit);
         self.last = None;
+        self.taken = None;
         n
     }
 
@@ -671,6 +689,28 @@ impl<'a> Pipeline<'a> {
             }
         }
     }
+}
+
+/// The previous frame's row profile and the current frame's, `p` words each, in the halves
+/// of `profiles` that `previous_first` names.
+fn profile_halves(
+    profiles: &mut [i32],
+    p: usize,
+    previous_first: bool,
+) -> Result<(&mut [i32], &mut [i32]), FrameError> {
+    // `Pipeline::new` checked the profiles hold two of `p` words (`cfg.memory()`).
+    let error = FrameError::Size(Error::BufferTooSmall {
+        which: "profiles",
+        needed: 2 * p,
+        got: profiles.len(),
+    });
+    let (first, second) = profiles.split_at_mut_checked(p).ok_or(error)?;
+    let second = second.get_mut(..p).ok_or(error)?;
+    Ok(if previous_first {
+        (first, second)
+    } else {
+        (second, first)
+    })
 }
 
 /// Fuses observation `src` into `tile` on the integer path; `work` holds the two work

@@ -213,15 +213,33 @@ impl<'b> Session<'b> {
 
     /// Fuses a delivered camera frame, taken when the commanded belt position was
     /// `position_px` camera pixels from the start of the run, and hands the tiles it
-    /// completes to `outlet`. Does nothing unless streaming. `false` if the host is gone.
+    /// completes to `outlet`: [`Self::take`] then [`Self::fuse_taken`]. Does nothing
+    /// unless streaming. `false` if the host is gone.
     pub fn fuse(&mut self, camera: &[u8], position_px: u64, outlet: &mut impl Outlet) -> bool {
+        !self.take(camera, outlet) || self.fuse_taken(position_px, outlet)
+    }
+
+    /// The first half of [`Self::fuse`]: converts what the pipeline needs of a delivered
+    /// camera frame into the session's memory, after which the camera's buffer is free
+    /// for the next capture. Whether a frame is taken: not unless streaming, nor when it
+    /// is refused (counted).
+    pub fn take(&mut self, camera: &[u8], outlet: &mut impl Outlet) -> bool {
         if !self.streaming {
-            return true;
+            return false;
         }
+        let taken = self.pipeline.take_frame(camera).is_ok();
+        if !taken {
+            outlet.count(Event::FrameRejected);
+        }
+        taken
+    }
+
+    /// The second half of [`Self::fuse`]: fuses the frame [`Self::take`] took, at
+    /// commanded belt position `position_px`, and hands the tiles it completes to
+    /// `outlet`. `false` if the host is gone.
+    pub fn fuse_taken(&mut self, position_px: u64, outlet: &mut impl Outlet) -> bool {
         let mut hand = Hand::new(outlet);
-        let fused = self
-            .pipeline
-            .push_frame(camera, position_px, |t| hand.tile(t));
+        let fused = self.pipeline.fuse_taken(position_px, |t| hand.tile(t));
         hand.outlet.count(match fused {
             Ok(_) => Event::FrameFused,
             Err(_) => Event::FrameRejected,
