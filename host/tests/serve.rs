@@ -492,8 +492,8 @@ fn the_detector_boxes_the_strips_defects_before_the_stream_ends() {
     let status: serde_json::Value =
         serde_json::from_slice(&get(&server, "/status.json").1).unwrap();
     assert_eq!(&status["detector"], summary);
-    // The defects `rollfuse detect --upsample 2` finds on the strip written, each boxed
-    // on the page with its kind (the page's rows are belt rows: the file's from the
+    // The defects `rollfuse detect` finds on the strip written (the device streams the
+    // camera's scale by default), each boxed on the page with its kind (the page's rows are belt rows: the file's from the
     // first tile's).
     let live: Vec<(String, [f64; 4])> = defects
         .iter()
@@ -514,8 +514,6 @@ fn the_detector_boxes_the_strips_defects_before_the_stream_ends() {
     let run = rollfuse(&[
         "detect",
         tmp.path().join("strip.png").to_str().unwrap(),
-        "--upsample",
-        "2",
         "--json",
         tmp.path().join("found.json").to_str().unwrap(),
     ]);

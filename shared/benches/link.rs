@@ -1,7 +1,7 @@
 //! Speed of the device link and the device pipeline on the host: encoding and decoding
 //! tile messages (bytes/s), and one camera frame through the device pipeline at the
-//! default configuration (QVGA YUYV in, 2× downsampled to 160×120, db2, 2 levels,
-//! 16-row tiles, 4 frames per tile).
+//! default configuration (QVGA YUYV in at full resolution, db2, 1 level, 16-row tiles,
+//! 4 frames per tile).
 //!
 //! `cargo bench -p rollfuse-core --bench link`.
 
@@ -11,10 +11,10 @@ use rollfuse_core::protocol::{self, DeviceConfig, DeviceMessage, MAX_MESSAGE, Ti
 use std::hint::black_box;
 
 fn messages(c: &mut Criterion) {
-    let pixels: Vec<u8> = (0..160 * 16).map(|i| (i * 7) as u8).collect();
+    let pixels: Vec<u8> = (0..320 * 16).map(|i| (i * 7) as u8).collect();
     let tile = DeviceMessage::Tile(Tile {
         index: 1234,
-        width: 160,
+        width: 320,
         height: 16,
         observations: 4,
         pixels: &pixels,
@@ -23,11 +23,11 @@ fn messages(c: &mut Criterion) {
     let n = protocol::encode(0, &tile, &mut buf).unwrap();
     let mut group = c.benchmark_group("link");
     group.throughput(Throughput::Bytes(n as u64));
-    group.bench_function("encode tile 160x16", |b| {
+    group.bench_function("encode tile 320x16", |b| {
         b.iter(|| protocol::encode(black_box(7), black_box(&tile), &mut buf).unwrap())
     });
     let encoded = buf[..n].to_vec();
-    group.bench_function("decode tile 160x16", |b| {
+    group.bench_function("decode tile 320x16", |b| {
         b.iter(|| protocol::decode::<DeviceMessage>(black_box(&encoded)).unwrap())
     });
     group.finish();
@@ -51,8 +51,8 @@ fn pipeline(c: &mut Criterion) {
     let frames: Vec<Vec<u8>> = (0..16).map(camera).collect();
     let mut k = 0u64;
     let mut group = c.benchmark_group("device pipeline");
-    group.throughput(Throughput::Elements(160 * 120));
-    group.bench_function("frame 320x240 -> 160x120", |b| {
+    group.throughput(Throughput::Elements(320 * 240));
+    group.bench_function("frame 320x240", |b| {
         b.iter(|| {
             let f = &frames[(k % 16) as usize];
             // Positions keep growing so the belt never runs backwards.

@@ -46,28 +46,30 @@ impl Storage {
 #[test]
 fn the_default_configuration_needs_what_the_formula_says() {
     let cfg = PipelineConfig::from_wire(&DeviceConfig::default(), QVGA).unwrap();
-    let (w, t) = (160, 16);
-    // 16 camera px per frame, 2× downsampled: 8 rows; window 4·8 + 16 − 1 = 47 rows, the
-    // only rows downsampled and profiled.
-    let h = 47;
+    let (w, t) = (320, 16);
+    // 16 camera px per frame at full resolution: 16 rows; window 4·16 + 16 − 1 = 79 rows,
+    // the only rows converted and profiled.
+    let h = 79;
     assert_eq!(cfg.window_rows(), h);
-    assert_eq!(cfg.active_tiles(), 47usize.div_ceil(t) + 1);
+    let active = h.div_ceil(t) + 1;
+    assert_eq!(cfg.active_tiles(), active);
     let m = cfg.memory();
     assert_eq!(m.frame_bytes, w * h);
-    assert_eq!(m.tile_bytes, 4 * t * w);
+    assert_eq!(m.tile_bytes, active * t * w);
     // Two work images, the transform's row of scratch, two maps, two saliency tables.
     assert_eq!(
         m.work_words,
         2 * t * w + w + 2 * (w / 2 + 1) * (t / 2 + 1) + 2 * 1024
     );
     assert_eq!(m.profile_words, 2 * (h - 1));
-    assert_eq!(m.total_bytes(), 53_272);
+    assert_eq!(m.total_bytes(), 118_648);
 
     // The firmware's buffers hold it, and the 2×-downsampled configurations users pick.
     assert!(m.fits(&rollfuse_core::device::MCU_CAPACITY));
-    for (levels, tile_rows, frames_per_tile) in [(1, 16, 4), (3, 32, 6), (2, 8, 3)] {
+    for (levels, tile_rows, frames_per_tile) in [(2, 16, 4), (3, 32, 6), (2, 8, 3)] {
         let wire = DeviceConfig {
             levels,
+            downsample: 2,
             tile_rows,
             frames_per_tile,
             ..DeviceConfig::default()
@@ -363,7 +365,7 @@ fn every_command_is_validated_with_a_reason() {
         (DeviceConfig { tile_rows: 0, ..d }, NakReason::TileRows),
         (
             DeviceConfig {
-                tile_rows: 121,
+                tile_rows: 241,
                 ..d
             },
             NakReason::TileRows,
@@ -377,7 +379,7 @@ fn every_command_is_validated_with_a_reason() {
         ),
         (
             DeviceConfig {
-                frames_per_tile: 14,
+                frames_per_tile: 15,
                 ..d
             },
             NakReason::FramesPerTile,
@@ -460,7 +462,7 @@ fn every_command_is_validated_with_a_reason() {
         .unwrap()
         .with_capacity(default_needs)
         .unwrap();
-    let bigger = DeviceConfig { downsample: 1, ..d };
+    let bigger = DeviceConfig { tile_rows: 32, ..d };
     assert_eq!(
         nak(&mut small, Command::Configure(bigger)),
         NakReason::Memory

@@ -7,7 +7,7 @@
 #
 #   bash tests/mcu-bench/profile.sh [wavelet,levels,downsample,norm,precision]
 #
-# e.g. `db2,1,1,frame,fixed` (the default), `db2,2,2,frame,fixed` (the firmware's default).
+# e.g. `db2,1,1,frame,fixed` (the default), `db2,2,2,frame,fixed` (half resolution).
 # The log of 16 frames of db2 at 1x takes about 320 MB, in target/mcu-profile/ (removed after).
 set -euo pipefail
 spec="${1:-db2,1,1,frame,fixed}"

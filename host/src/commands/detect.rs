@@ -93,8 +93,8 @@ pub struct Args {
     #[arg(long, default_value_t = crate::detect::DEFAULT_THRESHOLD)]
     pub threshold: f32,
     /// Upsample the images N× first (bilinear), for images downsampled from the camera's
-    /// scale, such as `rollfuse stream`'s strips (2× by default); boxes are reported in
-    /// the images' own pixels.
+    /// scale, such as `rollfuse stream`'s strips from a device configured to downsample;
+    /// boxes are reported in the images' own pixels.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=4))]
     pub upsample: u8,
 }

@@ -8,8 +8,9 @@
 //!   single-image baseline; it cannot cover the strip);
 //! - **time splicing**: each row from the frame whose apex is nearest, by the commanded
 //!   motion, blended over 4 rows at the seams;
-//! - **device strip, upsampled**: the virtual device's fused tiles (the firmware's
-//!   pipeline, 2× downsampled) brought back to full resolution bilinearly;
+//! - **device strip**: the virtual device's fused tiles (the firmware's pipeline at its
+//!   default configuration, the camera's full resolution; a downsampled strip would be
+//!   brought back to full resolution bilinearly);
 //! - **contact-window strip**: `rollfuse fuse` on the roll, aligned by matching
 //!   (commanded rows as the prediction), fused over the contact window.
 
@@ -45,9 +46,9 @@ pub fn rolled(scene: &Scene) -> anyhow::Result<Scene> {
     Ok(s)
 }
 
-/// The virtual device's strip of `scene`, upsampled to camera pixels, and the strip row
-/// of its first row.
-fn device_strip(scene: &Scene, sim: &Simulator) -> anyhow::Result<(i64, Planes)> {
+/// The virtual device's strip of `scene` at its default configuration, upsampled to camera
+/// pixels, the strip row of its first row, and the device's downsampling factor.
+fn device_strip(scene: &Scene, sim: &Simulator) -> anyhow::Result<(i64, Planes, usize)> {
     let tmp = std::env::temp_dir().join(format!("rollfuse-eval-roll-{}", std::process::id()));
     let mut device = SimDevice::start(scene)?;
     let d = usize::from(device.default_config().downsample);
@@ -74,7 +75,7 @@ fn device_strip(scene: &Scene, sim: &Simulator) -> anyhow::Result<(i64, Planes)>
         let strip = Planes::load(&tmp.join(file))?;
         // Device rows count from the first frame's top, in downsampled rows.
         let origin = sim.strip_row_of_top(sim.frame(0).offset_mm).round() as i64;
-        Ok((origin + first * d as i64, strip.upsampled(d)))
+        Ok((origin + first * d as i64, strip.upsampled(d), d))
     })();
     let _ = std::fs::remove_dir_all(&tmp);
     result
@@ -108,7 +109,7 @@ pub fn evaluate_roll(scene: &Scene, strips: usize) -> anyhow::Result<Vec<Row>> {
         .collect();
     let spliced = splice(&placed, 4)?;
     let splice_first = acq.rows.iter().copied().min().unwrap_or(0);
-    let (device_first, device) = device_strip(&scene, &sim)?;
+    let (device_first, device, d) = device_strip(&scene, &sim)?;
     // Rows every strip and the ideal cover.
     let spans = [
         (host_first, host.height),
@@ -144,7 +145,10 @@ pub fn evaluate_roll(scene: &Scene, strips: usize) -> anyhow::Result<Vec<Row>> {
             &reference,
         )?,
         row(
-            format!("device strip 2×, upsampled ({rows} rows)"),
+            match d {
+                1 => format!("device strip 1× ({rows} rows)"),
+                d => format!("device strip {d}×, upsampled ({rows} rows)"),
+            },
             &crop(&device, device_first)?,
             &reference,
         )?,

@@ -153,7 +153,7 @@ mod tests {
         # rollfuse-mcu-bench format 2\n\
         # section,name,wavelet,levels,downsample,norm,pixels,calls,instructions,per_call,per_pixel,observed_per_call,fits_firmware_ram\n\
         calibration,loop,db2,2,2,frame,1,1,400,40.0,40.00,,\n\
-        pipeline,frame_fixed,db2,2,2,frame,19200,8,22102840,2762855.0,143.90,1.50,1\n\
+        pipeline,frame_fixed,db2,1,1,frame,76800,8,22102840,2762855.0,35.97,1.50,1\n\
         pipeline,frame_f32,haar,1,1,tile,76800,8,42985160,5373145.0,69.96,1.50,0\n";
 
     #[test]

@@ -48,11 +48,12 @@ pub struct Setup {
 }
 
 impl Setup {
-    /// The product's default: db2, 2 levels, 2× downsampling, integer, per frame.
+    /// The product's default: db2, 1 level, the camera's full resolution, integer, per
+    /// frame.
     pub const DEFAULT: Self = Self {
         wavelet: WaveletId::Db2,
-        levels: 2,
-        downsample: 2,
+        levels: 1,
+        downsample: 1,
         precision: Precision::Fixed,
         per_frame: true,
     };

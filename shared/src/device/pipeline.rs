@@ -74,8 +74,8 @@ impl Sensor {
 /// use rollfuse_core::protocol::DeviceConfig;
 ///
 /// let cfg = PipelineConfig::from_wire(&DeviceConfig::default(), CAMERA).unwrap();
-/// assert_eq!(cfg.downsample(), 2);
-/// assert_eq!(cfg.memory().total_bytes(), 53_272);
+/// assert_eq!(cfg.downsample(), 1);
+/// assert_eq!(cfg.memory().total_bytes(), 118_648);
 /// ```
 ///
 /// A validated configuration cannot be changed out of range afterwards:

@@ -68,13 +68,14 @@ pub struct DeviceConfig {
 }
 
 impl Default for DeviceConfig {
-    /// db2, 2 levels, 2× downsampling, 16-row tiles, 4 frames per tile, 16 camera pixels
-    /// between frames, ±2 rows of refinement, per-frame normalization.
+    /// db2, 1 level, the camera's full resolution (no downsampling), 16-row tiles, 4
+    /// frames per tile, 16 camera pixels between frames, ±2 rows of refinement, per-frame
+    /// normalization.
     fn default() -> Self {
         Self {
             wavelet: WaveletId::Db2,
-            levels: 2,
-            downsample: 2,
+            levels: 1,
+            downsample: 1,
             tile_rows: 16,
             frames_per_tile: 4,
             frame_spacing_px: 16,

@@ -41,11 +41,19 @@ pub async fn run(steps: &AtomicU32) {
     Timer::after_millis(500).await;
     let _ = roller::take_worst_lateness();
     let (steps0, fused0) = (steps.load(Relaxed), COUNTERS.frames_fused.load(Relaxed));
+    let (bytes0, window) = (usb::seen().tile_bytes, Instant::now());
     for _ in 0..2 {
         Timer::after_secs(1).await;
         host.send(Command::Status).await;
     }
     let late = roller::take_worst_lateness();
+    let bytes = usb::seen().tile_bytes - bytes0;
+    hprintln!(
+        "usb load: {} bytes of tiles in {} ms, {} kB/s",
+        bytes,
+        window.elapsed().as_millis(),
+        u64::from(bytes) * 1000 / window.elapsed().as_micros().max(1)
+    );
     let mode = if cfg!(feature = "roller-in-thread") {
         "roller in thread mode"
     } else {

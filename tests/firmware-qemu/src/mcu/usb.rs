@@ -32,6 +32,8 @@ const PACKET_TIME: Duration = Duration::from_micros(52);
 pub struct Seen {
     /// Tiles received.
     pub tiles: u32,
+    /// Bytes of the tile messages received, as they crossed the bus.
+    pub tile_bytes: u32,
     /// Commands acknowledged.
     pub acks: u32,
     /// Commands refused.
@@ -57,6 +59,7 @@ struct Host {
 static HOST: Mutex<ThreadModeRawMutex, RefCell<Host>> = Mutex::new(RefCell::new(Host {
     seen: Seen {
         tiles: 0,
+        tile_bytes: 0,
         acks: 0,
         naks: 0,
         bad: 0,
@@ -168,7 +171,10 @@ impl Host {
     fn tally(&mut self, n: usize) {
         let seen = &mut self.seen;
         match protocol::decode::<DeviceMessage>(&self.message[..n]) {
-            Ok((_, DeviceMessage::Tile(_))) => seen.tiles += 1,
+            Ok((_, DeviceMessage::Tile(_))) => {
+                seen.tiles += 1;
+                seen.tile_bytes += n as u32;
+            }
             Ok((_, DeviceMessage::Ack { .. })) => seen.acks += 1,
             Ok((_, DeviceMessage::Nak { .. })) => seen.naks += 1,
             Ok((_, DeviceMessage::Status(s))) => {

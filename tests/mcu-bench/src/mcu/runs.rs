@@ -142,13 +142,7 @@ impl Buffers {
 /// Runs everything, handing each row to `out`. False if any measurement could not run.
 pub fn all(clock: &Clock, out: &mut impl FnMut(&Row)) -> bool {
     let mut b = Buffers::new();
-    let full = Setup {
-        wavelet: WaveletId::Db2,
-        levels: 1,
-        downsample: 1,
-        per_frame: true,
-    };
-    let mut ok = kernels(clock, &mut b, DEFAULT, out) && kernels(clock, &mut b, full, out);
+    let mut ok = kernels(clock, &mut b, DEFAULT, out) && kernels(clock, &mut b, HALF, out);
     for wavelet in [WaveletId::Haar, WaveletId::Db2] {
         for levels in 1..=3 {
             for downsample in [1, 2, 4] {
@@ -287,8 +281,17 @@ fn tile_fuse(clock: &Clock, b: &mut Buffers, setup: Setup, out: &mut impl FnMut(
     true
 }
 
-/// The default configuration: db2, 2 levels, 2× downsampling, per-frame normalization.
+/// The default configuration: db2, 1 level, the camera's full resolution, per-frame
+/// normalization.
 const DEFAULT: Setup = Setup {
+    wavelet: WaveletId::Db2,
+    levels: 1,
+    downsample: 1,
+    per_frame: true,
+};
+
+/// Half resolution for comparison: db2, 2 levels, 2× downsampling, per frame.
+const HALF: Setup = Setup {
     wavelet: WaveletId::Db2,
     levels: 2,
     downsample: 2,
