@@ -37,17 +37,19 @@ def parse(dis_path):
     vpush_re = re.compile(r"\tvpush\s+\{([^}]*)\}")
     sub_re = re.compile(r"\tsub(?:w|\.w)?\s+sp, (?:sp, )?#(\d+)")
     subreg_re = re.compile(r"\tsub(?:\.w)?\s+sp, (?:sp, )?r\d+")
-    call_re = re.compile(r"\t(bl|b\.w)\s+[0-9a-f]+ <([^>+]+)>")
+    call_re = re.compile(r"\t(bl|b\.w)\s+(?:0x)?[0-9a-f]+ <([^>+]+)>")
     blx_re = re.compile(r"\tblx\s+r\d+")
     for line in open(dis_path, encoding="utf-8", errors="replace"):
         line = line.rstrip("\n")
         m = fn_re.match(line)
-        if m:
+        # llvm-objdump also labels ARM mapping symbols (`$t`, `$d`: code and data inside a
+        # function, e.g. after a jump table): they are not functions.
+        if m and not m.group(1).startswith("$"):
             cur = m.group(1)
             frames.setdefault(cur, 0)
             calls.setdefault(cur, set())
             continue
-        if cur is None:
+        if cur is None or m:
             continue
         m = push_re.search(line)
         if m:
