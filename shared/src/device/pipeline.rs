@@ -23,7 +23,7 @@
 use super::downsample::{downsample_rows_profiled, downsampled_dims};
 use super::refine::refine_shift;
 use crate::float;
-use crate::fusion::{LlWeight, U8Pair, U8Work, fuse_scratch_words, fuse_u8};
+use crate::fusion::{ImagePair, LlWeight, U8Pair, U8Work, fuse_scratch_words, fuse_u8};
 use crate::protocol::{DeviceConfig, NakReason, NormMode, PixelFormat, Tile, WaveletId};
 use crate::saliency::laplacian_max_u8;
 use crate::{Ablation, Dims, Error, FuseConfig, LlWeighting, SaliencyNorm, Wavelet};
@@ -753,7 +753,12 @@ fn fuse_tile_f32(
             *d = f32::from(v);
         }
     }
-    float::fuse_pair(fa, fb, dims, cfg, ll, scratch)?;
+    let images = ImagePair {
+        a: &mut *fa,
+        b: fb,
+        dims,
+    };
+    float::fuse_pair_of_bytes(images, cfg, ll, scratch)?;
     for (d, &v) in tile.iter_mut().zip(fa.iter()) {
         // Round half up after clamping (`as` truncates; `f32::round` needs std).
         *d = (v.clamp(0.0, 255.0) + 0.5) as u8;

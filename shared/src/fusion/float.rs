@@ -6,8 +6,8 @@
 //! integer path's rounding.
 
 use crate::fusion::{
-    Arith, FuseConfig, ImagePair, Join, LlWeight, ScratchLayout, Sequential, fuse_pair_checked,
-    rings_len,
+    Arith, FuseConfig, ImagePair, Join, LlWeight, Samples, ScratchLayout, Sequential,
+    fuse_pair_checked, rings_len,
 };
 use crate::lifting::{self, LevelBounds, Lift};
 use crate::saliency::ll_gain_q16;
@@ -440,24 +440,81 @@ pub fn fuse_pair_with<T: Float>(
     ll_weight: LlWeight,
     scratch: &mut [T],
 ) -> Result<(), Error> {
+    let images = ImagePair { a, b, dims };
+    fuse_pair_checked(
+        images,
+        cfg,
+        ll_weight,
+        scratch,
+        layout(Samples::Unchecked),
+        join,
+    )
+}
+
+/// [`fuse_pair`] on two images whose samples the caller converted from bytes (0–255): in
+/// range by construction, so they are not checked again. The result is [`fuse_pair`]'s.
+pub(crate) fn fuse_pair_of_bytes<T: Float>(
+    images: ImagePair<'_, T>,
+    cfg: &FuseConfig,
+    ll_weight: LlWeight,
+    scratch: &mut [T],
+) -> Result<(), Error> {
+    let how = layout(Samples::FromBytes);
+    fuse_pair_checked(images, cfg, ll_weight, scratch, how, &Sequential)
+}
+
+/// The `f32` path's scratch: a second transform line (so `join` can work on both images
+/// at once), the saliency rings where the sweep computes saliency.
+fn layout(samples: Samples) -> (ScratchLayout, Samples) {
     let layout = ScratchLayout {
         second_line: true,
         rings: SALIENCY_IN_SWEEP,
         table: false,
     };
-    fuse_pair_checked(
-        ImagePair { a, b, dims },
-        cfg,
-        ll_weight,
-        scratch,
-        layout,
-        join,
-    )
+    (layout, samples)
 }
 
 #[cfg(test)]
 mod tests {
-    use super::expm1_unit;
+    use super::{expm1_unit, fuse_pair, fuse_pair_of_bytes, fuse_scratch_len};
+    use crate::fusion::{ImagePair, LlWeight};
+    use crate::{Dims, FuseConfig, SaliencyNorm, Wavelet};
+    use std::{vec, vec::Vec};
+
+    /// Images of bytes fuse as any images do: skipping the check changes nothing, with the
+    /// maxima taken (local normalization) or given (a reference), at every depth.
+    #[test]
+    fn images_of_bytes_fuse_as_any_images_do() {
+        let dims = Dims::new(40, 24).unwrap();
+        let bytes = |k: usize| -> Vec<f32> {
+            (0..dims.pixels())
+                .map(|i| f32::from(((i * 37 + k * 11) ^ (i / 40 * 5)) as u8))
+                .collect()
+        };
+        let mut scratch = vec![0f32; fuse_scratch_len(dims)];
+        for (norm, levels, wavelet) in [
+            (SaliencyNorm::Local, 1, Wavelet::Db2),
+            (SaliencyNorm::Reference(180), 2, Wavelet::Db2),
+            (SaliencyNorm::Reference(0), 3, Wavelet::Haar),
+        ] {
+            let cfg = FuseConfig {
+                norm,
+                levels,
+                wavelet,
+                ..FuseConfig::default()
+            };
+            let (mut a, mut b) = (bytes(0), bytes(1));
+            fuse_pair(&mut a, &mut b, dims, &cfg, LlWeight::HALF, &mut scratch).unwrap();
+            let (mut c, mut d) = (bytes(0), bytes(1));
+            let images = ImagePair {
+                a: &mut c,
+                b: &mut d,
+                dims,
+            };
+            fuse_pair_of_bytes(images, &cfg, LlWeight::HALF, &mut scratch).unwrap();
+            assert!(a == c && a != bytes(0), "{cfg:?}");
+        }
+    }
 
     #[test]
     fn expm1_unit_matches_libm() {

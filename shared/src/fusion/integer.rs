@@ -2,9 +2,9 @@
 //! [`crate::lifting`]. This is what the MCU runs.
 
 use super::{
-    Ablation, Arith, ByteImages, FuseConfig, ImagePair, LlWeight, ScratchLayout, Sequential,
-    StepStart, TABLE_WORDS, WindowLayout, WindowMap, fuse_generic, fuse_pair_checked, maps_len,
-    split_maps, split_scratch,
+    Ablation, Arith, ByteImages, FuseConfig, ImagePair, LlWeight, Samples, ScratchLayout,
+    Sequential, StepStart, TABLE_WORDS, WindowLayout, WindowMap, fuse_generic, fuse_pair_checked,
+    maps_len, split_maps, split_scratch,
 };
 use crate::lifting::{self, LevelBounds, bounds::level_bounds};
 use crate::packed::widen_shifted;
@@ -135,7 +135,8 @@ pub fn fuse_pair(
         table: false,
     };
     let images = ImagePair { a, b, dims };
-    fuse_pair_checked(images, cfg, ll_weight, scratch, layout, &Sequential)
+    let how = (layout, Samples::Unchecked);
+    fuse_pair_checked(images, cfg, ll_weight, scratch, how, &Sequential)
 }
 
 /// Fraction bits the 8-bit fusion keeps below the pixel's integer part while it works.

@@ -302,6 +302,16 @@ impl<'i, T> StepStart<'i, T> {
     }
 }
 
+/// What a fuse step's caller knows of its samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Samples {
+    /// Anything: every sample is checked before either image is touched.
+    Unchecked,
+    /// Converted from bytes (0–255): in range by construction, so not checked again (the
+    /// level-1 maxima, where needed, found without the check by the saliency scale).
+    FromBytes,
+}
+
 /// The checks and the call shared by both paths' public `fuse_pair`, with the scratch laid
 /// out as `layout` says.
 pub(crate) fn fuse_pair_checked<T: Arith>(
@@ -309,7 +319,7 @@ pub(crate) fn fuse_pair_checked<T: Arith>(
     cfg: &FuseConfig,
     ll_weight: LlWeight,
     scratch: &mut [T],
-    layout: ScratchLayout,
+    (layout, samples): (ScratchLayout, Samples),
     join: &impl Join,
 ) -> Result<(), Error> {
     let ImagePair { a, b, dims } = images;
@@ -322,8 +332,15 @@ pub(crate) fn fuse_pair_checked<T: Arith>(
     let (work, _) = split_scratch(scratch, crate::lifting::scratch_len(dims), layout, dims)?;
     // Both images are checked before either is touched; the level-1 maxima come along.
     let local_max = cfg.norm == SaliencyNorm::Local && cfg.ablation.uses_saliency();
-    let max_a = T::check_and_max(a, dims, local_max)?;
-    let max_b = T::check_and_max(b, dims, local_max)?;
+    // Images of bytes: no check, and the level-1 maxima are left to the saliency scale.
+    let (max_a, max_b) = if samples == Samples::Unchecked {
+        (
+            T::check_and_max(a, dims, local_max)?,
+            T::check_and_max(b, dims, local_max)?,
+        )
+    } else {
+        (None, None)
+    };
     let images = ImagePair { a, b, dims };
     let start = StepStart::level_one([max_a, max_b], None);
     fuse_generic(images, cfg, ll_weight, work, start, join)
@@ -1056,7 +1073,8 @@ mod tests {
                             b: &mut b,
                             dims,
                         };
-                        fuse_pair_checked(images, &cfg, half, &mut scratch, layout, seq).unwrap();
+                        let how = (layout, Samples::Unchecked);
+                        fuse_pair_checked(images, &cfg, half, &mut scratch, how, seq).unwrap();
                         a
                     };
                     let (swept, apart) = (fused(true), fused(false));
