@@ -8,6 +8,8 @@
 #     priority), and the same run with the roller in thread mode, as the firmware once
 #     ran it, is later than that (so the measurement can tell);
 #   - a host that stops reading stops the roller within the heartbeat and 0.5 s;
+#   - the pipeline keeps up with the sensor: at least 57 of the 60 frames it sends in the
+#     two-second window are fused;
 #   - the tiles' USB load while streaming is under half of full speed's bulk rate
 #     (1.23 MB/s in this model: a 64-byte packet every 52 µs);
 #   - the final status of the session arrived and every task kept beating;
@@ -57,7 +59,7 @@ cat "$out/report.txt"
 
 awk '
     /^stack high-water:/ { used = $3; size = $6 }
-    /^step lateness:/ { late = $4 }
+    /^step lateness:/ { late = $4; fused = $10 }
     /^usb load:/ { load = $(NF - 1) }
     /^as the firmware once ran it, step lateness:/ { thread_late = $9 }
     /^host gone: roller stopped/ { stopped_ms = $5; heartbeat_ms = $12 + 0 }
@@ -70,6 +72,7 @@ awk '
         if (late == "" || late > 50) bad = bad "\n  a step came " late " us late (bound 50 us)"
         if (thread_late == "" || thread_late <= 50) bad = bad "\n  thread mode was not later than the bound: the lateness measurement cannot tell"
         if (stopped_ms == "" || stopped_ms > heartbeat_ms + 500) bad = bad "\n  the roller did not stop within the heartbeat and 0.5 s"
+        if (fused == "" || fused < 57) bad = bad "\n  " fused " frames fused in the window (at least 57 of the 60 the sensor sends)"
         if (load == "" || load > 615) bad = bad "\n  the tiles took " load " kB/s of USB (bound 615 kB/s)"
         if (!ended) bad = bad "\n  the final status did not arrive"
         if (!guarded) bad = bad "\n  reading the stack guard did not fault"
