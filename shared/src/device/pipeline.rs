@@ -760,8 +760,52 @@ fn fuse_tile_f32(
     };
     float::fuse_pair_of_bytes(images, cfg, ll, scratch)?;
     for (d, &v) in tile.iter_mut().zip(fa.iter()) {
-        // Round half up after clamping (`as` truncates; `f32::round` needs std).
-        *d = (v.clamp(0.0, 255.0) + 0.5) as u8;
+        *d = round_to_byte(v);
     }
     Ok(())
+}
+
+/// `v` rounded half up to a byte, saturating: `as` truncates toward zero and saturates
+/// (below 0 and NaN to 0, above 255 to 255), so adding ½ first rounds, with no clamp
+/// needed (`f32::round` needs std).
+#[inline(always)]
+fn round_to_byte(v: f32) -> u8 {
+    (v + 0.5) as u8
+}
+
+#[cfg(test)]
+mod tests {
+    use super::round_to_byte;
+
+    /// Rounding half up needs no clamp: `as` saturates, so every value gives the byte
+    /// clamping first would, from far below 0 to far above 255, the halves, NaN and the
+    /// infinities included.
+    #[test]
+    fn rounding_to_a_byte_saturates_as_a_clamp_would() {
+        let clamped = |v: f32| (v.clamp(0.0, 255.0) + 0.5) as u8;
+        let mut v = -300.0f32;
+        while v <= 600.0 {
+            assert_eq!(round_to_byte(v), clamped(v), "{v}");
+            v += 0.0625;
+        }
+        let edges = [
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            -0.5,
+            -0.49,
+            -0.0,
+            254.49,
+            254.5,
+            255.49,
+            255.5,
+            1e9,
+            -1e9,
+        ];
+        for v in edges {
+            assert_eq!(round_to_byte(v), clamped(v), "{v}");
+        }
+        let rounded = [0.5, 1.49, -3.0, 300.0].map(round_to_byte);
+        assert_eq!(rounded, [1, 1, 0, 255]);
+    }
 }
