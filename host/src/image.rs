@@ -97,6 +97,22 @@ impl Planes {
         }
     }
 
+    /// The gray levels: the one plane of a gray image, the mean of the channels of an RGB
+    /// one.
+    pub fn gray(&self) -> std::borrow::Cow<'_, [f32]> {
+        match self.planes.as_slice() {
+            [only] => std::borrow::Cow::Borrowed(only),
+            planes => {
+                let n = planes.len() as f32;
+                std::borrow::Cow::Owned(
+                    (0..self.width * self.height)
+                        .map(|i| planes.iter().map(|p| p[i]).sum::<f32>() / n)
+                        .collect(),
+                )
+            }
+        }
+    }
+
     /// Rounds and clamps to 8-bit: one byte per pixel (gray) or three interleaved (RGB).
     pub fn to_u8(&self) -> Vec<u8> {
         let n = self.width * self.height;

@@ -70,7 +70,10 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
-            ExitCode::FAILURE
+            match e.downcast_ref::<rollfuse::commands::Untrusted>() {
+                Some(_) => ExitCode::from(rollfuse::commands::Untrusted::EXIT_CODE),
+                None => ExitCode::FAILURE,
+            }
         }
     }
 }

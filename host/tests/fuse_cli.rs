@@ -362,7 +362,8 @@ fn a_roll_given_as_a_folder_becomes_a_strip_with_its_index_and_frame_report() {
     assert!(csv.lines().nth(2).unwrap().contains(",0,matched,"), "{csv}");
     // Every line has the header's fields (the score is empty for the first frame).
     let fields = |line: &str| line.split(',').count();
-    assert!(csv.lines().all(|l| fields(l) == 6), "{csv}");
+    assert!(csv.lines().all(|l| fields(l) == 7), "{csv}");
+    assert_eq!(index["details"]["trusted"], true);
     // Cut into segments of 100 rows: the same rows, in order.
     let seg = tmp.path().join("seg.png");
     let run = fuse(&[

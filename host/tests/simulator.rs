@@ -127,6 +127,7 @@ fn only_listed_effects_run_in_stage_order() {
             "jitter",
             "background",
             "speed",
+            "wander",
         ],
         DOTS,
         "",

@@ -9,9 +9,9 @@ use pyo3::exceptions::PyRuntimeWarning;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rollfuse::fullres::FrameSource;
+use rollfuse::fullres::register::{Placement, TrackParams};
 use rollfuse::fullres::roll::{Bands, StripSink};
 use rollfuse::fullres::strip::{Placing, StripOptions, StripReport, WindowChoice, fuse_strip};
-use rollfuse::fullres::track::{Placement, TrackParams};
 use rollfuse::fullres::window::{Geometry, WindowSource};
 use rollfuse::image::Planes;
 
@@ -106,7 +106,8 @@ impl RollArgs<'_, '_> {
 }
 
 /// Each frame's placement as arrays: row (float64), col (int64), score (float64, NaN
-/// where none) and source (a list of names).
+/// where none), sigma (float64: the step's standard deviation, rows) and source (a list
+/// of names).
 fn placements_dict<'py>(py: Python<'py>, p: &[Placement]) -> PyResult<Bound<'py, PyDict>> {
     let n = p.len();
     let d = PyDict::new(py);
@@ -123,6 +124,10 @@ fn placements_dict<'py>(py: Python<'py>, p: &[Placement]) -> PyResult<Bound<'py,
         .map(|p| p.score.map_or(f64::NAN, f64::from))
         .collect();
     d.set_item("score", owned(py, vec![n], score)?)?;
+    d.set_item(
+        "sigma",
+        owned(py, vec![n], p.iter().map(|p| p.sigma).collect())?,
+    )?;
     let source: Vec<&str> = p.iter().map(|p| p.source.name()).collect();
     d.set_item("source", source)?;
     Ok(d)
@@ -146,8 +151,16 @@ fn report_dict<'py>(
         WindowSource::Default => "default",
     };
     d.set_item("window_source", source)?;
-    d.set_item("matched", r.matched)?;
-    d.set_item("predicted", r.predicted)?;
+    let (matched, predicted, unmatched, predicted_rows) =
+        r.placement.as_ref().map_or((0, 0, 0, 0.0), |p| {
+            (p.matched, p.predicted, p.unmatched, p.predicted_rows)
+        });
+    d.set_item("matched", matched)?;
+    d.set_item("predicted", predicted)?;
+    d.set_item("unmatched", unmatched)?;
+    d.set_item("predicted_rows", predicted_rows)?;
+    d.set_item("trusted", r.doubts.is_empty())?;
+    d.set_item("doubts", r.doubts.clone())?;
     d.set_item("bands", s.bands)?;
     d.set_item("bands_outside_window", s.bands_outside_window)?;
     d.set_item("gap_bands", s.gap_bands)?;
@@ -158,6 +171,18 @@ fn report_dict<'py>(
              band(s) no frame covered (zeros), {} frame(s) wholly behind the strip already \
              fused (out of belt order?)",
             s.bands_outside_window, s.gap_bands, s.frames_behind
+        );
+        PyErr::warn(
+            py,
+            &py.get_type::<PyRuntimeWarning>(),
+            &std::ffi::CString::new(text)?,
+            2,
+        )?;
+    }
+    if !r.doubts.is_empty() {
+        let text = format!(
+            "the frames' placement cannot be trusted: {}",
+            r.doubts.join("; ")
         );
         PyErr::warn(
             py,
@@ -270,7 +295,7 @@ pub fn fuse_roll<'py>(
                 },
             })
         };
-        let on_frame = |_, p: &Placement| {
+        let on_frame = |p: &Placement| {
             placements.push(*p);
             Ok(())
         };

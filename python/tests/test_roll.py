@@ -54,7 +54,9 @@ def test_a_tracked_roll_fuses_as_the_cli_bit_for_bit(cli, simulated, tmp_path, w
     assert summary["window"] == (details["window"]["top"], details["window"]["rows"])
     assert summary["window_source"] == "geometry"
     assert summary["bands"] == details["summary"]["bands"]
-    assert (summary["matched"], summary["predicted"]) == (details["matched"], details["predicted"])
+    placement = details["placement"]
+    assert (summary["matched"], summary["predicted"]) == (placement["matched"], placement["predicted"])
+    assert summary["trusted"] == details["trusted"]
     assert placements["source"] == [r["source"] for r in report]
     assert np.allclose(placements["row"], [float(r["row"]) for r in report], atol=5e-4)
     assert placements["col"].tolist() == [int(r["col"]) for r in report]

@@ -4,7 +4,7 @@
 
 use super::{AblationArg, LlWeightingArg, WaveletArg, bars::Bars, check_writable};
 use crate::fullres::align::{Aligned, Match, Offset, TemplateParams, align_chain};
-use crate::fullres::track::Tracker;
+use crate::fullres::register::Tracker;
 use crate::fullres::{Precision, fuse_mosaic_mut};
 use crate::image::Planes;
 use anyhow::{Context, bail, ensure};
@@ -94,6 +94,10 @@ pub struct Args {
     /// (default 0: the belt moves along the frame only).
     #[arg(long, default_value_t = 0)]
     pub max_drift_cols: usize,
+    /// Roll, --align template: exit 0 even when the placement cannot be trusted (the belt
+    /// lost, frames that matched nothing); the strip is written and marked either way.
+    #[arg(long)]
+    pub accept_untrusted: bool,
     /// Bits per sample of the output PNG: 8, or 16 to keep the fused values' fractions.
     #[arg(long, value_enum, default_value = "8")]
     pub out_bits: OutBits,
@@ -117,8 +121,7 @@ pub struct Args {
     /// before the motion is known; default half a frame).
     #[arg(long)]
     pub max_shift: Option<usize>,
-    /// With --align template: the lowest correlation accepted, 0..1 (default: 0.5 for
-    /// a mosaic's frame-to-frame template, 0.3 for a roll's row profiles).
+    /// With --align template: the lowest correlation accepted, 0..1 (default 0.5).
     #[arg(long)]
     pub min_score: Option<f32>,
     /// Remove one part of the method (paper Table II).
@@ -405,8 +408,11 @@ fn plan(args: &Args) -> anyhow::Result<(Plan, &'static str)> {
     }
     let frames = load_frames(&args.frames)?;
     let params = super::fuse_roll::track_params(args, frames[0].height);
-    let mut tracker = Tracker::new(frames[0].width, frames[0].height, params);
-    let rows: Vec<f64> = frames.iter().map(|f| tracker.place(f, None).row).collect();
+    let rows: Vec<f64> = Tracker::place_all(&frames, params)
+        .0
+        .iter()
+        .map(|p| p.row)
+        .collect();
     Ok(if span(&mut rows.into_iter()) >= h {
         (Plan::Roll(Some(frames)), ROLL)
     } else {

@@ -6,10 +6,10 @@ use super::fuse::{
 };
 use super::{bars::progress, check_writable};
 use crate::files::PendingFile;
+use crate::fullres::register::{Placement, Summary, TrackParams};
 use crate::fullres::roll::{Bands, StripSink};
 use crate::fullres::strip::{Placing, StripOptions, StripReport, WindowChoice, fuse_strip};
-use crate::fullres::track::{Placement, TrackParams};
-use crate::fullres::window::Geometry;
+use crate::fullres::window::{Geometry, WindowSource};
 use crate::image::Planes;
 use crate::strip_file::{Segment, StripWriter};
 use anyhow::bail;
@@ -64,6 +64,8 @@ struct Details<'a> {
     mode: &'static str,
     align: &'static str,
     frames_csv: String,
+    /// Whether the frames' placement can be trusted ([`StripReport::doubts`]).
+    trusted: bool,
     #[serde(flatten)]
     report: &'a StripReport,
 }
@@ -76,20 +78,22 @@ pub fn run(args: &Args, loaded: Option<Vec<Planes>>, cfg: &FuseConfig) -> anyhow
     check_outputs(args, &csv_path, &index_path)?;
     let opts = strip_options(args, cfg)?;
     let mut csv = PendingFile::create(&csv_path)?;
-    csv.write_all(b"frame,file,row,col,source,score\n")?;
+    csv.write_all(b"frame,file,row,col,source,score,sigma\n")?;
     let bar = progress(args.frames.len(), "frames", "fusing the roll".into());
     let started = std::time::Instant::now();
     let files = &args.frames;
-    let on_frame = |k: usize, p: &Placement| {
+    let on_frame = |p: &Placement| {
+        let k = p.frame;
         bar.set_position(k as u64 + 1);
         let score = p.score.map(|s| format!("{s:.4}")).unwrap_or_default();
         csv.write_all(
             format!(
-                "{k},{},{:.3},{},{},{score}\n",
+                "{k},{},{:.3},{},{},{score},{:.3}\n",
                 files[k].display(),
                 p.row,
                 p.col,
-                p.source.name()
+                p.source.name(),
+                p.sigma
             )
             .as_bytes(),
         )
@@ -118,12 +122,32 @@ pub fn run(args: &Args, loaded: Option<Vec<Planes>>, cfg: &FuseConfig) -> anyhow
             .unwrap_or_default()
             .to_string_lossy()
             .into_owned(),
+        trusted: report.doubts.is_empty(),
         report: &report,
     };
     csv.commit()?;
     let segments = writer.finish(&details)?;
     print_summary(args, &report, &segments, took, &index_path);
-    Ok(())
+    untrusted(&report, args.accept_untrusted, &index_path)
+}
+
+/// Warns of every doubt about the placement; an error (exit 3) unless `accepted`.
+fn untrusted(report: &StripReport, accepted: bool, index: &Path) -> anyhow::Result<()> {
+    if report.doubts.is_empty() {
+        return Ok(());
+    }
+    for why in &report.doubts {
+        eprintln!("warning: placement: {why}");
+    }
+    if accepted {
+        return Ok(());
+    }
+    Err(crate::commands::Untrusted(format!(
+        "the strip was written but its placement cannot be trusted ({} marks it \
+         \"trusted\": false); --accept-untrusted exits 0 for such a strip",
+        index.display()
+    ))
+    .into())
 }
 
 /// Refuses outputs that cannot be written or would overwrite an input.
@@ -190,7 +214,7 @@ fn fuse_files<S: StripSink>(
     loaded: Option<Vec<Planes>>,
     opts: &StripOptions,
     make_sink: impl FnOnce(usize, usize) -> anyhow::Result<S>,
-    on_frame: impl FnMut(usize, &Placement) -> anyhow::Result<()>,
+    on_frame: impl FnMut(&Placement) -> anyhow::Result<()>,
 ) -> anyhow::Result<(S, StripReport)> {
     match loaded {
         Some(frames) => fuse_strip(frames.into_iter().map(Ok), opts, make_sink, on_frame),
@@ -218,20 +242,22 @@ fn print_summary(args: &Args, r: &StripReport, segments: &[Segment], took: f64, 
         r.window.top,
         r.window.top + r.window.rows,
         r.window.rows,
-        match r.window_source {
-            crate::fullres::window::WindowSource::Option => "--window-rows",
-            crate::fullres::window::WindowSource::Geometry =>
-                "from the roller geometry in the manifest",
-            crate::fullres::window::WindowSource::Measured => "measured on the first frames",
-            crate::fullres::window::WindowSource::Default =>
-                "the middle half: no contact could be measured",
+        match (r.window_source, r.no_contact) {
+            (WindowSource::Option, _) => "--window-rows".to_string(),
+            (WindowSource::Geometry, _) => "from the roller geometry in the manifest".into(),
+            (WindowSource::Measured, _) => format!(
+                "measured on the first {} frames",
+                n.min(crate::fullres::strip::MEASURE_FRAMES)
+            ),
+            (WindowSource::Default, Some(why)) => format!(
+                "the middle half: no contact could be measured on the first frames, {}",
+                why.describe()
+            ),
+            (WindowSource::Default, None) => "the middle half".into(),
         }
     );
-    if args.align == AlignArg::Template {
-        println!(
-            "alignment: {} matched, {} predicted (no texture to match), 1 first",
-            r.matched, r.predicted
-        );
+    if let Some(p) = &r.placement {
+        print_placement(p);
     }
     let s = &r.summary;
     if s.bands_outside_window + s.gap_bands > 0 || s.bands_skipped > 0 {
@@ -268,4 +294,35 @@ fn print_summary(args: &Args, r: &StripReport, segments: &[Segment], took: f64, 
         took,
         1e3 * took / n as f64
     );
+}
+
+/// The placement's sources and what rests on predictions.
+fn print_placement(p: &Summary) {
+    println!(
+        "alignment: {} matched, {} predicted (no texture to match), {} unmatched (texture that \
+         matched nothing), 1 first; {} matches kept, {} dropped as inconsistent{}",
+        p.matched,
+        p.predicted,
+        p.unmatched,
+        p.matches,
+        p.inconsistent,
+        match p.found_again {
+            0 => String::new(),
+            n => format!(", belt found again {n} time(s) by a wide search"),
+        }
+    );
+    if p.travel_rows > 0.0 {
+        let (run, at) = p.longest_guess;
+        println!(
+            "placement: {:.0} of {:.0} rows of travel ({:.1} %) rest on predictions{}",
+            p.predicted_rows,
+            p.travel_rows,
+            100.0 * p.predicted_rows / p.travel_rows,
+            if run > 0 {
+                format!("; the longest run of predicted frames is {run}, from frame {at}")
+            } else {
+                String::new()
+            }
+        );
+    }
 }

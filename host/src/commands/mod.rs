@@ -16,6 +16,25 @@ pub mod tradeoff;
 use clap::ValueEnum;
 use rollfuse_core::{Ablation, LlWeighting, Wavelet};
 
+/// A command wrote its output, but the output rests on evidence it cannot trust (a
+/// roll's placement with the belt lost, say): the process exits with
+/// [`Untrusted::EXIT_CODE`], not 0, unless the user accepted that.
+#[derive(Debug)]
+pub struct Untrusted(pub String);
+
+impl Untrusted {
+    /// The exit code of an untrusted output (1 is any other failure).
+    pub const EXIT_CODE: u8 = 3;
+}
+
+impl std::fmt::Display for Untrusted {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Untrusted {}
+
 /// `--wavelet`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum WaveletArg {

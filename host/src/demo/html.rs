@@ -112,7 +112,7 @@ fn full_resolution(demo: &Demo, dir: &Path) -> anyhow::Result<String> {
     writeln!(
         body,
         "<h2>3. Full-resolution fusion on the host</h2>\n<p>The roll at full resolution: \
-         {} of {} frames matched against the strip aligned so far ({} placed at their \
+         {} of {} frames matched to the frames around them ({} placed at their \
          prediction; largest disagreement with the belt's motion: {} rows), and each band \
          of 32 belt rows fused (db2, one level, f32) from the frames in whose contact \
          window, frame rows {}..{}, it lay; each belt point is seen by about {:.0} frames, \

@@ -411,16 +411,19 @@ fn fuse_full_resolution(
         frames.iter().cloned().map(Ok),
         &opts,
         |_, _| Ok(StripInMemory::default()),
-        |k, p| {
-            disagreement = disagreement.max((p.row.round() as i64 - rows[k]).abs());
+        |p| {
+            disagreement = disagreement.max((p.row.round() as i64 - rows[p.frame]).abs());
             Ok(())
         },
     )?;
     let strip = sink.image.context("the roll gave an empty strip")?;
     let alignment = Alignment {
         frames: frames.len(),
-        matched: report.matched,
-        predicted: report.predicted,
+        matched: report.placement.as_ref().map_or(0, |p| p.matched),
+        predicted: report
+            .placement
+            .as_ref()
+            .map_or(0, |p| p.predicted + p.unmatched),
         max_motion_disagreement: disagreement,
         window: report.window,
     };

@@ -146,7 +146,7 @@ pub fn roll(seed: u64, shape: &RollShape) -> anyhow::Result<Roll> {
         frames.iter().map(|s| Ok(s.image.clone())),
         &opts,
         |_, _| Ok(StripInMemory::default()),
-        |_, _| Ok(()),
+        |_| Ok(()),
     )?;
     let first = sink.first_row.context("the roll fused to nothing")?;
     let image = sink.image.context("the roll fused to nothing")?;

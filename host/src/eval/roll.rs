@@ -94,7 +94,7 @@ pub fn evaluate_roll(scene: &Scene, strips: usize) -> anyhow::Result<Vec<Row>> {
         acq.frames.iter().cloned().map(Ok),
         &opts,
         |_, _| Ok(StripInMemory::default()),
-        |_, _| Ok(()),
+        |_| Ok(()),
     )?;
     let host_first = sink.first_row.context("empty strip")?;
     let host = sink.image.context("empty strip")?;

@@ -8,9 +8,10 @@
 //! later frames fuse with what is there.
 
 pub mod align;
+pub mod contact;
+pub mod register;
 pub mod roll;
 pub mod strip;
-pub mod track;
 pub mod window;
 
 use crate::image::Planes;

@@ -1,19 +1,21 @@
-//! A whole roll into a strip: frames aligned one at a time ([`super::track`]), fused band
-//! by band over the contact window ([`super::roll`]), rows handed to a sink as soon as no
-//! later frame can change them. Memory does not grow with the roll: the frames of one
-//! window, the aligner's ring of four frame heights, and (to measure the window) the
-//! first [`MEASURE_FRAMES`] frames.
+//! A whole roll into a strip: the contact measured on the first frames
+//! ([`super::contact`]), frames placed on the belt ([`super::register`]), fused band by
+//! band over the contact window ([`super::roll`]), rows handed to a sink as soon as no
+//! later frame can change them. Memory does not grow with the roll: the first
+//! [`MEASURE_FRAMES`] frames (to measure the contact), the frames the tracker has not
+//! placed yet ([`super::register::WINDOW`]) and the frames of one contact window.
 
 use super::Precision;
+use super::contact::{ContactProfile, NoContact};
+use super::register::{Placement, Source, Summary, TrackParams, Tracker};
 use super::roll::{Bands, RollFuser, RollSummary, StripSink};
-use super::track::{Placement, Source, TrackParams, Tracker};
 use super::window::{ContactWindow, Geometry, WindowSource};
 use crate::image::Planes;
-use anyhow::{Context, bail};
+use anyhow::{Context, bail, ensure};
 use rollfuse_core::FuseConfig;
+use std::collections::VecDeque;
 
-/// Frames the window is measured over when neither the user nor the geometry gives it.
-pub const MEASURE_FRAMES: usize = 32;
+pub use super::contact::MEASURE_FRAMES;
 
 /// Where the contact window comes from.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -79,205 +81,215 @@ pub struct StripReport {
     pub window: ContactWindow,
     /// Where it came from.
     pub window_source: WindowSource,
+    /// Why the window could not be measured, when it was to be (the middle half was used).
+    pub no_contact: Option<NoContact>,
     /// Bands and rows.
     pub summary: RollSummary,
-    /// Frames placed by a match.
-    pub matched: usize,
-    /// Frames placed at their prediction (no texture to match).
-    pub predicted: usize,
-}
-
-/// The state while frames arrive: the window not yet known (frames buffered), or the
-/// fuser running.
-enum Stage<S: StripSink> {
-    Measuring(Vec<(usize, (i64, i64), Planes)>),
-    Fusing(Box<RollFuser<S>>),
+    /// What the frames' placement rests on (absent when the commanded rows are taken as
+    /// they are).
+    pub placement: Option<Summary>,
+    /// Why the placement cannot be trusted; empty when it can.
+    pub doubts: Vec<String>,
 }
 
 /// Fuses a roll. `frames` yields decoded frames in acquisition order; `make_sink(width,
-/// channels)` opens the output once the first frame's size is known; `on_frame(k,
-/// placement)` sees every frame's placement (for a report) as it is made.
+/// channels)` opens the output once the first frame's size is known; `on_frame(placement)`
+/// sees every frame's placement (for a report) once it is final, in roll order.
+///
+/// The first [`MEASURE_FRAMES`] frames are read before any is placed: the contact profile
+/// (the frame-fixed background and where features are visible) is measured on them.
 pub fn fuse_strip<S: StripSink>(
     frames: impl IntoIterator<Item = anyhow::Result<Planes>>,
     opts: &StripOptions,
     make_sink: impl FnOnce(usize, usize) -> anyhow::Result<S>,
-    mut on_frame: impl FnMut(usize, &Placement) -> anyhow::Result<()>,
+    mut on_frame: impl FnMut(&Placement) -> anyhow::Result<()>,
 ) -> anyhow::Result<(S, StripReport)> {
-    let mut frames = frames.into_iter().enumerate();
-    let Some((_, first)) = frames.next() else {
+    let mut frames = frames.into_iter();
+    let mut head = Vec::with_capacity(MEASURE_FRAMES);
+    for frame in frames.by_ref() {
+        head.push(frame?);
+        if head.len() == MEASURE_FRAMES {
+            break;
+        }
+    }
+    let Some(first) = head.first() else {
         bail!("no frames to fuse");
     };
-    let first = first?;
-    let (w, h, channels) = (first.width, first.height, first.planes.len());
-    let mut tracker = match &opts.placing {
-        Placing::Track { params, .. } => Some(Tracker::new(
-            w,
-            h,
-            params.unwrap_or_else(|| TrackParams::for_height(h)),
-        )),
-        Placing::Commanded(_) => None,
-    };
-    let mut fusion = Fusion::new(opts, (w, h, channels), make_sink(w, channels)?)?;
-    let (mut matched, mut predicted) = (0, 0);
-    for (k, frame) in std::iter::once((0, Ok(first))).chain(frames) {
-        let frame = frame?;
-        let placement = place(&opts.placing, tracker.as_mut(), k, &frame)?;
-        match placement.source {
-            Source::Matched => matched += 1,
-            Source::Predicted => predicted += 1,
-            Source::First | Source::Manifest => {}
-        }
-        on_frame(k, &placement)?;
-        fusion.push(k, (placement.row.round() as i64, placement.col), frame)?;
+    let shape = (first.width, first.height, first.planes.len());
+    for (k, f) in head.iter().enumerate() {
+        same_shape(k, f, shape)?;
     }
-    let (sink, window, window_source, summary) = fusion.finish()?;
+    let profile = ContactProfile::measure(&head.iter().collect::<Vec<_>>());
+    let (window, window_source, no_contact) = choose_window(&opts.window, &profile);
+    let mut fuser = RollFuser::new(
+        make_sink(shape.0, shape.2)?,
+        shape,
+        window,
+        opts.bands,
+        &opts.cfg,
+        opts.precision,
+    )?;
+    let mut placer = Placer::new(&opts.placing, &profile);
+    let mut take = |placed: Vec<(Placement, Planes)>| -> anyhow::Result<()> {
+        for (p, image) in placed {
+            on_frame(&p)?;
+            fuser.push(p.frame, (p.row.round() as i64, p.col), image)?;
+        }
+        Ok(())
+    };
+    for (k, frame) in head.into_iter().map(Ok).chain(frames).enumerate() {
+        let frame = frame?;
+        same_shape(k, &frame, shape)?;
+        take(placer.push(k, frame)?)?;
+    }
+    take(placer.finish())?;
+    let (placement, frames_seen) = placer.summary();
+    let doubts = placement
+        .as_ref()
+        .map(|s| s.doubts(frames_seen))
+        .unwrap_or_default();
+    let window = fuser.window();
+    let (sink, summary) = fuser.finish()?;
     Ok((
         sink,
         StripReport {
             window,
             window_source,
+            no_contact,
             summary,
-            matched,
-            predicted,
+            placement,
+            doubts,
         },
     ))
 }
 
-/// Where frame `k` goes: tracked (its commanded row, if any, as the prediction) or where
-/// it was commanded.
-fn place(
-    placing: &Placing,
-    tracker: Option<&mut Tracker>,
-    k: usize,
-    frame: &Planes,
-) -> anyhow::Result<Placement> {
-    let commanded = |rows: &Vec<f64>| {
-        rows.get(k)
-            .copied()
-            .with_context(|| format!("frame {k} has no commanded row"))
+/// Refuses frame `k` unless it is `width × height` with `channels` planes.
+fn same_shape(k: usize, f: &Planes, (w, h, c): (usize, usize, usize)) -> anyhow::Result<()> {
+    ensure!(
+        (f.width, f.height, f.planes.len()) == (w, h, c),
+        "frame {k} is {}×{} with {} channels; the roll's frames are {w}×{h} with {c}",
+        f.width,
+        f.height,
+        f.planes.len()
+    );
+    Ok(())
+}
+
+/// The window `choice` names, where it came from, and why it could not be measured.
+fn choose_window(
+    choice: &WindowChoice,
+    profile: &ContactProfile,
+) -> (ContactWindow, WindowSource, Option<NoContact>) {
+    let h = profile.height;
+    let measured = || match profile.window {
+        Ok(win) => (win, WindowSource::Measured, None),
+        Err(why) => (
+            ContactWindow::default_for(h),
+            WindowSource::Default,
+            Some(why),
+        ),
     };
-    Ok(match (placing, tracker) {
-        (Placing::Track { commanded: c, .. }, Some(t)) => {
-            let c = c.as_ref().map(commanded).transpose()?;
-            t.place(frame, c)
-        }
-        (Placing::Commanded(rows), _) => Placement {
-            row: commanded(rows)?,
-            source: Source::Manifest,
-            score: None,
-            col: 0,
+    match choice {
+        WindowChoice::Rows(rows) => (
+            ContactWindow::centred(h as f64 / 2.0, *rows, h),
+            WindowSource::Option,
+            None,
+        ),
+        WindowChoice::Geometry(g) => match ContactWindow::from_geometry(g, h) {
+            Some(win) => (win, WindowSource::Geometry, None),
+            None => measured(),
         },
-        (Placing::Track { .. }, None) => bail!("no aligner"),
-    })
+        WindowChoice::Measure => measured(),
+    }
 }
 
-/// The fusion as placed frames arrive; the window measured on the first frames when
-/// neither the options nor the roller's geometry give it.
-struct Fusion<'o, S: StripSink> {
-    opts: &'o StripOptions,
-    /// Width, height and channels of the frames.
-    shape: (usize, usize, usize),
-    /// The output, until the fuser takes it.
-    sink: Option<S>,
-    window_source: WindowSource,
-    stage: Stage<S>,
+/// Places frames: by the tracker (frames wait until their placement is final) or at
+/// their commanded rows.
+enum Placer {
+    Track {
+        tracker: Box<Tracker>,
+        commanded: Option<Vec<f64>>,
+        waiting: VecDeque<Planes>,
+        pushed: usize,
+    },
+    Commanded(Vec<f64>),
 }
 
-impl<'o, S: StripSink> Fusion<'o, S> {
-    fn new(opts: &'o StripOptions, shape: (usize, usize, usize), sink: S) -> anyhow::Result<Self> {
-        let h = shape.1;
-        let (window, window_source) = match opts.window {
-            WindowChoice::Rows(rows) => (
-                Some(ContactWindow::centred(h as f64 / 2.0, rows, h)),
-                WindowSource::Option,
-            ),
-            WindowChoice::Geometry(g) => match ContactWindow::from_geometry(&g, h) {
-                Some(win) => (Some(win), WindowSource::Geometry),
-                None => (None, WindowSource::Measured),
+impl Placer {
+    fn new(placing: &Placing, profile: &ContactProfile) -> Self {
+        match placing {
+            Placing::Track { params, commanded } => Placer::Track {
+                tracker: Box::new(Tracker::new(
+                    profile,
+                    params.unwrap_or_else(|| TrackParams::for_height(profile.height)),
+                )),
+                commanded: commanded.clone(),
+                waiting: VecDeque::new(),
+                pushed: 0,
             },
-            WindowChoice::Measure => (None, WindowSource::Measured),
-        };
-        let mut fusion = Self {
-            opts,
-            shape,
-            sink: Some(sink),
-            window_source,
-            stage: Stage::Measuring(Vec::new()),
-        };
-        if let Some(win) = window {
-            fusion.stage = Stage::Fusing(Box::new(fusion.start(win)?));
+            Placing::Commanded(rows) => Placer::Commanded(rows.clone()),
         }
-        Ok(fusion)
     }
 
-    /// The fuser over `window`, writing to the sink.
-    fn start(&mut self, window: ContactWindow) -> anyhow::Result<RollFuser<S>> {
-        let o = self.opts;
-        let sink = self.sink.take().context("sink")?;
-        RollFuser::new(sink, self.shape, window, o.bands, &o.cfg, o.precision)
-    }
-
-    /// The fuser over the window measured on `held`, fed them.
-    fn start_measured(
-        &mut self,
-        held: Vec<(usize, (i64, i64), Planes)>,
-    ) -> anyhow::Result<RollFuser<S>> {
-        let win = measured(&held, &mut self.window_source, self.shape.1);
-        feed(self.start(win)?, held)
-    }
-
-    /// Frame `k` placed at `at`: fused, or held until enough frames measure the window.
-    fn push(&mut self, k: usize, at: (i64, i64), frame: Planes) -> anyhow::Result<()> {
-        match &mut self.stage {
-            Stage::Fusing(fuser) => fuser.push(k, at, frame),
-            Stage::Measuring(held) => {
-                held.push((k, at, frame));
-                if held.len() >= MEASURE_FRAMES {
-                    let held = std::mem::take(held);
-                    self.stage = Stage::Fusing(Box::new(self.start_measured(held)?));
-                }
-                Ok(())
+    /// Frame `k`; the frames whose placement is now final, with it.
+    fn push(&mut self, k: usize, frame: Planes) -> anyhow::Result<Vec<(Placement, Planes)>> {
+        let commanded_row = |rows: &[f64]| {
+            rows.get(k)
+                .copied()
+                .with_context(|| format!("frame {k} has no commanded row"))
+        };
+        match self {
+            Placer::Track {
+                tracker,
+                commanded,
+                waiting,
+                pushed,
+            } => {
+                let c = commanded.as_deref().map(commanded_row).transpose()?;
+                let placed = tracker.push(&frame, c);
+                waiting.push_back(frame);
+                *pushed += 1;
+                Ok(pair(placed, waiting))
+            }
+            Placer::Commanded(rows) => {
+                let placement = Placement {
+                    frame: k,
+                    row: commanded_row(rows)?,
+                    source: Source::Manifest,
+                    score: None,
+                    sigma: 0.0,
+                    col: 0,
+                };
+                Ok(vec![(placement, frame)])
             }
         }
     }
 
-    /// The sink, the window used and where it came from, and the fusion's summary.
-    fn finish(mut self) -> anyhow::Result<(S, ContactWindow, WindowSource, RollSummary)> {
-        let fuser = match std::mem::replace(&mut self.stage, Stage::Measuring(Vec::new())) {
-            Stage::Fusing(f) => *f,
-            Stage::Measuring(held) => self.start_measured(held)?,
-        };
-        let window = fuser.window();
-        let (sink, summary) = fuser.finish()?;
-        Ok((sink, window, self.window_source, summary))
-    }
-}
-
-/// The window measured on `held`, or the default (and the source says which).
-fn measured(
-    held: &[(usize, (i64, i64), Planes)],
-    source: &mut WindowSource,
-    h: usize,
-) -> ContactWindow {
-    let frames: Vec<&Planes> = held.iter().map(|(_, _, f)| f).collect();
-    match ContactWindow::measure(&frames) {
-        Some(win) => {
-            *source = WindowSource::Measured;
-            win
+    /// The frames still waiting, placed.
+    fn finish(&mut self) -> Vec<(Placement, Planes)> {
+        match self {
+            Placer::Track {
+                tracker, waiting, ..
+            } => pair(tracker.finish(), waiting),
+            Placer::Commanded(_) => Vec::new(),
         }
-        None => {
-            *source = WindowSource::Default;
-            ContactWindow::default_for(h)
+    }
+
+    /// The tracker's summary, if frames were tracked, and the frames seen.
+    fn summary(&self) -> (Option<Summary>, usize) {
+        match self {
+            Placer::Track {
+                tracker, pushed, ..
+            } => (Some(tracker.summary().clone()), *pushed),
+            Placer::Commanded(rows) => (None, rows.len()),
         }
     }
 }
 
-fn feed<S: StripSink>(
-    mut fuser: RollFuser<S>,
-    held: Vec<(usize, (i64, i64), Planes)>,
-) -> anyhow::Result<RollFuser<S>> {
-    for (k, at, frame) in held {
-        fuser.push(k, at, frame)?;
-    }
-    Ok(fuser)
+/// Each placement with its frame, the oldest waiting (placements come in roll order).
+fn pair(placed: Vec<Placement>, waiting: &mut VecDeque<Planes>) -> Vec<(Placement, Planes)> {
+    placed
+        .into_iter()
+        .filter_map(|p| waiting.pop_front().map(|f| (p, f)))
+        .collect()
 }

@@ -10,10 +10,9 @@
 //! - the user (`--window-rows`), centred on the apex row;
 //! - the geometry ([`ContactWindow::from_geometry`]): the rows where the gel surface lies
 //!   within half the press depth of the apex, `|y − apex| ≤ √(R² − (R − p/2)²) / (mm/px)`;
-//! - the frames themselves ([`ContactWindow::measure`]): where along the frame the
-//!   Laplacian's energy, averaged over many frames, stays above half its peak.
-
-use crate::image::Planes;
+//! - the frames themselves ([`super::contact::ContactProfile::measure`]): where along the frame the
+//!   features that move with the belt stand out of the sensor's noise by at least half
+//!   as much as they do at their sharpest.
 
 /// Frame rows `top .. top + rows` in which the belt is in contact.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -82,63 +81,6 @@ impl ContactWindow {
         ))
     }
 
-    /// Measures the window from `frames` (one size): the mean absolute 4-neighbour
-    /// Laplacian of each frame row, averaged over the frames and smoothed over 9 rows,
-    /// above its floor; the window is the run of rows around the peak above half the peak.
-    /// `None` when the frames show no contact that varies along the frame (flat gel, or
-    /// too few frames to average).
-    pub fn measure(frames: &[&Planes]) -> Option<Self> {
-        let first = frames.first()?;
-        let (w, h) = (first.width, first.height);
-        if w < 3 || h < 12 {
-            return None;
-        }
-        let mut energy = vec![0f64; h];
-        for frame in frames {
-            for plane in &frame.planes {
-                for y in 1..h - 1 {
-                    let row = |dy: usize| &plane[(y + dy - 1) * w..(y + dy) * w];
-                    let (up, mid, down) = (row(0), row(1), row(2));
-                    let sum: f32 = (1..w - 1)
-                        .map(|x| (up[x] + down[x] + mid[x - 1] + mid[x + 1] - 4.0 * mid[x]).abs())
-                        .sum();
-                    energy[y] += f64::from(sum);
-                }
-            }
-        }
-        energy[0] = energy[1];
-        energy[h - 1] = energy[h - 2];
-        let smooth: Vec<f64> = (0..h)
-            .map(|y| {
-                let (lo, hi) = (y.saturating_sub(4), (y + 5).min(h));
-                energy[lo..hi].iter().sum::<f64>() / (hi - lo) as f64
-            })
-            .collect();
-        let (peak_row, peak) = smooth
-            .iter()
-            .copied()
-            .enumerate()
-            .max_by(|a, b| a.1.total_cmp(&b.1))?;
-        let floor = smooth.iter().copied().fold(f64::INFINITY, f64::min);
-        // Contact must stand out of the floor (noise, background) by a tenth of it.
-        if peak - floor <= 0.1 * floor.max(f64::MIN_POSITIVE) || peak.is_nan() {
-            return None;
-        }
-        let half = floor + 0.5 * (peak - floor);
-        let mut top = peak_row;
-        while top > 0 && smooth[top - 1] >= half {
-            top -= 1;
-        }
-        let mut bottom = peak_row + 1;
-        while bottom < h && smooth[bottom] >= half {
-            bottom += 1;
-        }
-        Some(Self {
-            top,
-            rows: bottom - top,
-        })
-    }
-
     /// The middle half of a frame of `height` rows.
     pub fn default_for(height: usize) -> Self {
         Self::centred(height as f64 / 2.0, height.div_ceil(2), height)
@@ -171,40 +113,5 @@ mod tests {
             ..g
         };
         assert_eq!(ContactWindow::from_geometry(&bad, 240), None);
-    }
-
-    #[test]
-    fn a_sharp_middle_is_measured_and_a_flat_frame_is_not() {
-        let (w, h) = (40, 100);
-        // Texture whose amplitude peaks at row 60 and is half of it 15 rows away.
-        let frame = |seed: usize| Planes {
-            width: w,
-            height: h,
-            planes: vec![
-                (0..w * h)
-                    .map(|i| {
-                        let (x, y) = (i % w, i / w);
-                        let amp = 100.0 / (1.0 + ((y as f32 - 60.0) / 15.0).powi(2));
-                        let sign = if (x + y + seed).is_multiple_of(2) {
-                            1.0
-                        } else {
-                            -1.0
-                        };
-                        120.0 + amp * sign
-                    })
-                    .collect(),
-            ],
-        };
-        let frames: Vec<Planes> = (0..4).map(frame).collect();
-        let refs: Vec<&Planes> = frames.iter().collect();
-        let win = ContactWindow::measure(&refs).unwrap();
-        assert!((win.centre() - 60.0).abs() <= 2.0, "{win:?}");
-        assert!((26..=34).contains(&win.rows), "{win:?}");
-        let flat = Planes {
-            width: w,
-            height: h,
-            planes: vec![vec![120.0; w * h]],
-        };
-        assert_eq!(ContactWindow::measure(&[&flat]), None);
     }
 }

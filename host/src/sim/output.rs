@@ -25,6 +25,9 @@ pub struct FrameRecord {
     pub strip_row: f64,
     /// True position as a strip row of image row 0.
     pub actual_strip_row: f64,
+    /// How far the belt lay sideways (`wander`): image column `x` shows strip column `x +
+    /// actual_sideways_px`.
+    pub actual_sideways_px: f64,
     /// The stages that ran.
     pub stages: Vec<&'static str>,
 }
@@ -272,6 +275,7 @@ pub fn write(sim: &Simulator, out: &Path, progress: &dyn Progress) -> anyhow::Re
             actual_offset_mm: f.actual_offset_mm,
             strip_row: sim.strip_row_of_top(f.offset_mm),
             actual_strip_row: sim.strip_row_of_top(f.actual_offset_mm),
+            actual_sideways_px: f.sideways_px,
             stages: f.stages.iter().map(|e| e.name()).collect(),
         });
         progress.advance_to(k as u64 + 1);

@@ -21,6 +21,9 @@ pub struct Frame {
     pub offset_mm: f64,
     /// Where it really was (differs only with `jitter`), mm.
     pub actual_offset_mm: f64,
+    /// How far the belt lay sideways (with `wander`): image column `x` shows strip column
+    /// `x + sideways_px`.
+    pub sideways_px: f64,
     /// The image.
     pub image: Planes,
     /// The stages that ran, in order.
@@ -74,6 +77,8 @@ pub struct Simulator {
     scene: Scene,
     strip: Strip,
     apex_mm: Vec<f64>,
+    /// Each frame's sideways offset, pixels (all 0 without `wander`).
+    sideways_px: Vec<f64>,
     /// Belt height of the gel's apex surface, mm.
     apex_height_mm: f64,
 }
@@ -98,6 +103,19 @@ impl Simulator {
             })
             .collect();
         let travel: f64 = steps.iter().sum();
+        let wander = if scene.has(Effect::Wander) {
+            scene.params.wander_px
+        } else {
+            0.0
+        };
+        let sideways_px: Vec<f64> = (0..s.frames)
+            .scan(0.0, |at, k| {
+                if k > 0 && wander > 0.0 {
+                    *at += Self::draw(scene.seed, k, Effect::Wander).random_range(-wander..=wander);
+                }
+                Some(*at)
+            })
+            .collect();
         let canvas = Canvas {
             width_mm: s.width_px as f64 * mmpp,
             length_mm: travel.max(0.5 * fov_mm),
@@ -172,6 +190,7 @@ impl Simulator {
                 defects,
             },
             apex_mm,
+            sideways_px,
             apex_height_mm: top - s.press_depth_mm,
         })
     }
@@ -263,12 +282,16 @@ impl Simulator {
                 actual += self.rng(k, Effect::Jitter).random_range(-j..=j);
             }
         }
+        if scene.has(Effect::Wander) {
+            stages.push(Effect::Wander);
+        }
         // Indentation of the object into the gel, mm.
         let curved = scene.has(Effect::Contact);
         if curved {
             stages.push(Effect::Contact);
         }
-        let mut depth = self.indentation(actual, curved, h);
+        let sideways_px = self.sideways_px[k];
+        let mut depth = self.indentation(actual, sideways_px, curved, h);
         if scene.has(Effect::Gel) {
             stages.push(Effect::Gel);
             let sigma = scene.params.gel_sigma_per_thickness * s.gel_thickness_mm / s.mm_per_px;
@@ -316,14 +339,17 @@ impl Simulator {
             index: k,
             offset_mm,
             actual_offset_mm: actual,
+            sideways_px,
             image,
             stages,
         }
     }
 
     /// Indentation `clamp(h − z_gel, 0, t)` for the `rows` image rows of a frame with the
-    /// apex at belt position `apex_mm`; `curved` adds the roller's curvature to `z_gel`.
-    fn indentation(&self, apex_mm: f64, curved: bool, rows: usize) -> Vec<f32> {
+    /// apex at belt position `apex_mm` and the belt `sideways` pixels across (beyond the
+    /// strip's sides its edge columns repeat); `curved` adds the roller's curvature to
+    /// `z_gel`.
+    fn indentation(&self, apex_mm: f64, sideways: f64, curved: bool, rows: usize) -> Vec<f32> {
         let s = &self.scene.sensor;
         let (w, strip) = (s.width_px, &self.strip);
         let top = self.strip_row_of_top(apex_mm);
@@ -347,9 +373,21 @@ impl Simulator {
                 &strip.height_mm[r0 * w..(r0 + 1) * w],
                 &strip.height_mm[r1 * w..(r1 + 1) * w],
             );
-            for ((o, &ha), &hb) in out[y * w..(y + 1) * w].iter_mut().zip(a).zip(b) {
-                let hgt = ha + f * (hb - ha);
-                *o = (hgt - z_gel).clamp(0.0, t);
+            let at = |x: usize| {
+                let hgt = a[x] + f * (b[x] - a[x]);
+                (hgt - z_gel).clamp(0.0, t)
+            };
+            if sideways == 0.0 {
+                for (x, o) in out[y * w..(y + 1) * w].iter_mut().enumerate() {
+                    *o = at(x);
+                }
+                continue;
+            }
+            for (x, o) in out[y * w..(y + 1) * w].iter_mut().enumerate() {
+                let c = (x as f64 + sideways).clamp(0.0, (w - 1) as f64);
+                let (c0, fc) = (c.floor() as usize, (c - c.floor()) as f32);
+                let c1 = (c0 + 1).min(w - 1);
+                *o = at(c0) + fc * (at(c1) - at(c0));
             }
         }
         out

@@ -83,13 +83,17 @@ pub enum Effect {
     /// up to `speed_jitter` of it, at random. The motion system counts the steps, so the
     /// commanded positions follow it (unlike `jitter`).
     Speed,
+    /// A belt that wanders sideways: each frame's sideways offset moves from the last by up
+    /// to `wander_px` columns, at random (a walk the motion system does not see).
+    Wander,
 }
 
 impl Effect {
     /// Every effect, in stage order.
-    pub const ALL: [Effect; 9] = [
+    pub const ALL: [Effect; 10] = [
         Effect::Speed,
         Effect::Jitter,
+        Effect::Wander,
         Effect::Contact,
         Effect::Gel,
         Effect::Gray,
@@ -110,6 +114,7 @@ impl Effect {
             Effect::Noise => "noise",
             Effect::Jitter => "jitter",
             Effect::Speed => "speed",
+            Effect::Wander => "wander",
             Effect::Background => "background",
         }
     }
@@ -363,6 +368,8 @@ pub struct EffectParams {
     pub jitter_px: f64,
     /// `speed`: largest relative change of a frame's travel (0.25: ±25 %).
     pub speed_jitter: f64,
+    /// `wander`: largest sideways move of the belt from one frame to the next, pixels.
+    pub wander_px: f64,
     /// `background`: relative brightness loss at the image corners.
     pub vignetting: f64,
     /// `background`: relative brightness change from the left edge to the right.
@@ -378,6 +385,7 @@ impl Default for EffectParams {
             shot_noise: 0.05,
             jitter_px: 2.0,
             speed_jitter: 0.25,
+            wander_px: 0.5,
             vignetting: 0.25,
             gradient: 0.1,
         }
@@ -496,6 +504,10 @@ impl Scene {
         non_negative("params.read_noise", p.read_noise)?;
         non_negative("params.shot_noise", p.shot_noise)?;
         non_negative("params.jitter_px", p.jitter_px)?;
+        non_negative("params.wander_px", p.wander_px)?;
+        if p.wander_px > 1000.0 {
+            bail!("params.wander_px must be at most 1000, got {}", p.wander_px);
+        }
         if !(0.0..1.0).contains(&p.speed_jitter) {
             bail!(
                 "params.speed_jitter must be in 0..1, got {}",
