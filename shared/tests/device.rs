@@ -137,8 +137,9 @@ fn belt_frame(offset: usize, w: usize, h: usize) -> Vec<u8> {
         .collect()
 }
 
-#[test]
-fn interior_tiles_get_exactly_their_observations_in_belt_order() {
+/// A pipeline for a 64×96 gray camera at full resolution: 8-row tiles of 3 frames,
+/// `spacing` camera pixels between frames, refinement within `refine` rows.
+fn small_gray(spacing: u16, refine: u8) -> PipelineConfig {
     let sensor = Sensor {
         width: 64,
         height: 96,
@@ -148,11 +149,16 @@ fn interior_tiles_get_exactly_their_observations_in_belt_order() {
         downsample: 1,
         tile_rows: 8,
         frames_per_tile: 3,
-        frame_spacing_px: 6,
-        refine_rows: 2,
+        frame_spacing_px: spacing,
+        refine_rows: refine,
         ..DeviceConfig::default()
     };
-    let cfg = PipelineConfig::from_wire(&wire, sensor).unwrap();
+    PipelineConfig::from_wire(&wire, sensor).unwrap()
+}
+
+#[test]
+fn interior_tiles_get_exactly_their_observations_in_belt_order() {
+    let cfg = small_gray(6, 2);
     let mut s = Storage::new(&cfg);
     let mut p = Pipeline::new(cfg, s.buffers()).unwrap();
     let mut seen = Vec::new();
@@ -187,6 +193,41 @@ fn interior_tiles_get_exactly_their_observations_in_belt_order() {
     let full = seen.iter().filter(|s| s.1 == 3).count();
     assert!(full >= seen.len() - 6, "{seen:?}");
     assert!(seen.iter().all(|s| (1..=3).contains(&s.1)));
+}
+
+/// A belt whose true position is off the commanded one by up to 2 rows a frame (the
+/// motion system's unknown error): the offsets follow the true positions, not the
+/// commanded ones, and do not drift along the run.
+#[test]
+fn offsets_follow_the_belt_where_the_commanded_motion_is_off() {
+    let cfg = small_gray(7, 4);
+    let mut s = Storage::new(&cfg);
+    let mut p = Pipeline::new(cfg, s.buffers()).unwrap();
+    // A fixed sequence of errors in −2..=2 averaging 0 (a mean error is indistinguishable
+    // from where the run started).
+    let error = |k: usize| [-2, 1, 0, 2, -1, 1, -2, 2, 0, -1][(k * 3 + k / 10) % 10];
+    let (mut ours, mut told) = (0i64, 0i64);
+    for k in 0..120 {
+        let commanded = 7 * k as i64 + 10;
+        let truth = commanded + error(k);
+        let frame = belt_frame(truth as usize, 64, 96);
+        let report = p.push_frame(&frame, commanded as u64, |_| {}).unwrap();
+        // Offsets count from the first frame's commanded position.
+        let want = truth - 10;
+        if k >= 40 {
+            ours += (report.offset as i64 - want).abs();
+            told += (commanded - 10 - want).abs();
+        }
+        assert!(
+            (report.offset as i64 - want).abs() <= 3,
+            "frame {k}: offset {} for a belt at {want}",
+            report.offset
+        );
+    }
+    // Over the last 80 frames: mean error under half a row, where the commanded rows are
+    // off by 1.2 on average.
+    assert!(ours * 2 < 80, "mean error {:.2} rows", ours as f64 / 80.0);
+    assert!(told > 80, "{told}");
 }
 
 /// Every tile a pipeline of `cfg` emits over a run of `frames` frames of a textured belt

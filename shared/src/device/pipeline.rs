@@ -21,7 +21,7 @@
 //! Memory is the caller's ([`PipelineBuffers`]), sized by [`PipelineConfig::memory`].
 
 use super::downsample::{downsample_rows_profiled, downsampled_dims};
-use super::refine::refine_shift;
+use super::refine::{SUBROWS, refine_shift};
 use crate::float;
 use crate::fusion::{ImagePair, LlWeight, U8Pair, U8Work, fuse_scratch_words, fuse_u8};
 use crate::protocol::{DeviceConfig, NakReason, NormMode, PixelFormat, Tile, WaveletId};
@@ -440,13 +440,69 @@ pub enum FrameError {
     NothingTaken,
 }
 
+/// Frames over which the refined positions are anchored to the commanded ones.
+pub const ANCHOR_FRAMES: i64 = 16;
+
+/// Where the frames lie on the belt: each step from the last refined by matching (the
+/// shape of the run), the whole run anchored to the commanded motion (its place).
+///
+/// Matched steps carry no drift of their own but add up their small errors; the
+/// commanded positions carry the belt's unknown error of a few pixels a frame but no
+/// drift. So a frame's offset is its refined position plus the running mean (over about
+/// [`ANCHOR_FRAMES`] frames) of commanded minus refined position, in sixteenths of a
+/// row, rounded to whole rows and never moving back.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Track {
+    /// The first frame's commanded position, camera pixels.
+    origin_px: u64,
+    /// The last frame's commanded position, camera pixels.
+    commanded_at: u64,
+    /// The last frame's refined position, sixteenths of a row.
+    refined: i64,
+    /// [`ANCHOR_FRAMES`] times the running mean of commanded minus refined position.
+    anchor: i64,
+    /// The last offset handed out, rows.
+    offset: u64,
+}
+
+impl Track {
+    fn start(position_px: u64) -> Self {
+        Self {
+            origin_px: position_px,
+            commanded_at: position_px,
+            refined: 0,
+            anchor: 0,
+            offset: 0,
+        }
+    }
+
+    /// The next frame, `step` sixteenths of a row after the last and commanded
+    /// `commanded` sixteenths from the first (at `position_px`): its offset and the rows
+    /// it moved on from the last.
+    fn follow(&mut self, step: i64, commanded: i64, position_px: u64) -> (u64, i64) {
+        self.refined = self.refined.saturating_add(step);
+        let residual = commanded.saturating_sub(self.refined);
+        self.anchor = self
+            .anchor
+            .saturating_add(residual)
+            .saturating_sub(self.anchor / ANCHOR_FRAMES);
+        let place = self.refined.saturating_add(self.anchor / ANCHOR_FRAMES);
+        let rows = place.saturating_add(SUBROWS / 2).div_euclid(SUBROWS).max(0) as u64;
+        let offset = rows.max(self.offset);
+        let moved = (offset - self.offset) as i64;
+        self.offset = offset;
+        self.commanded_at = position_px;
+        (offset, moved)
+    }
+}
+
 /// The device pipeline: frames in, fused tiles out.
 pub struct Pipeline<'a> {
     cfg: PipelineConfig,
     bufs: PipelineBuffers<'a>,
     slots: [Option<Slot>; MAX_ACTIVE_TILES],
-    /// Belt offset of the last frame, and the commanded position (camera pixels) then.
-    last: Option<(u64, u64)>,
+    /// Where the frames so far lie ([`Track`]).
+    track: Option<Track>,
     /// Which half of `profiles` holds the previous frame's.
     previous_profile_first: bool,
     /// The size of the band [`Pipeline::take_frame`] took and no fusion used yet.
@@ -462,7 +518,7 @@ impl<'a> Pipeline<'a> {
             cfg,
             bufs,
             slots: [None; MAX_ACTIVE_TILES],
-            last: None,
+            track: None,
             previous_profile_first: true,
             taken: None,
         })
@@ -480,7 +536,7 @@ impl<'a> Pipeline<'a> {
         self.bufs.check(&cfg.memory())?;
         self.cfg = cfg;
         self.slots = [None; MAX_ACTIVE_TILES];
-        self.last = None;
+        self.track = None;
         self.previous_profile_first = true;
         self.taken = None;
         Ok(())
@@ -547,25 +603,33 @@ impl<'a> Pipeline<'a> {
         let p = schedule.window_rows.saturating_sub(1);
         let (previous, current) =
             profile_halves(self.bufs.profiles, p, self.previous_profile_first)?;
-        let (offset, shift) = match self.last {
-            None => (0, 0),
-            Some((offset, commanded_at)) => {
+        let (offset, shift) = match &mut self.track {
+            None => {
+                self.track = Some(Track::start(position_px));
+                (0, 0)
+            }
+            Some(track) => {
                 // Commanded rows since the last frame, rounded on the absolute positions
                 // so rounding does not accumulate.
                 let rows = |px: u64| (px + f / 2) / f;
-                let commanded = rows(position_px) as i64 - rows(commanded_at) as i64;
-                let shift = if cfg.refine_rows > 0 {
-                    refine_shift(previous, current, commanded, cfg.refine_rows as u32)
-                } else {
-                    commanded
+                let commanded = rows(position_px) as i64 - rows(track.commanded_at) as i64;
+                let refined = (cfg.refine_rows > 0)
+                    .then(|| refine_shift(previous, current, commanded, cfg.refine_rows as u32))
+                    .flatten();
+                let step = match refined {
+                    // Within a quarter row of the commanded shift is the sensor's noise:
+                    // exact motion stays exact.
+                    Some(step) if (step - commanded * SUBROWS).abs() <= SUBROWS / 4 => {
+                        commanded * SUBROWS
+                    }
+                    Some(step) => step.max(0),
+                    None if commanded >= 0 => commanded * SUBROWS,
+                    None => return Err(FrameError::Backwards),
                 };
-                if shift < 0 {
-                    return Err(FrameError::Backwards);
-                }
-                (offset + shift as u64, shift)
+                let since_start = rows(position_px) as i64 - rows(track.origin_px) as i64;
+                track.follow(step, since_start * SUBROWS, position_px)
             }
         };
-        self.last = Some((offset, position_px));
         self.previous_profile_first = !self.previous_profile_first;
 
         // Tiles above the window are done: no later frame can see them. Emitting them
@@ -604,7 +668,7 @@ impl<'a> Pipeline<'a> {
     /// Emits every tile still in fusion, in belt order (the end of a run).
     pub fn finish(&mut self, mut emit: impl FnMut(Tile<'_>)) -> usize {
         let n = self.emit_where(|_| true, &mut emit);
-        self.last = None;
+        self.track = None;
         self.taken = None;
         n
     }
