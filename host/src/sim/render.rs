@@ -90,32 +90,9 @@ impl Simulator {
         let s = &scene.sensor;
         let mmpp = s.mm_per_px;
         let fov_mm = s.height_px as f64 * mmpp;
-        // Each frame's travel from the one before: steady, or varied by `speed`.
-        let steps: Vec<f64> = (1..s.frames)
-            .map(|k| {
-                let j = scene.params.speed_jitter;
-                let change = if scene.has(Effect::Speed) && j > 0.0 {
-                    Self::draw(scene.seed, k, Effect::Speed).random_range(-j..=j)
-                } else {
-                    0.0
-                };
-                s.frame_spacing_mm * (1.0 + change)
-            })
-            .collect();
+        let steps = Self::steps_mm(scene);
         let travel: f64 = steps.iter().sum();
-        let wander = if scene.has(Effect::Wander) {
-            scene.params.wander_px
-        } else {
-            0.0
-        };
-        let sideways_px: Vec<f64> = (0..s.frames)
-            .scan(0.0, |at, k| {
-                if k > 0 && wander > 0.0 {
-                    *at += Self::draw(scene.seed, k, Effect::Wander).random_range(-wander..=wander);
-                }
-                Some(*at)
-            })
-            .collect();
+        let sideways_px = Self::sideways_px(scene);
         let canvas = Canvas {
             width_mm: s.width_px as f64 * mmpp,
             length_mm: travel.max(0.5 * fov_mm),
@@ -193,6 +170,40 @@ impl Simulator {
             sideways_px,
             apex_height_mm: top - s.press_depth_mm,
         })
+    }
+
+    /// Each frame's travel from the one before, mm: steady, or varied by `speed`.
+    fn steps_mm(scene: &Scene) -> Vec<f64> {
+        let s = &scene.sensor;
+        let j = scene.params.speed_jitter;
+        (1..s.frames)
+            .map(|k| {
+                let change = if scene.has(Effect::Speed) && j > 0.0 {
+                    Self::draw(scene.seed, k, Effect::Speed).random_range(-j..=j)
+                } else {
+                    0.0
+                };
+                s.frame_spacing_mm * (1.0 + change)
+            })
+            .collect()
+    }
+
+    /// Each frame's sideways offset, pixels: a walk of up to `wander_px` a frame with
+    /// `wander`, else 0.
+    fn sideways_px(scene: &Scene) -> Vec<f64> {
+        let wander = if scene.has(Effect::Wander) {
+            scene.params.wander_px
+        } else {
+            0.0
+        };
+        (0..scene.sensor.frames)
+            .scan(0.0, |at, k| {
+                if k > 0 && wander > 0.0 {
+                    *at += Self::draw(scene.seed, k, Effect::Wander).random_range(-wander..=wander);
+                }
+                Some(*at)
+            })
+            .collect()
     }
 
     /// The scene.

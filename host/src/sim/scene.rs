@@ -486,7 +486,13 @@ impl Scene {
                 );
             }
         }
-        let p = &self.params;
+        self.validate_params()?;
+        self.validate_object()
+    }
+
+    /// The effects' parameters: blurs, noise, motion errors and illumination in range.
+    fn validate_params(&self) -> anyhow::Result<()> {
+        let (p, s) = (&self.params, &self.sensor);
         non_negative("params.gel_sigma_per_thickness", p.gel_sigma_per_thickness)?;
         non_negative("params.defocus_sigma_px", p.defocus_sigma_px)?;
         let gel_sigma_px = p.gel_sigma_per_thickness * s.gel_thickness_mm / s.mm_per_px;
@@ -498,15 +504,16 @@ impl Scene {
                 bail!("{field}: a blur of σ = {sigma:.0} px is more than 256 px");
             }
         }
-        if p.jitter_px > 1000.0 {
-            bail!("params.jitter_px must be at most 1000, got {}", p.jitter_px);
-        }
         non_negative("params.read_noise", p.read_noise)?;
         non_negative("params.shot_noise", p.shot_noise)?;
-        non_negative("params.jitter_px", p.jitter_px)?;
-        non_negative("params.wander_px", p.wander_px)?;
-        if p.wander_px > 1000.0 {
-            bail!("params.wander_px must be at most 1000, got {}", p.wander_px);
+        for (field, px) in [
+            ("params.jitter_px", p.jitter_px),
+            ("params.wander_px", p.wander_px),
+        ] {
+            non_negative(field, px)?;
+            if px > 1000.0 {
+                bail!("{field} must be at most 1000, got {px}");
+            }
         }
         if !(0.0..1.0).contains(&p.speed_jitter) {
             bail!(
@@ -520,7 +527,7 @@ impl Scene {
         if !(-1.0..1.0).contains(&p.gradient) {
             bail!("params.gradient must be in -1..1, got {}", p.gradient);
         }
-        self.validate_object()
+        Ok(())
     }
 
     /// What a valid scene will not show, said before it is rendered: no object pressed in
