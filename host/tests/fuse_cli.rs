@@ -538,3 +538,59 @@ fn a_match_at_the_edge_of_the_search_is_said() {
         "{err}"
     );
 }
+
+/// Writes `n` frames of 320×240 with smooth blobs placed at random in each, unrelated from
+/// one frame to the next: texture everywhere, and no frame showing the belt of another.
+fn unrelated_frames(dir: &Path, n: usize) {
+    std::fs::create_dir_all(dir).unwrap();
+    let mut state = 7u64;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (state >> 11) as f32 / (1u64 << 53) as f32
+    };
+    for k in 0..n {
+        let blobs: Vec<(f32, f32, f32)> = (0..16)
+            .map(|_| (next() * 320.0, next() * 240.0, next() * 80.0 - 40.0))
+            .collect();
+        let img = image::GrayImage::from_fn(320, 240, |x, y| {
+            let v: f32 = blobs
+                .iter()
+                .map(|&(cx, cy, a)| {
+                    let d2 = (x as f32 - cx).powi(2) + (y as f32 - cy).powi(2);
+                    a * (-d2 / 72.0).exp()
+                })
+                .sum();
+            image::Luma([(128.0 + v).clamp(0.0, 255.0) as u8])
+        });
+        img.save(dir.join(format!("frame_{k:04}.png"))).unwrap();
+    }
+}
+
+#[test]
+fn a_roll_whose_frames_match_nothing_is_written_marked_and_exits_3() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = tmp.path().join("frames");
+    unrelated_frames(&frames, 40);
+    let out = tmp.path().join("strip.png");
+    let args = [frames.to_str().unwrap(), "--out", out.to_str().unwrap()];
+    let run = fuse(&args);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(3), "{err}");
+    assert!(err.contains("warning: placement:"), "{err}");
+    assert!(err.contains("--accept-untrusted"), "{err}");
+    assert!(out.exists(), "the strip is written");
+    let index: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("strip.json")).unwrap())
+            .unwrap();
+    assert_eq!(index["details"]["trusted"], false);
+    assert!(!index["details"]["doubts"].as_array().unwrap().is_empty());
+    // Accepted: the same strip and marks, exit 0.
+    let run = fuse(&[&args[..], &["--accept-untrusted"]].concat());
+    assert!(run.status.success());
+    let index: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("strip.json")).unwrap())
+            .unwrap();
+    assert_eq!(index["details"]["trusted"], false);
+}
