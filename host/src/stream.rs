@@ -175,8 +175,15 @@ pub struct Manifest {
     pub observations: BTreeMap<u8, u64>,
     /// Refused messages and link faults.
     pub faults: Faults,
-    /// The device, from its reply to hello.
+    /// The device as it announced itself in its first reply to hello (its `config` is the
+    /// one it ran then, not necessarily the tiles': see `configurations`).
     pub device: Option<DeviceInfo>,
+    /// The configurations the device confirmed for the tiles it sent, in order: each
+    /// from the first tile that came after the device reported it, with the tile size it
+    /// makes. A configuration no tile came under is not listed, nor one whose tiles have
+    /// another size (a recording made before the device was asked to confirm its
+    /// configuration).
+    pub configurations: Vec<Configured>,
     /// The device's counters from its last status.
     pub device_counters: Option<StatusCounters>,
     /// Commands the device refused.
@@ -185,6 +192,39 @@ pub struct Manifest {
     pub log: Vec<String>,
     /// Whether the device said it stopped streaming (otherwise the link ended first).
     pub device_stopped: bool,
+}
+
+/// A configuration the device ran and the tiles it applies to.
+#[derive(Debug, Clone, Serialize, PartialEq, Eq)]
+pub struct Configured {
+    /// The first tile index made with it (`None` until a tile comes).
+    pub from_tile: Option<u32>,
+    /// The configuration, as the device reported it.
+    pub config: DeviceConfig,
+    /// The tiles it makes, columns × rows.
+    pub tile_size: [u16; 2],
+}
+
+/// The configuration in one line, as printed: `db2, 1 level, 1× (tiles 320 × 16), …`.
+pub fn describe(c: &DeviceConfig, [w, h]: [u16; 2]) -> String {
+    let wavelet = match c.wavelet {
+        protocol::WaveletId::Haar => "haar",
+        protocol::WaveletId::Db2 => "db2",
+    };
+    let norm = match c.norm {
+        protocol::NormMode::PerTile => "per-tile",
+        protocol::NormMode::PerFrame => "per-frame",
+    };
+    format!(
+        "{wavelet}, {} level{}, {}× (tiles {w} × {h}), {} frames per tile, {} px between \
+         frames, refinement ±{} rows, {norm} normalization",
+        c.levels,
+        if c.levels == 1 { "" } else { "s" },
+        c.downsample,
+        c.frames_per_tile,
+        c.frame_spacing_px,
+        c.refine_rows,
+    )
 }
 
 /// The strip as tiles arrive: written in index order, late tiles held back a little.
@@ -304,7 +344,10 @@ impl StreamedStrip {
         let Some(writer) = self.writer else {
             return Ok(Vec::new());
         };
-        let segments = writer.finish(serde_json::json!({ "tile_size": m.tile_size }))?;
+        let segments = writer.finish(serde_json::json!({
+            "tile_size": m.tile_size,
+            "configurations": m.configurations,
+        }))?;
         Ok(segments.into_iter().map(|s| s.file).collect())
     }
 }
@@ -336,8 +379,9 @@ pub struct Outcome {
     pub elapsed: Duration,
 }
 
-/// Greets a live device, configures it and starts its stream; the commands whose
-/// refusal ends the session, with their names.
+/// Greets a live device, configures it, asks it again for its description (its reply
+/// names the configuration in force, and a recording keeps it) and starts its stream;
+/// the commands whose refusal ends the session, with their names.
 fn start_session(
     link: &mut dyn Transport,
     opts: &Options,
@@ -347,6 +391,7 @@ fn start_session(
     send(link, cmd_seq, &Command::Hello)?;
     if let Some(cfg) = opts.config {
         essential.push((send(link, cmd_seq, &Command::Configure(cfg))?, "configure"));
+        send(link, cmd_seq, &Command::Hello)?;
     }
     essential.push((send(link, cmd_seq, &Command::StreamStart)?, "stream start"));
     Ok(essential)
@@ -599,16 +644,7 @@ impl<'a> Session<'a> {
     /// Acts on a sound message.
     fn on_message(&mut self, msg: DeviceMessage<'_>) -> anyhow::Result<Flow> {
         match msg {
-            DeviceMessage::Info(info) => {
-                // A live device's tiles have the size of the configuration it runs; a
-                // recording's Info predates the configuration its session sent.
-                if self.live
-                    && let Some(size) = configured_tile(&info, self.opts.config)
-                {
-                    self.strip.expect(size);
-                }
-                self.manifest.device = Some(info);
-            }
+            DeviceMessage::Info(info) => self.on_info(info),
             DeviceMessage::Ack { .. } | DeviceMessage::RawChunk(_) => {}
             DeviceMessage::Nak {
                 command_seq,
@@ -622,6 +658,46 @@ impl<'a> Session<'a> {
             DeviceMessage::Tile(tile) => self.on_tile(&tile)?,
         }
         Ok(Flow::Continue)
+    }
+
+    /// The device's description: the first is the manifest's `device`; every one names
+    /// the configuration in force from the next tile on.
+    fn on_info(&mut self, info: DeviceInfo) {
+        // A live device's tiles have the size of the configuration it was sent (its first
+        // reply predates it); a recording's first tile sets theirs.
+        if self.live
+            && let Some(size) = configured_tile(&info, self.opts.config)
+        {
+            self.strip.expect(size);
+        }
+        self.manifest.device.get_or_insert(info);
+        let Some((w, h)) = configured_tile(&info, None) else {
+            return;
+        };
+        let configs = &mut self.manifest.configurations;
+        if configs.last().is_some_and(|c| c.from_tile.is_none()) {
+            configs.pop();
+        }
+        configs.push(Configured {
+            from_tile: None,
+            config: info.config,
+            tile_size: [w, h],
+        });
+    }
+
+    /// Dates the configuration in force from `tile`, the first of the size it makes.
+    fn confirm_configuration(&mut self, tile: &protocol::Tile<'_>) {
+        if let Some(last) = self.manifest.configurations.last_mut()
+            && last.from_tile.is_none()
+            && last.tile_size == [tile.width, tile.height]
+        {
+            last.from_tile = Some(tile.index);
+            self.progress.note(&format!(
+                "from tile {}: {}",
+                tile.index,
+                describe(&last.config, last.tile_size)
+            ));
+        }
     }
 
     /// A command the device refused: listed, and the end of the session if essential.
@@ -670,6 +746,7 @@ impl<'a> Session<'a> {
 
     /// Places a tile in the strip (or counts why not) and reports the rate.
     fn on_tile(&mut self, tile: &protocol::Tile<'_>) -> anyhow::Result<()> {
+        self.confirm_configuration(tile);
         if !take_tile(&mut self.strip, tile, &mut self.manifest)? {
             return Ok(());
         }
@@ -727,6 +804,11 @@ impl<'a> Session<'a> {
             r.finish()?;
         }
         self.manifest.tile_size = self.strip.size.map(|(w, t)| [w, t]);
+        // A configuration no tile came under describes none of them.
+        let configs = &mut self.manifest.configurations;
+        if configs.last().is_some_and(|c| c.from_tile.is_none()) {
+            configs.pop();
+        }
         let strip_files = self.strip.finish(&mut self.manifest)?;
         write_manifest(&self.manifest_path, &self.manifest)?;
         Ok(Outcome {

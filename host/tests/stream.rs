@@ -756,3 +756,126 @@ fn a_stray_first_tile_of_another_size_is_the_one_refused() {
     let tile_bytes = clean_strip.len() / c.tiles_received as usize;
     assert_eq!(clean_strip[tile_bytes..], stray_strip[..]);
 }
+
+/// `rollfuse stream` of the letters scene's first tiles with `extra` options: the
+/// manifest and the strip's width.
+fn streamed(extra: &[&str]) -> (serde_json::Value, u32, String) {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("s");
+    let scene = format!("{}/scenes/letters.toml", env!("CARGO_MANIFEST_DIR"));
+    let mut args = vec![
+        "stream",
+        "--device",
+        "sim",
+        "--scene",
+        &scene,
+        "--out",
+        out.to_str().unwrap(),
+        "--tiles",
+        "3",
+    ];
+    args.extend_from_slice(extra);
+    let run = rollfuse(&args);
+    let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+    let width = image::open(out.join("strip.png")).unwrap().width();
+    (manifest, width, stdout)
+}
+
+#[test]
+fn a_stream_runs_the_modules_defaults_and_its_manifest_names_the_tiles_configuration() {
+    let (m, width, stdout) = streamed(&[]);
+    // The module's defaults: db2, 1 level, the camera's full 320 columns.
+    assert_eq!(width, 320);
+    assert_eq!(m["tile_size"], serde_json::json!([320, 16]));
+    let configs = m["configurations"].as_array().unwrap();
+    assert_eq!(configs.len(), 1, "{m}");
+    let c = &configs[0];
+    assert_eq!(c["from_tile"], m["index_range"][0]);
+    assert_eq!(c["config"]["wavelet"], "Db2");
+    assert_eq!(c["config"]["levels"], 1);
+    assert_eq!(c["config"]["downsample"], 1);
+    assert_eq!(c["tile_size"], m["tile_size"]);
+    assert!(
+        stdout.contains(": db2, 1 level, 1× (tiles 320 × 16)"),
+        "{stdout}"
+    );
+
+    let (m, width, _) = streamed(&["--downsample", "2", "--levels", "2"]);
+    assert_eq!(width, 160);
+    let c = &m["configurations"][0];
+    assert_eq!(c["config"]["downsample"], 2);
+    assert_eq!(c["config"]["levels"], 2);
+    assert_eq!(c["tile_size"], serde_json::json!([160, 16]));
+    assert_eq!(c["tile_size"], m["tile_size"]);
+    // What the device announced before it was configured is kept apart.
+    assert_eq!(m["device"]["config"]["downsample"], 1);
+}
+
+/// An info message of a 320 × 240 gray camera running `config`.
+fn info_message(seq: u32, config: protocol::DeviceConfig) -> Vec<u8> {
+    let info = DeviceMessage::Info(protocol::DeviceInfo {
+        firmware: [1, 0, 0],
+        sensor_width: 320,
+        sensor_height: 240,
+        pixel_format: protocol::PixelFormat::Gray8,
+        config,
+        max_tile_bytes: 16_000,
+    });
+    let mut buf = vec![0u8; MAX_MESSAGE];
+    let n = protocol::encode(seq, &info, &mut buf).unwrap();
+    buf.truncate(n);
+    buf
+}
+
+#[test]
+fn a_reconfiguration_is_recorded_from_the_tile_it_applies_to() {
+    let full = protocol::DeviceConfig::default();
+    let halved = protocol::DeviceConfig {
+        downsample: 2,
+        ..full
+    };
+    let messages = vec![
+        info_message(0, full),
+        tile_message(1, 0, (320, 16), 10),
+        tile_message(2, 1, (320, 16), 11),
+        info_message(3, halved),
+        tile_message(4, 2, (160, 16), 12),
+    ];
+    let tmp = tempfile::tempdir().unwrap();
+    let mut link = Scripted {
+        messages: messages.into_iter(),
+    };
+    let m = stream::run(&mut link, &options(tmp.path(), None), &Silent)
+        .unwrap()
+        .manifest;
+    let from: Vec<_> = m
+        .configurations
+        .iter()
+        .map(|c| (c.from_tile, c.config.downsample, c.tile_size))
+        .collect();
+    assert_eq!(
+        from,
+        [(Some(0), 1, [320, 16]), (Some(2), 2, [160, 16])],
+        "{m:?}"
+    );
+    // One strip holds one tile size: the later tiles are counted, not placed.
+    assert_eq!(m.faults.mismatched_tiles, 1);
+
+    // A recording whose only description predates its tiles' configuration names none.
+    let messages = vec![info_message(0, full), tile_message(1, 0, (160, 16), 10)];
+    let mut link = Scripted {
+        messages: messages.into_iter(),
+    };
+    let m = stream::run(&mut link, &options(tmp.path(), None), &Silent)
+        .unwrap()
+        .manifest;
+    assert!(m.configurations.is_empty(), "{m:?}");
+    assert_eq!(m.tiles_received, 1);
+}

@@ -10,11 +10,10 @@ use numpy::ndarray::Array2;
 use pyo3::exceptions::PyStopIteration;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use rollfuse::commands::WaveletArg;
-use rollfuse::commands::stream::{Args, NormArg, Opened, open};
+use rollfuse::commands::stream::{Args, Opened, open};
 use rollfuse::progress::Silent;
 use rollfuse::stream::{Manifest, Outcome, StopReason, Watch, run_watched};
-use rollfuse_core::protocol::{Command, Tile};
+use rollfuse_core::protocol::{Command, DeviceConfig, Tile};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
@@ -206,11 +205,12 @@ impl Drop for Stream {
 ///     with the stream). tiles, seconds: stop a live device after so many tiles or
 ///     seconds. record: record every message to this file. The fusion options are the
 ///     command line's (--wavelet … --norm); frame_rate paces the virtual device.
+/// Unset, the fusion options are the module's defaults (db2, 1 level, 1×).
 /// Returns a Stream: iterate it for the tiles; its `manifest` once it has ended.
 #[pyfunction]
 #[pyo3(signature = (device, *, scene=None, out=None, tiles=None, seconds=None, record=None,
-    wavelet="db2", levels=2, downsample=2, tile_rows=16, frames_per_tile=4, spacing_px=None,
-    refine_rows=2, norm="per-frame", unbounded_memory=false, frame_rate=None))]
+    wavelet=None, levels=None, downsample=None, tile_rows=None, frames_per_tile=None,
+    spacing_px=None, refine_rows=None, norm=None, unbounded_memory=false, frame_rate=None))]
 pub fn stream(
     py: Python<'_>,
     device: String,
@@ -219,14 +219,14 @@ pub fn stream(
     tiles: Option<u64>,
     seconds: Option<f64>,
     record: Option<PathBuf>,
-    wavelet: &str,
-    levels: u8,
-    downsample: u8,
-    tile_rows: u16,
-    frames_per_tile: u8,
+    wavelet: Option<&str>,
+    levels: Option<u8>,
+    downsample: Option<u8>,
+    tile_rows: Option<u16>,
+    frames_per_tile: Option<u8>,
     spacing_px: Option<u16>,
-    refine_rows: u8,
-    norm: &str,
+    refine_rows: Option<u8>,
+    norm: Option<&str>,
     unbounded_memory: bool,
     frame_rate: Option<f64>,
 ) -> PyResult<Stream> {
@@ -236,6 +236,8 @@ pub fn stream(
             pyo3::exceptions::PyOSError::new_err(format!("cannot make a temporary folder: {e}"))
         })?),
     };
+    // Unset, each fusion option is the module's own default.
+    let module = DeviceConfig::default();
     let args = Args {
         device,
         scene,
@@ -243,14 +245,14 @@ pub fn stream(
         record,
         tiles,
         seconds,
-        wavelet: choice::<WaveletArg>("wavelet", wavelet)?,
-        levels,
-        downsample,
-        tile_rows,
-        frames_per_tile,
+        wavelet: wavelet.map_or(Ok(module.wavelet.into()), |w| choice("wavelet", w))?,
+        levels: levels.unwrap_or(module.levels),
+        downsample: downsample.unwrap_or(module.downsample),
+        tile_rows: tile_rows.unwrap_or(module.tile_rows),
+        frames_per_tile: frames_per_tile.unwrap_or(module.frames_per_tile),
         spacing_px,
-        refine_rows,
-        norm: choice::<NormArg>("norm", norm)?,
+        refine_rows: refine_rows.unwrap_or(module.refine_rows),
+        norm: norm.map_or(Ok(module.norm.into()), |n| choice("norm", n))?,
         unbounded_memory,
         frame_rate,
         serve: None,

@@ -38,6 +38,11 @@ def test_the_virtual_device_streams_the_cli_tiles(recorded, tmp_path):
     assert [Path(f).name for f in s.strip_files] == ["strip.png"]
     assert np.array_equal(read_png(Path(s.strip_files[0])), want)
     assert s.skipped == 0
+    # The module's defaults, named in the manifest by the tiles they made.
+    [configured] = s.manifest["configurations"]
+    assert configured["config"]["wavelet"] == "Db2"
+    assert (configured["config"]["levels"], configured["config"]["downsample"]) == (1, 1)
+    assert configured["tile_size"] == [want.shape[1], 16] == s.manifest["tile_size"]
 
 
 def test_a_recording_plays_back_as_it_was_received(recorded):

@@ -44,6 +44,15 @@ pub enum WaveletArg {
     Db2,
 }
 
+impl From<rollfuse_core::protocol::WaveletId> for WaveletArg {
+    fn from(w: rollfuse_core::protocol::WaveletId) -> Self {
+        match w {
+            rollfuse_core::protocol::WaveletId::Haar => WaveletArg::Haar,
+            rollfuse_core::protocol::WaveletId::Db2 => WaveletArg::Db2,
+        }
+    }
+}
+
 impl From<WaveletArg> for Wavelet {
     fn from(w: WaveletArg) -> Self {
         match w {

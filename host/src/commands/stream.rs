@@ -46,29 +46,31 @@ pub struct Args {
     /// Stop after this many seconds.
     #[arg(long)]
     pub seconds: Option<f64>,
-    /// Wavelet the device fuses with.
-    #[arg(long, value_enum, default_value = "db2")]
+    /// Wavelet the device fuses with (default: the module's, db2).
+    #[arg(long, value_enum, default_value_t = WaveletArg::from(DeviceConfig::default().wavelet))]
     pub wavelet: WaveletArg,
-    /// Decomposition levels, 1..=4.
-    #[arg(long, default_value_t = 2)]
+    /// Decomposition levels, 1..=4 (default: the module's).
+    #[arg(long, default_value_t = DeviceConfig::default().levels)]
     pub levels: u8,
-    /// Box downsampling of camera frames: 1, 2 or 4.
-    #[arg(long, default_value_t = 2)]
+    /// Box downsampling of camera frames: 1, 2 or 4 (default: the module's, 1: the
+    /// camera's full resolution).
+    #[arg(long, default_value_t = DeviceConfig::default().downsample)]
     pub downsample: u8,
     /// Tile height along the belt, downsampled rows.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = DeviceConfig::default().tile_rows)]
     pub tile_rows: u16,
     /// Frames fused into each tile.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = DeviceConfig::default().frames_per_tile)]
     pub frames_per_tile: u8,
-    /// Belt travel between frames, camera pixels (default: the scene's, or 16 on USB).
+    /// Belt travel between frames, camera pixels (default: the scene's, or the module's
+    /// on USB).
     #[arg(long)]
     pub spacing_px: Option<u16>,
     /// Offset refinement search, ± downsampled rows (0 trusts the motion).
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = DeviceConfig::default().refine_rows)]
     pub refine_rows: u8,
     /// Saliency normalization.
-    #[arg(long, value_enum, default_value = "per-frame")]
+    #[arg(long, value_enum, default_value_t = NormArg::from(DeviceConfig::default().norm))]
     pub norm: NormArg,
     /// With --device sim: give the virtual device as much pipeline memory as the
     /// configuration needs, for host-only studies (by default it has the module's, and
@@ -100,6 +102,15 @@ pub struct Args {
     /// up (the strip, the status, the detector's boxes) until interrupted (Ctrl-C).
     #[arg(long, requires = "serve")]
     pub keep_serving: bool,
+}
+
+impl From<NormMode> for NormArg {
+    fn from(n: NormMode) -> Self {
+        match n {
+            NormMode::PerTile => NormArg::PerTile,
+            NormMode::PerFrame => NormArg::PerFrame,
+        }
+    }
 }
 
 impl Args {
@@ -366,7 +377,10 @@ fn open_link(
 ) -> anyhow::Result<(Box<dyn Transport>, Option<DeviceConfig>)> {
     Ok(match checked.replay.as_deref() {
         Some(file) => (Box::new(Replay::open(file)?), None),
-        None if args.device == "usb" => (Box::new(Usb::open()?), Some(args.config(16))),
+        None if args.device == "usb" => (
+            Box::new(Usb::open()?),
+            Some(args.config(DeviceConfig::default().frame_spacing_px)),
+        ),
         None => {
             let path = args.scene.as_ref().context("--device sim needs --scene")?;
             let memory = if args.unbounded_memory {
@@ -403,6 +417,20 @@ fn print_summary(out: &std::path::Path, outcome: &stream::Outcome) {
         m.tiles_received as f64 / secs,
         m.bytes as f64 / secs / 1e6,
     );
+    for c in &m.configurations {
+        let from = c
+            .from_tile
+            .map_or(String::new(), |t| format!(" from tile {t}"));
+        println!(
+            "configuration{from}: {}",
+            stream::describe(&c.config, c.tile_size)
+        );
+    }
+    if m.tiles_received > 0 && m.configurations.is_empty() {
+        println!(
+            "configuration: unknown (none the device reported makes tiles of the size received)"
+        );
+    }
     match outcome.stop {
         StopReason::TileLimit => println!("stopped at --tiles"),
         StopReason::TimeLimit => println!("stopped at --seconds"),
