@@ -42,6 +42,8 @@ enum Command {
     Train(detect::TrainArgs),
     /// Find fabric defects and classify the fabric in gray tactile images.
     Detect(detect::Args),
+    /// Learn one fabric from defect-free images, for `detect --normal` (docs/detect.md).
+    FitNormal(detect::FitNormalArgs),
     /// Stream fused tiles from the device (USB, virtual, or a recording) into a strip.
     Stream(stream::Args),
     /// List the rollfuse devices on USB.
@@ -63,6 +65,7 @@ fn main() -> ExitCode {
         Command::Calibrate(args) => depth::calibrate_run(args),
         Command::Train(args) => detect::train_run(args),
         Command::Detect(args) => detect::run(args),
+        Command::FitNormal(args) => detect::fit_normal_run(args),
         Command::Stream(args) => stream::run(args),
         Command::Devices => stream::devices(),
     };

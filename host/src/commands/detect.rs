@@ -2,7 +2,8 @@
 //! detector run on images (frames, fused images, strips).
 
 use super::bars::Bars;
-use crate::detect::draw::draw;
+use crate::detect::anomaly::NormalModel;
+use crate::detect::draw::{draw, outline};
 use crate::detect::train::{TrainOptions, train};
 use crate::detect::{Detection, Detector, model};
 use crate::files::{Batch, PngLayout, add_png};
@@ -81,8 +82,12 @@ pub struct Args {
     #[arg(required = true)]
     pub images: Vec<PathBuf>,
     /// A model file (else the built-in model).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "normal")]
     pub model: Option<PathBuf>,
+    /// Anomaly mode: score each image against this normal model of one fabric
+    /// (`rollfuse fit-normal`) instead of running the defect detector.
+    #[arg(long)]
+    pub normal: Option<PathBuf>,
     /// Write every image's results to this JSON file.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -90,7 +95,7 @@ pub struct Args {
     #[arg(long)]
     pub draw: Option<PathBuf>,
     /// Heatmap score a detection needs, 0..1.
-    #[arg(long, default_value_t = crate::detect::DEFAULT_THRESHOLD)]
+    #[arg(long, default_value_t = crate::detect::DEFAULT_THRESHOLD, conflicts_with = "normal")]
     pub threshold: f32,
     /// Upsample the images N× first (bilinear), for images downsampled from the camera's
     /// scale, such as `rollfuse stream`'s strips from a device configured to downsample;
@@ -131,9 +136,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .map(|i| ("input image", i.as_path()))
         .collect();
     inputs.extend(args.model.as_deref().map(|m| ("model", m)));
+    inputs.extend(args.normal.as_deref().map(|m| ("normal model", m)));
     crate::files::refuse_overwriting(&outputs, &inputs)?;
     if let Some(dir) = &args.draw {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    if let Some(normal) = &args.normal {
+        return anomalies_run(&args, normal, &drawn);
     }
     let mut detector = Detector::load_or_built_in(args.model.as_deref())?;
     detector.threshold = args.threshold;
@@ -176,32 +185,148 @@ fn drawn_path(dir: &Path, image: &Path) -> anyhow::Result<PathBuf> {
     Ok(dir.join(format!("{stem}_detect.png")))
 }
 
+/// `(x0, y0)–(x1, y1)`, a box in whole pixels.
+fn box_text(box_px: [f32; 4]) -> String {
+    let b = box_px.map(|v| v.round() as i64);
+    format!("({}, {})–({}, {})", b[0], b[1], b[2], b[3])
+}
+
+/// `N things` and, if any, `: ` and the items.
+fn counted(items: &[String], thing: &str) -> String {
+    format!(
+        "{} {thing}{}{}{}",
+        items.len(),
+        if items.len() == 1 { "" } else { "s" },
+        if items.is_empty() { "" } else { ": " },
+        items.join(", ")
+    )
+}
+
 /// One line of what was found.
 fn summary(path: &Path, d: &Detection) -> String {
     let defects: Vec<String> = d
         .defects
         .iter()
-        .map(|f| {
-            let b = f.box_px.map(|v| v.round() as i64);
-            format!(
-                "{} {:.2} at ({}, {})–({}, {})",
-                f.kind.name(),
-                f.score,
-                b[0],
-                b[1],
-                b[2],
-                b[3]
-            )
-        })
+        .map(|f| format!("{} {:.2} at {}", f.kind.name(), f.score, box_text(f.box_px)))
         .collect();
     format!(
-        "{}: {} (p {:.2}); {} defect{}{}{}",
+        "{}: {} (p {:.2}); {}",
         path.display(),
         d.fabric,
         d.probability,
-        d.defects.len(),
-        if d.defects.len() == 1 { "" } else { "s" },
-        if defects.is_empty() { "" } else { ": " },
-        defects.join(", ")
+        counted(&defects, "defect")
     )
+}
+
+/// Arguments of `rollfuse fit-normal`.
+#[derive(Debug, clap::Args)]
+pub struct FitNormalArgs {
+    /// Defect-free gray images of one fabric, from one camera at one scale (frames, fused
+    /// tiles or strip segments).
+    #[arg(required = true)]
+    pub images: Vec<PathBuf>,
+    /// Where to write the normal model (JSON).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// Runs `rollfuse fit-normal`.
+pub fn fit_normal_run(args: FitNormalArgs) -> anyhow::Result<()> {
+    let inputs: Vec<(&str, &Path)> = args
+        .images
+        .iter()
+        .map(|i| ("input image", i.as_path()))
+        .collect();
+    crate::files::refuse_overwriting(&[args.out.as_path()], &inputs)?;
+    super::check_writable(&args.out)?;
+    let started = std::time::Instant::now();
+    let images: Vec<Planes> = args
+        .images
+        .iter()
+        .map(|p| Planes::load(p))
+        .collect::<anyhow::Result<_>>()?;
+    let model = NormalModel::fit(&images)?;
+    model.save(&args.out)?;
+    println!(
+        "learned {} images of {} × {} ({}) in {:.1} s; a cell is anomalous above {:.2} → {}",
+        model.images,
+        model.width,
+        model.height,
+        if model.rows.len() > 1 {
+            "each row of cells apart"
+        } else {
+            "every row alike"
+        },
+        started.elapsed().as_secs_f64(),
+        model.threshold,
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// The colour anomalous regions are drawn in.
+const ANOMALY_COLOUR: [u8; 3] = [255, 190, 0];
+
+/// One image's anomalies in the JSON file.
+#[derive(serde::Serialize)]
+struct AnomalyResult {
+    image: String,
+    anomaly_score: f32,
+    defects: Vec<AnomalyDefect>,
+}
+
+/// An anomalous region as `detect --json` lists defects.
+#[derive(serde::Serialize)]
+struct AnomalyDefect {
+    kind: &'static str,
+    score: f32,
+    box_px: [f32; 4],
+}
+
+/// `rollfuse detect --normal`: each image scored against the normal model.
+fn anomalies_run(args: &Args, normal: &Path, drawn: &[PathBuf]) -> anyhow::Result<()> {
+    let model = NormalModel::load(normal)?;
+    let mut batch = Batch::new();
+    let mut results = Vec::new();
+    for (k, path) in args.images.iter().enumerate() {
+        let image = Planes::load(path)?;
+        let a = model
+            .detect(&image)
+            .with_context(|| format!("{}", path.display()))?;
+        let regions: Vec<String> = a
+            .regions
+            .iter()
+            .map(|r| format!("{:.2} at {}", r.score, box_text(r.box_px)))
+            .collect();
+        println!(
+            "{}: anomaly score {:.2}; {}",
+            path.display(),
+            a.anomaly_score,
+            counted(&regions, "region")
+        );
+        if let Some(out) = drawn.get(k) {
+            let (w, h, rgb) = outline(&image, a.regions.iter().map(|r| (r.box_px, ANOMALY_COLOUR)));
+            add_png(&mut batch, out, &rgb, (w, h), PngLayout::Rgb8)?;
+        }
+        results.push(AnomalyResult {
+            image: path.display().to_string(),
+            anomaly_score: a.anomaly_score,
+            defects: a
+                .regions
+                .iter()
+                .map(|r| AnomalyDefect {
+                    kind: "anomaly",
+                    score: r.score,
+                    box_px: r.box_px,
+                })
+                .collect(),
+        });
+    }
+    if let Some(json) = &args.json {
+        batch.add_bytes(
+            json,
+            (serde_json::to_string_pretty(&results)? + "\n").as_bytes(),
+        )?;
+    }
+    batch.commit()
 }

@@ -15,11 +15,18 @@ pub fn kind_colour(kind: DefectKind) -> [u8; 3] {
 
 /// A gray image as RGB with each box outlined 2 px wide in its kind's colour.
 pub fn draw(image: &Planes, found: &[Found]) -> (usize, usize, Vec<u8>) {
+    outline(image, found.iter().map(|f| (f.box_px, kind_colour(f.kind))))
+}
+
+/// `image` as RGB with each box outlined 2 pixels wide in its colour.
+pub fn outline(
+    image: &Planes,
+    boxes: impl IntoIterator<Item = ([f32; 4], [u8; 3])>,
+) -> (usize, usize, Vec<u8>) {
     let (w, h) = (image.width, image.height);
     let mut rgb: Vec<u8> = image.to_u8().iter().flat_map(|&g| [g, g, g]).collect();
-    for f in found {
-        let c = kind_colour(f.kind);
-        let [x0, y0, x1, y1] = f.box_px.map(|v| v.round() as i64);
+    for (box_px, c) in boxes {
+        let [x0, y0, x1, y1] = box_px.map(|v| v.round() as i64);
         let mut put = |x: i64, y: i64| {
             if (0..w as i64).contains(&x) && (0..h as i64).contains(&y) {
                 let at = 3 * (y as usize * w + x as usize);

@@ -10,6 +10,7 @@
 //! - [`draw`]: boxes drawn on the image.
 //! - [`train`]: the training loop.
 
+pub mod anomaly;
 pub mod data;
 pub mod draw;
 pub mod model;
