@@ -552,3 +552,24 @@ fn without_the_detector_the_status_says_none() {
         serde_json::from_slice(&get(&server, "/status.json").1).unwrap();
     assert!(status["detector"].is_null());
 }
+
+#[test]
+fn the_page_shows_the_configuration_the_tiles_are_made_with() {
+    let tmp = tempfile::tempdir().unwrap();
+    let server = server(false);
+    let mut dev = SimDevice::start(&letters(12)).unwrap();
+    let opts = Options {
+        config: Some(rollfuse_core::protocol::DeviceConfig {
+            downsample: 2,
+            ..dev.default_config()
+        }),
+        ..options(tmp.path())
+    };
+    let outcome = stream::run_watched(&mut dev, &opts, &Silent, &mut server.watcher()).unwrap();
+    server.finish(&outcome.manifest);
+    let status: serde_json::Value =
+        serde_json::from_slice(&get(&server, "/status.json").1).unwrap();
+    // Not the 1× the device announced before it was configured.
+    assert_eq!(status["device"]["config"]["downsample"], 2, "{status}");
+    assert_eq!(status["tile_size"], serde_json::json!([160, 16]));
+}

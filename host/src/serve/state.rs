@@ -172,7 +172,8 @@ pub struct Status {
     pub rate: Rate,
     /// Refused messages and link faults, by kind.
     pub faults: Faults,
-    /// The device and its configuration, from its reply to hello.
+    /// The device, from its reply to hello, with the configuration it reported last (the
+    /// one its tiles are made with once one comes).
     pub device: Option<DeviceInfo>,
     /// The device's counters from its last status.
     pub device_counters: Option<StatusCounters>,
@@ -197,7 +198,12 @@ impl Status {
         self.rate = rate;
         self.faults = m.faults.clone();
         self.tile_size = m.tile_size.or(self.tile_size);
-        self.device = m.device;
+        self.device = m.device.map(|mut d| {
+            if let Some(c) = m.configurations.last() {
+                d.config = c.config;
+            }
+            d
+        });
         self.device_counters = m.device_counters;
         if self.refused.len() != m.refused.len() {
             self.refused = m.refused.clone();
