@@ -36,6 +36,7 @@ fn serve_options(control: bool) -> ServeOptions {
         control,
         source: "sim".into(),
         live: true,
+        allowed_hosts: Vec::new(),
     }
 }
 
@@ -278,7 +279,7 @@ fn without_heartbeat(manifest: &[u8]) -> serde_json::Value {
 /// A client that asks for `/events` and then never reads a byte.
 fn stuck_client(server: &Server) -> std::net::TcpStream {
     let mut s = std::net::TcpStream::connect(server.addr()).unwrap();
-    write!(s, "GET /events HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
+    write!(s, "GET /events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n").unwrap();
     s
 }
 
@@ -358,6 +359,10 @@ fn the_command_line_refuses_bad_serve_options_clearly() {
         ),
         (vec!["--serve", &in_use], "cannot serve on"),
         (vec!["--control"], "--serve"),
+        (
+            vec!["--serve", "0.0.0.0:0", "--control"],
+            "--allow-remote-control",
+        ),
         (vec!["--keep-serving"], "--serve"),
         (vec!["--frame-rate", "0"], "--frame-rate must be from"),
     ] {
@@ -453,6 +458,7 @@ fn a_replayed_stream_takes_no_commands() {
         control: true,
         source: "replay".into(),
         live: false,
+        allowed_hosts: Vec::new(),
     })
     .unwrap();
     let token = server.token().unwrap().to_string();

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Chooses the live page's HTTP server crate by measurement: scratch crates serving one
-# route with tiny_http and with axum on tokio, and an empty `main` to compare against,
+# route with httparse under std's TcpListener (what the live page uses), with tiny_http
+# and with axum on tokio, and an empty `main` to compare against,
 # each built cold (its own target folder) in debug and release with the default profiles.
 # Prints, per crate, the crates it compiles, both build times and the release binary's
 # size. Results and the choice: docs/serve.md, "The server crate". Run it on a quiet
@@ -17,6 +18,19 @@ scratch() { # name, [dependencies], main.rs
 }
 
 scratch empty "" 'fn main() {}'
+scratch parse 'httparse = "1.10"' '
+use std::io::{Read, Write};
+fn main() {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    for mut stream in listener.incoming().flatten() {
+        let mut buf = [0u8; 4096];
+        let n = stream.read(&mut buf).unwrap_or(0);
+        let mut headers = [httparse::EMPTY_HEADER; 32];
+        if httparse::Request::new(&mut headers).parse(&buf[..n]).is_ok() {
+            let _ = stream.write_all(b"HTTP/1.1 200 OK\r\nContent-Length: 2\r\n\r\nok");
+        }
+    }
+}'
 scratch tiny 'tiny_http = "0.12"' '
 fn main() {
     let server = tiny_http::Server::http("127.0.0.1:0").unwrap();
@@ -35,7 +49,7 @@ async fn main() {
     axum::serve(listener, app).await.unwrap();
 }'
 
-for name in empty tiny axum; do
+for name in empty parse tiny axum; do
     dir="$work/$name"
     # Sources fetched first, so the timings are builds only.
     cargo fetch -q --manifest-path "$dir/Cargo.toml"

@@ -90,6 +90,14 @@ pub struct Args {
     /// that carry the token printed at start-up.
     #[arg(long, requires = "serve")]
     pub control: bool,
+    /// With --control on an address other machines can reach: accept that the token
+    /// travels over plain HTTP, readable by anyone on the network path.
+    #[arg(long, requires = "control")]
+    pub allow_remote_control: bool,
+    /// With --serve: a host name the page may be reached by, beside IP addresses and
+    /// `localhost` (repeatable); requests naming any other host get 421.
+    #[arg(long, value_name = "NAME", requires = "serve")]
+    pub allow_host: Vec<String>,
     /// With --serve: run the defect detector over the strip as it grows and draw its boxes
     /// on the page (at the camera's scale: the strip is upsampled by the device's
     /// downsampling first).
@@ -245,10 +253,17 @@ fn start_server(
     live: bool,
 ) -> anyhow::Result<serve::Server> {
     if !addr.ip().is_loopback() {
+        if args.control && !args.allow_remote_control {
+            anyhow::bail!(
+                "--control on {addr} would send the control token over plain HTTP to anyone on \
+                 the network path: serve on a loopback address (127.0.0.1:PORT, reached from \
+                 elsewhere through an SSH tunnel), or give --allow-remote-control to accept the risk"
+            );
+        }
         eprintln!(
             "warning: serving on {addr}, reachable from other machines: anyone who can reach it sees the strip{}",
             if args.control {
-                " (commands still need the token)"
+                " and can read the control token on the wire"
             } else {
                 ""
             }
@@ -267,6 +282,7 @@ fn start_server(
         control: args.control,
         source,
         live,
+        allowed_hosts: args.allow_host.clone(),
     };
     let server = serve::Server::start_detecting(&options, detector)?;
     println!("live page: http://{}/", server.addr());

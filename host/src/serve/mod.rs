@@ -9,6 +9,7 @@
 
 pub mod detect;
 mod events;
+pub mod http;
 mod routes;
 pub mod state;
 
@@ -17,16 +18,22 @@ use anyhow::Context;
 use rollfuse_core::protocol::{self, Command};
 use state::{Rate, Shared, Status, lock};
 use std::collections::VecDeque;
-use std::net::SocketAddr;
+use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 /// How often the status is refreshed and pushed to the clients.
 pub const STATUS_EVERY: Duration = Duration::from_millis(250);
 
-/// Requests answered at once; beyond, a request gets 503 (each `/events` client counts).
+/// Connections answered at once; beyond, a connection gets 503 and is closed (each
+/// `/events` client counts, and so does a connection that has not sent its request yet,
+/// for at most [`http::HEAD_TIMEOUT`]).
 pub const MAX_REQUESTS: usize = 128;
+
+/// How long the accept thread waits to hand a refusal to a connection over the limit.
+const REFUSAL_WRITE: Duration = Duration::from_millis(100);
 
 /// How long a dropped server waits for the answers under way (a client that stopped
 /// reading holds its answer until it is cut off).
@@ -43,6 +50,10 @@ pub struct ServeOptions {
     pub source: String,
     /// Whether the session talks to a live device (a recording takes no commands).
     pub live: bool,
+    /// Host names (beside IP addresses and `localhost`) the page may be asked for by:
+    /// requests naming any other host are refused, so a page on another site cannot read
+    /// this one through DNS rebinding.
+    pub allowed_hosts: Vec<String>,
 }
 
 /// The running server. Dropping it stops it, once the answers under way are written (up
@@ -51,7 +62,8 @@ pub struct Server {
     shared: Arc<Shared>,
     /// The detector's thread, with `--detect` (taken when the session is over).
     detector: std::sync::Mutex<Option<detect::LiveDetector>>,
-    http: Arc<tiny_http::Server>,
+    /// Set when the server is dropped: the accept thread stops at its next connection.
+    stopping: Arc<AtomicBool>,
     addr: SocketAddr,
     accept: Option<JoinHandle<()>>,
 }
@@ -65,22 +77,16 @@ pub fn parse_addr(text: &str) -> anyhow::Result<SocketAddr> {
     })
 }
 
-/// A fresh control token: 128 bits from the standard library's per-process random keys
-/// (seeded by the operating system), as 32 hex digits.
-fn new_token() -> String {
-    use std::hash::{BuildHasher, Hasher};
-    let mut words = [0u64; 2];
-    for (i, w) in words.iter_mut().enumerate() {
-        let mut h = std::collections::hash_map::RandomState::new().build_hasher();
-        h.write_usize(i);
-        h.write_u128(
-            std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map_or(0, |d| d.as_nanos()),
-        );
-        *w = h.finish();
-    }
-    format!("{:016x}{:016x}", words[0], words[1])
+/// A fresh control token: 128 bits from the operating system's cryptographic random
+/// source, as 32 hex digits.
+fn new_token() -> anyhow::Result<String> {
+    let mut bytes = [0u8; 16];
+    getrandom::fill(&mut bytes).map_err(|e| {
+        anyhow::anyhow!(
+            "cannot draw a control token from the operating system's random source: {e}"
+        )
+    })?;
+    Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
 }
 
 impl Server {
@@ -96,15 +102,15 @@ impl Server {
         opts: &ServeOptions,
         detector: Option<crate::detect::Detector>,
     ) -> anyhow::Result<Self> {
-        let http = tiny_http::Server::http(opts.addr)
+        let listener = TcpListener::bind(opts.addr)
             .map_err(|e| anyhow::anyhow!("cannot serve on {}: {e}", opts.addr))?;
-        let addr = http
-            .server_addr()
-            .to_ip()
-            .context("the server is not on an IP address")?;
+        let addr = listener
+            .local_addr()
+            .with_context(|| format!("cannot serve on {}", opts.addr))?;
+        let token = opts.control.then(new_token).transpose()?;
         let shared = Arc::new(Shared {
             started: Instant::now(),
-            token: opts.control.then(new_token),
+            token,
             live: opts.live,
             status: std::sync::Mutex::new(Status {
                 source: opts.source.clone(),
@@ -125,18 +131,19 @@ impl Server {
             .map(|d| detect::LiveDetector::start(Arc::clone(&shared), d))
             .transpose()
             .context("cannot start the detector's thread")?;
-        let http = Arc::new(http);
+        let stopping = Arc::new(AtomicBool::new(false));
         let accept = {
-            let (http, shared) = (Arc::clone(&http), Arc::clone(&shared));
+            let (shared, stopping) = (Arc::clone(&shared), Arc::clone(&stopping));
+            let hosts = opts.allowed_hosts.clone();
             std::thread::Builder::new()
                 .name("serve-accept".into())
-                .spawn(move || accept_loop(&http, &shared))
+                .spawn(move || accept_loop(&listener, &shared, &stopping, &hosts))
                 .context("cannot start the server's thread")?
         };
         Ok(Self {
             shared,
             detector: std::sync::Mutex::new(detector),
-            http,
+            stopping,
             addr,
             accept: Some(accept),
         })
@@ -197,28 +204,54 @@ impl Drop for Server {
         // The answers under way finish first: an event stream writes its `end`, a download
         // its last byte. Without this, a process that exits right after would cut them off.
         self.shared.wait_for_requests(ANSWER_GRACE);
-        self.http.unblock();
-        if let Some(t) = self.accept.take() {
+        self.stopping.store(true, Ordering::Release);
+        // The accept thread waits for a connection: one to itself wakes it. Should that
+        // fail, the thread is left to end with the process.
+        let mut wake = self.addr;
+        if wake.ip().is_unspecified() {
+            wake.set_ip(match wake {
+                SocketAddr::V4(_) => std::net::Ipv4Addr::LOCALHOST.into(),
+                SocketAddr::V6(_) => std::net::Ipv6Addr::LOCALHOST.into(),
+            });
+        }
+        if TcpStream::connect_timeout(&wake, ANSWER_GRACE).is_ok()
+            && let Some(t) = self.accept.take()
+        {
             let _ = t.join();
         }
     }
 }
 
-/// Takes requests and answers each on a thread of its own, up to [`MAX_REQUESTS`].
-fn accept_loop(http: &tiny_http::Server, shared: &Arc<Shared>) {
-    for request in http.incoming_requests() {
-        let Some(answering) = shared.begin_request() else {
-            let _ = request.respond(
-                tiny_http::Response::from_string("too many requests\n").with_status_code(503),
-            );
+/// Takes connections and answers each on a thread of its own, up to [`MAX_REQUESTS`];
+/// beyond, a connection is told 503 and closed. Nothing here can fail for good: a
+/// failed accept (no descriptors left, say) is retried after a pause.
+fn accept_loop(
+    listener: &TcpListener,
+    shared: &Arc<Shared>,
+    stopping: &AtomicBool,
+    hosts: &[String],
+) {
+    loop {
+        let accepted = listener.accept();
+        if stopping.load(Ordering::Acquire) {
+            return;
+        }
+        let Ok((mut stream, _)) = accepted else {
+            std::thread::sleep(Duration::from_millis(50));
             continue;
         };
-        let shared = Arc::clone(shared);
-        // A thread that cannot be had drops the request and its count with it.
+        let Some(answering) = shared.begin_request() else {
+            let _ = stream.set_write_timeout(Some(REFUSAL_WRITE));
+            let busy = http::Answer::text(503, "too many connections; try again");
+            let _ = http::write_answer(&mut stream, &busy, false);
+            continue;
+        };
+        let (shared, hosts) = (Arc::clone(shared), hosts.to_vec());
+        // A thread that cannot be had drops the connection and its count with it.
         let _ = std::thread::Builder::new()
             .name("serve-request".into())
             .spawn(move || {
-                routes::handle(request, &shared);
+                routes::handle(stream, &shared, &hosts);
                 drop(answering);
             });
     }

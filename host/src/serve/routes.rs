@@ -2,12 +2,13 @@
 //! `--control`, the commands.
 
 use super::events;
+use super::http::{self, Answer, NoRequest, Request};
 use super::state::{COMMAND_QUEUE, KEPT_ROWS, Shared, lock};
 use rollfuse_core::device::controller::MAX_SPEED_UM_S;
 use rollfuse_core::protocol::{Command, RollerCommand};
 use std::io::Write;
+use std::net::TcpStream;
 use std::sync::atomic::Ordering;
-use tiny_http::{Header, Method, Request, Response, StatusCode};
 
 /// The page, with its script and style; it loads nothing else.
 const PAGE: &str = include_str!("page.html");
@@ -18,55 +19,78 @@ const DEFAULT_PNG_ROWS: usize = 512;
 /// Belt speed a roller start asks for without `?speed_um_s=`, µm/s.
 const DEFAULT_SPEED_UM_S: u32 = 10_000;
 
-/// A response with a body held in memory.
-type Answer = Response<std::io::Cursor<Vec<u8>>>;
-
-fn header(name: &str, value: &str) -> Header {
-    // Names and values here are fixed ASCII, which tiny_http always takes.
-    Header::from_bytes(name.as_bytes(), value.as_bytes()).expect("an ASCII header")
-}
-
-fn answer(code: u16, content_type: &str, body: Vec<u8>) -> Answer {
-    Response::from_data(body)
-        .with_status_code(StatusCode(code))
-        .with_header(header("Content-Type", content_type))
-        .with_header(header("Cache-Control", "no-store"))
-}
+/// The most of an unknown path a 404 repeats, characters.
+const ECHOED_PATH: usize = 120;
 
 fn text(code: u16, message: &str) -> Answer {
-    answer(
-        code,
-        "text/plain; charset=utf-8",
-        format!("{message}\n").into_bytes(),
-    )
+    Answer::text(code, message)
 }
 
-/// Answers one request (an `/events` request holds its thread until the client goes).
-pub fn handle(request: Request, shared: &Shared) {
-    let url = request.url().to_string();
-    let (path, query) = url.split_once('?').unwrap_or((&url, ""));
-    let method = request.method().clone();
-    let reply = match (&method, path) {
-        (Method::Get, "/events") => return events_stream(request, shared),
-        (Method::Get | Method::Head, "/" | "/index.html") => {
-            answer(200, "text/html; charset=utf-8", PAGE.as_bytes().to_vec())
+/// Answers the one request of a connection (an `/events` request holds its thread until
+/// the client goes), then closes it.
+pub fn handle(mut stream: TcpStream, shared: &Shared, allowed_hosts: &[String]) {
+    let _ = stream.set_write_timeout(Some(http::WRITE_TIMEOUT));
+    let request = match http::read_request(&mut stream) {
+        Ok(r) => r,
+        Err(NoRequest::Gone) => return,
+        Err(NoRequest::Refuse(answer)) => {
+            let _ = http::write_answer(&mut stream, &answer, false);
+            return http::close(stream);
         }
-        (Method::Get | Method::Head, "/status.json") => status_json(shared),
-        (Method::Get | Method::Head, "/strip.png") => strip_png(shared, query),
-        (Method::Post, p) if p.starts_with("/control/") => control(&request, shared, p, query),
+    };
+    let head_only = request.method == "HEAD";
+    let reply = match request.header("Host") {
+        None if request.minor >= 1 => text(400, "an HTTP/1.1 request needs a Host header"),
+        Some(host) if !http::known_host(host, allowed_hosts) => text(
+            421,
+            "this server answers to its IP address and localhost (and names given with --allow-host)",
+        ),
+        _ if request.method == "GET" && path_of(&request) == "/events" && !request.has_body() => {
+            return events_stream(stream, &request, shared);
+        }
+        _ => route(&request, shared),
+    };
+    // A client gone before its answer is no concern of the stream.
+    let _ = http::write_answer(&mut stream, &reply, head_only);
+    http::close(stream);
+}
+
+/// The request's path (its target without the query).
+fn path_of(request: &Request) -> &str {
+    request
+        .target
+        .split_once('?')
+        .map_or(&request.target, |(p, _)| p)
+}
+
+/// The answer to every request but an event stream.
+fn route(request: &Request, shared: &Shared) -> Answer {
+    let (path, query) = request
+        .target
+        .split_once('?')
+        .unwrap_or((&request.target, ""));
+    match (request.method.as_str(), path) {
+        ("GET" | "HEAD", "/" | "/index.html") => {
+            Answer::new(200, "text/html; charset=utf-8", PAGE.as_bytes().to_vec())
+        }
+        ("GET" | "HEAD", "/status.json") => status_json(shared),
+        ("GET" | "HEAD", "/strip.png") => strip_png(shared, query),
+        ("POST", p) if p.starts_with("/control/") => control(request, shared, p, query),
         (_, "/" | "/index.html" | "/status.json" | "/strip.png" | "/events") => {
             text(405, "method not allowed: this path is read with GET")
         }
         (_, p) if p.starts_with("/control/") => text(405, "control requests are POST"),
-        _ => text(404, &format!("no such page: {path}")),
-    };
-    // A client gone before its answer is no concern of the stream.
-    let _ = request.respond(reply);
+        _ => {
+            let shown: String = path.chars().take(ECHOED_PATH).collect();
+            let more = if shown.len() < path.len() { "…" } else { "" };
+            text(404, &format!("no such page: {shown}{more}"))
+        }
+    }
 }
 
 fn status_json(shared: &Shared) -> Answer {
     let json = serde_json::to_vec_pretty(&shared.status_now()).unwrap_or_default();
-    answer(200, "application/json", json)
+    Answer::new(200, "application/json", json)
 }
 
 /// The value of `name` in a query string.
@@ -100,7 +124,7 @@ fn strip_png(shared: &Shared, query: &str) -> Answer {
         return text(503, "no tile has arrived yet");
     };
     match encode_png(width, height, &pixels) {
-        Ok(png) => answer(200, "image/png", png),
+        Ok(png) => Answer::new(200, "image/png", png),
         Err(e) => text(500, &format!("cannot encode the strip: {e}")),
     }
 }
@@ -118,22 +142,31 @@ fn encode_png(width: usize, height: usize, pixels: &[u8]) -> anyhow::Result<Vec<
     Ok(png)
 }
 
-/// Hands the connection to the event stream: the headers written here, because the
-/// events must leave as they come (tiny_http's bodies are buffered). The body is chunked,
-/// each event a chunk, and ends with the last chunk when the feed does: the client knows
-/// the stream is over without the connection closing (tiny_http keeps it open for a next
-/// request).
-fn events_stream(request: Request, shared: &Shared) {
+/// Hands the connection to the event stream: each event is written as it comes, one
+/// chunk each (HTTP/1.1; HTTP/1.0 gets them plain), and the body ends with the feed, so
+/// the client knows the stream is over.
+fn events_stream(mut stream: TcpStream, request: &Request, shared: &Shared) {
     let (first, feed) = events::subscribe(shared);
-    let mut out = request.into_writer();
-    let head = "HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\n\
-                Cache-Control: no-store\r\nTransfer-Encoding: chunked\r\n\r\n";
-    if out.write_all(head.as_bytes()).is_ok() {
-        let mut chunks = Chunked(&mut out);
-        events::serve_client(&mut chunks, first, feed, shared);
-        // The last chunk; a client already gone makes this fail, which changes nothing.
-        let _ = out.write_all(b"0\r\n\r\n").and_then(|()| out.flush());
+    let chunked = request.minor >= 1;
+    let head = format!(
+        "HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\nCache-Control: no-store\r\n\
+         Connection: close\r\n{}\r\n",
+        if chunked {
+            "Transfer-Encoding: chunked\r\n"
+        } else {
+            ""
+        }
+    );
+    if stream.write_all(head.as_bytes()).is_ok() {
+        if chunked {
+            events::serve_client(&mut Chunked(&mut stream), first, feed, shared);
+            // The last chunk; a client already gone makes this fail, which changes nothing.
+            let _ = stream.write_all(b"0\r\n\r\n");
+        } else {
+            events::serve_client(&mut stream, first, feed, shared);
+        }
     }
+    http::close(stream);
 }
 
 /// Writes each buffer as one HTTP/1.1 chunk (RFC 9112, section 7.1).
@@ -157,10 +190,9 @@ impl<W: Write> Write for Chunked<W> {
 
 /// Whether the request carries the control token (`Authorization: Bearer TOKEN`).
 fn authorized(request: &Request, token: &str) -> bool {
-    request.headers().iter().any(|h| {
-        h.field.equiv("Authorization")
-            && h.value
-                .as_str()
+    request.headers.iter().any(|(name, value)| {
+        name.eq_ignore_ascii_case("Authorization")
+            && value
                 .strip_prefix("Bearer ")
                 .is_some_and(|given| same_secret(given.trim(), token))
     })
@@ -182,7 +214,7 @@ fn control(request: &Request, shared: &Shared, path: &str, query: &str) -> Answe
             401,
             "a control request needs the token printed at start-up (Authorization: Bearer TOKEN)",
         )
-        .with_header(header("WWW-Authenticate", "Bearer"));
+        .with_header("WWW-Authenticate", "Bearer");
     }
     let command = match command_for(path, query) {
         Ok(c) => c,
