@@ -177,6 +177,40 @@ fn bad_models_are_one_clear_line() {
     let cut = tmp.path().join("cut.safetensors");
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
     fails(&["detect", i, "--model", cut.to_str().unwrap()], "model");
+    // The right shapes in another dtype.
+    let wide = tmp.path().join("f64.safetensors");
+    std::fs::write(&wide, in_f64(&bytes)).unwrap();
+    fails(
+        &["detect", i, "--model", wide.to_str().unwrap()],
+        "a detector's tensors are F32",
+    );
+}
+
+/// A safetensors file's bytes with every F32 tensor stored as F64, its metadata kept.
+fn in_f64(bytes: &[u8]) -> Vec<u8> {
+    use safetensors::{Dtype, SafeTensors, tensor::TensorView};
+    let (_, meta) = SafeTensors::read_metadata(bytes).unwrap();
+    let file = SafeTensors::deserialize(bytes).unwrap();
+    let wide: Vec<(String, Vec<usize>, Vec<u8>)> = file
+        .tensors()
+        .into_iter()
+        .map(|(name, t)| {
+            assert_eq!(t.dtype(), Dtype::F32);
+            let data = t
+                .data()
+                .chunks_exact(4)
+                .flat_map(|b| f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])).to_le_bytes())
+                .collect();
+            (name, t.shape().to_vec(), data)
+        })
+        .collect();
+    let views = wide.iter().map(|(name, shape, data)| {
+        (
+            name.clone(),
+            TensorView::new(Dtype::F64, shape.clone(), data).unwrap(),
+        )
+    });
+    safetensors::serialize(views, meta.metadata().clone()).unwrap()
 }
 
 /// Training and held-out sizes past reason are refused before any work (they would

@@ -222,12 +222,19 @@ fn print_defects(d: &serve::detect::DetectorStatus) {
         .iter()
         .map(|(k, n)| format!("{n} {k}{}", if *n == 1 { "" } else { "s" }))
         .collect();
+    if d.failures > 0 {
+        eprintln!(
+            "error: the detector failed on {} windows of the strip, whose rows were not checked: {}",
+            d.failures,
+            d.last_failure.as_deref().unwrap_or("no reason given")
+        );
+    }
     println!(
         "defects: {} on {} strip rows{}; fabric {}",
-        if kinds.is_empty() {
-            "none".to_string()
-        } else {
-            kinds.join(", ")
+        match (kinds.is_empty(), d.failures) {
+            (true, 0) => "none".to_string(),
+            (true, _) => "none found, but not every row was checked".to_string(),
+            (false, _) => kinds.join(", "),
         },
         d.rows_checked,
         if d.rows_skipped > 0 {

@@ -134,6 +134,24 @@ pub fn from_bytes(bytes: Vec<u8>, shown: &str) -> anyhow::Result<(Net, About)> {
         .context("no metadata")
         .and_then(About::parse)
         .map_err(|e| anyhow::anyhow!("model {shown} is not a rollfuse detector: {e:#}"))?;
+    // The network computes in f32; a tensor stored otherwise is refused here, by name,
+    // rather than converted or left to fail inside the network.
+    let mut names: Vec<(String, safetensors::Dtype)> = meta
+        .tensors()
+        .into_iter()
+        .filter(|(_, info)| info.dtype != safetensors::Dtype::F32)
+        .map(|(name, info)| (name, info.dtype))
+        .collect();
+    names.sort();
+    if let Some((name, dtype)) = names.first() {
+        bail!(
+            "model {shown} stores {name} as {dtype:?}; a detector's tensors are F32{}",
+            match names.len() - 1 {
+                0 => String::new(),
+                n => format!(" ({n} more tensors are not)"),
+            }
+        );
+    }
     let mut net = Net::new(about.widths, about.fabrics.len(), &Device::flex());
     // Mismatches are collected and reported here, one line, rather than by the store.
     let mut store = SafetensorsStore::from_bytes(Some(bytes)).validate(false);

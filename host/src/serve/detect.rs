@@ -45,6 +45,18 @@ pub struct DetectorStatus {
     pub rows_checked: u64,
     /// Strip rows it passed over, having fallen behind the stream.
     pub rows_skipped: u64,
+    /// Windows the detector failed on (an error or a panic): their rows are not checked.
+    pub failures: u64,
+    /// The last failure, in a line.
+    pub last_failure: Option<String>,
+}
+
+impl DetectorStatus {
+    /// Counts a failure on a window.
+    fn failed(&mut self, why: String) {
+        self.failures += 1;
+        self.last_failure = Some(why);
+    }
 }
 
 /// The detector's findings, shared with the server's threads.
@@ -116,7 +128,7 @@ impl Windows {
         }
     }
 
-    fn run(mut self, shared: &Shared, ended: &AtomicBool) {
+    pub(super) fn run(mut self, shared: &Shared, ended: &AtomicBool) {
         loop {
             // Read before looking at the rows, so rows that came before the end are seen.
             let last = ended.load(Ordering::Relaxed);
@@ -128,7 +140,21 @@ impl Windows {
                 continue;
             };
             match self.next_window(shared, upsample, last) {
-                Some(w) => self.check(shared, w, upsample),
+                Some(w) => {
+                    let checked = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                        self.check(shared, w, upsample)
+                    }));
+                    if let Err(panic) = checked {
+                        let why = panic
+                            .downcast_ref::<&str>()
+                            .map(|s| s.to_string())
+                            .or_else(|| panic.downcast_ref::<String>().cloned())
+                            .unwrap_or_else(|| "a panic".into());
+                        lock(&shared.findings)
+                            .status
+                            .failed(format!("the detector failed: {why}"));
+                    }
+                }
                 None if last => return,
                 None => std::thread::sleep(POLL),
             }
@@ -185,8 +211,21 @@ impl Windows {
             height: rows,
             planes: vec![pixels.iter().map(|&v| f32::from(v)).collect()],
         };
-        // A window too small for the detector (a short tail) is counted as checked.
-        let found = self.detector.detect_at_scale(&image, upsample).ok();
+        // A window too small for the detector (a short tail) is counted as checked; any
+        // other error is a failure, counted and shown.
+        let small = width.min(rows) * upsample.max(1) < crate::detect::MIN_SIDE;
+        let found = match self.detector.detect_at_scale(&image, upsample) {
+            Ok(found) => Some(found),
+            Err(_) if small => None,
+            Err(e) => {
+                let why = format!(
+                    "the detector failed: {}",
+                    crate::detect::model::first_line(&e)
+                );
+                lock(&shared.findings).status.failed(why);
+                return;
+            }
+        };
         let boxes: Vec<LiveBox> = found
             .as_ref()
             .map(|d| {

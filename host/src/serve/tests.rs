@@ -259,3 +259,73 @@ fn a_server_going_away_lets_the_answers_under_way_write_the_end() {
     feed.client.join().unwrap();
     releaser.join().unwrap();
 }
+
+/// A detector whose network gives no finite numbers (every weight NaN): the windows it
+/// fails on are counted with the reason, and nothing is reported as checked and clean.
+#[test]
+fn a_failing_detector_is_counted_and_shown_never_clean() {
+    use rollfuse_core::protocol::{DeviceConfig, DeviceInfo, PixelFormat};
+    let shared = shared();
+    lock(&shared.status).device = Some(DeviceInfo {
+        firmware: [0, 1, 0],
+        sensor_width: 64,
+        sensor_height: 48,
+        pixel_format: PixelFormat::Gray8,
+        config: DeviceConfig::default(),
+        max_tile_bytes: 1024,
+    });
+    {
+        let mut ring = lock(&shared.ring);
+        for index in 0..40 {
+            let pixels: Vec<u8> = (0..64 * 16).map(|i| (i * 7 % 251) as u8).collect();
+            ring.push(index, (64, 16), &pixels);
+        }
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("nan.safetensors");
+    let net = crate::detect::net::Net::new(
+        crate::detect::net::Widths([4, 8, 8, 8]),
+        17,
+        &burn::tensor::Device::flex(),
+    );
+    let about = crate::detect::model::About {
+        widths: crate::detect::net::Widths([4, 8, 8, 8]),
+        fabrics: (0..17).map(|i| format!("f{i}")).collect(),
+        made_by: "test".into(),
+    };
+    crate::detect::model::save(&path, &net, &about).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    std::fs::write(&path, all_nan(&bytes)).unwrap();
+    let detector = crate::detect::Detector::load(&path).unwrap();
+    super::detect::Windows::new(detector).run(&shared, &std::sync::atomic::AtomicBool::new(true));
+    let status = lock(&shared.findings).status.clone();
+    assert!(status.failures > 0, "{status:?}");
+    let why = status.last_failure.clone().unwrap_or_default();
+    assert!(why.contains("not finite"), "{why}");
+    assert!(
+        status.defects.is_empty() && status.fabric.is_none(),
+        "{status:?}"
+    );
+}
+
+/// A safetensors file's bytes with every F32 value NaN.
+fn all_nan(bytes: &[u8]) -> Vec<u8> {
+    use safetensors::{SafeTensors, tensor::TensorView};
+    let (_, meta) = SafeTensors::read_metadata(bytes).unwrap();
+    let file = SafeTensors::deserialize(bytes).unwrap();
+    let nan: Vec<(String, safetensors::Dtype, Vec<usize>, Vec<u8>)> = file
+        .tensors()
+        .into_iter()
+        .map(|(name, t)| {
+            let data = f32::NAN.to_le_bytes().repeat(t.data().len() / 4);
+            (name, t.dtype(), t.shape().to_vec(), data)
+        })
+        .collect();
+    let views = nan.iter().map(|(name, dtype, shape, data)| {
+        (
+            name.clone(),
+            TensorView::new(*dtype, shape.clone(), data).unwrap(),
+        )
+    });
+    safetensors::serialize(views, meta.metadata().clone()).unwrap()
+}
