@@ -22,6 +22,9 @@ pub const FAIL_WRITES_AFTER: &str = "ROLLFUSE_FAIL_WRITES_AFTER";
 /// A temporary path beside `target`: same folder (so the rename stays on one file
 /// system), hidden, unique to this process and this call (two outputs of one name in a
 /// batch get two temporaries).
+///
+/// The first temporary a process makes in a folder sweeps it of the temporaries that
+/// processes no longer running left there ([`sweep_stale`]).
 pub fn temporary_beside(target: &Path, tag: &str) -> PathBuf {
     static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -33,7 +36,125 @@ pub fn temporary_beside(target: &Path, tag: &str) -> PathBuf {
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
+    sweep_once(parent);
     parent.join(format!(".{name}.{tag}-{}-{call}", std::process::id()))
+}
+
+/// The tags of [`temporary_beside`]'s names.
+const TEMPORARY_TAGS: [&str; 3] = ["part", "new", "old"];
+
+/// The process that made `file_name`, if it is one of [`temporary_beside`]'s names
+/// (`.NAME.TAG-PID-CALL`, perhaps with `.png` after).
+pub fn temporary_owner(file_name: &str) -> Option<u32> {
+    let rest = file_name.strip_prefix('.')?;
+    let rest = rest.strip_suffix(".png").unwrap_or(rest);
+    let (front, call) = rest.rsplit_once('-')?;
+    let (front, pid) = front.rsplit_once('-')?;
+    let (_, tag) = front.rsplit_once('.')?;
+    let digits = |t: &str| !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit());
+    (TEMPORARY_TAGS.contains(&tag) && digits(call) && digits(pid)).then(|| pid.parse().ok())?
+}
+
+/// [`sweep_stale`] of `dir`, once per process.
+fn sweep_once(dir: &Path) {
+    static SWEPT: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+    let key = resolved(dir);
+    let mut swept = SWEPT
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    if !swept.contains(&key) {
+        swept.push(key);
+        drop(swept);
+        sweep_stale(dir);
+    }
+}
+
+/// Removes from `dir` the temporaries ([`temporary_beside`]'s names) of processes of
+/// this machine that are no longer running: what a killed run left. Where it cannot be
+/// told whether a process runs (no `/proc`), nothing is removed. Returns how many went.
+pub fn sweep_stale(dir: &Path) -> usize {
+    let proc = Path::new("/proc");
+    if !proc.join("self").exists() {
+        return 0;
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return 0;
+    };
+    let mine = std::process::id();
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(owner) = name.to_str().and_then(temporary_owner) else {
+            continue;
+        };
+        if owner == mine || proc.join(owner.to_string()).exists() {
+            continue;
+        }
+        let path = entry.path();
+        let gone = match entry.file_type() {
+            Ok(t) if t.is_dir() => std::fs::remove_dir_all(&path),
+            _ => std::fs::remove_file(&path),
+        };
+        removed += usize::from(gone.is_ok());
+    }
+    removed
+}
+
+/// The file an output to `target` is written to: `target` itself, or, when it is a
+/// symbolic link, the file the link leads to (so the link stays a link, its target
+/// replaced whole). Anything but a regular file there — a FIFO, a device, a socket, a
+/// folder — is refused: an output never replaces what the user pointed at with something
+/// else.
+pub fn output_target(target: &Path) -> anyhow::Result<PathBuf> {
+    let mut at = target.to_path_buf();
+    // As many links as the kernel follows in one path.
+    for _ in 0..40 {
+        let meta = match std::fs::symlink_metadata(&at) {
+            Ok(meta) => meta,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(at),
+            Err(e) => return Err(e).with_context(|| format!("cannot look at {}", at.display())),
+        };
+        let kind = meta.file_type();
+        if kind.is_symlink() {
+            let to = std::fs::read_link(&at)
+                .with_context(|| format!("cannot read the link {}", at.display()))?;
+            at = match at.parent() {
+                Some(dir) if to.is_relative() => dir.join(to),
+                _ => to,
+            };
+            continue;
+        }
+        ensure!(
+            kind.is_file(),
+            "{} is {}: outputs are written to regular files only",
+            target.display(),
+            special_kind(&kind)
+        );
+        return Ok(at);
+    }
+    anyhow::bail!("{} is a loop of symbolic links", target.display())
+}
+
+/// What a file that is not a regular file is, in words.
+fn special_kind(kind: &std::fs::FileType) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if kind.is_fifo() {
+            return "a FIFO";
+        }
+        if kind.is_char_device() || kind.is_block_device() {
+            return "a device";
+        }
+        if kind.is_socket() {
+            return "a socket";
+        }
+    }
+    if kind.is_dir() {
+        "a folder"
+    } else {
+        "not a regular file"
+    }
 }
 
 /// Where `path` really is: links and `..` resolved, through its folder when the file does
@@ -183,6 +304,7 @@ impl Batch {
         target: &Path,
         fill: impl FnOnce(&mut BufWriter<Output>) -> anyhow::Result<()>,
     ) -> anyhow::Result<()> {
+        let target = &output_target(target)?;
         let tmp = temporary_beside(target, "part");
         let result = (|| {
             let mut writer = BufWriter::with_capacity(1 << 16, Output::create(&tmp)?);
@@ -191,7 +313,7 @@ impl Batch {
         })();
         match result {
             Ok(()) => {
-                self.ready.push((tmp, target.to_path_buf()));
+                self.ready.push((tmp, target.clone()));
                 Ok(())
             }
             Err(e) => {
@@ -305,9 +427,10 @@ pub struct PendingFile {
 impl PendingFile {
     /// Starts writing `target`.
     pub fn create(target: &Path) -> anyhow::Result<Self> {
-        let tmp = temporary_beside(target, "part");
+        let target = output_target(target)?;
+        let tmp = temporary_beside(&target, "part");
         Ok(Self {
-            target: target.to_path_buf(),
+            target,
             writer: Some(BufWriter::with_capacity(1 << 16, Output::create(&tmp)?)),
             tmp,
         })
@@ -494,6 +617,105 @@ pub fn check_writable(path: &std::path::Path) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_link_is_written_through_and_special_files_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let real = dir.path().join("real.json");
+        std::fs::write(&real, b"old").unwrap();
+        let link = dir.path().join("link.json");
+        std::os::unix::fs::symlink("real.json", &link).unwrap();
+        write_bytes_atomic(&link, b"new").unwrap();
+        assert!(
+            std::fs::symlink_metadata(&link)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+        assert_eq!(std::fs::read(&real).unwrap(), b"new");
+        // A link to a file not there yet makes it.
+        let dangling = dir.path().join("dangling.json");
+        std::os::unix::fs::symlink("made.json", &dangling).unwrap();
+        write_bytes_atomic(&dangling, b"made").unwrap();
+        assert_eq!(
+            std::fs::read(dir.path().join("made.json")).unwrap(),
+            b"made"
+        );
+        // A folder, a device, a FIFO and a loop of links are not files to replace.
+        let err = write_bytes_atomic(dir.path(), b"x")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("is a folder"), "{err}");
+        let err = write_bytes_atomic(Path::new("/dev/null"), b"x")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("is a device"), "{err}");
+        let fifo = dir.path().join("fifo");
+        if std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .is_ok_and(|s| s.success())
+        {
+            let err = write_bytes_atomic(&fifo, b"x").unwrap_err().to_string();
+            assert!(err.contains("is a FIFO"), "{err}");
+        }
+        let a = dir.path().join("a");
+        std::os::unix::fs::symlink("b", &a).unwrap();
+        std::os::unix::fs::symlink("a", dir.path().join("b")).unwrap();
+        let err = write_bytes_atomic(&a, b"x").unwrap_err().to_string();
+        assert!(err.contains("loop of symbolic links"), "{err}");
+    }
+
+    #[test]
+    fn temporaries_name_their_owner() {
+        let t = temporary_beside(Path::new("out/strip.0003.png"), "part");
+        let name = t.file_name().unwrap().to_str().unwrap();
+        assert_eq!(temporary_owner(name), Some(std::process::id()));
+        assert_eq!(temporary_owner(".strip.0001.png.new-77-4.png"), Some(77));
+        for other in [
+            "strip.png",
+            ".strip.png",
+            ".x.part-1",
+            ".x.mine-1-2",
+            ".x.part--2",
+        ] {
+            assert_eq!(temporary_owner(other), None, "{other}");
+        }
+    }
+
+    #[test]
+    fn stale_temporaries_of_processes_gone_are_swept_and_others_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        // No process has an id this high (Linux's limit is 2²²).
+        let gone = [".a.png.part-999999999-0", ".b.png.new-999999999-3.png"];
+        for name in gone {
+            std::fs::write(dir.path().join(name), b"debris").unwrap();
+        }
+        std::fs::create_dir(dir.path().join(".report.part-999999999-1")).unwrap();
+        let live = format!(".c.png.part-{}-0", std::process::id());
+        for name in [live.as_str(), ".d.png.part-1-0", "e.png", ".hidden"] {
+            std::fs::write(dir.path().join(name), b"keep").unwrap();
+        }
+        if !Path::new("/proc/self").exists() {
+            assert_eq!(sweep_stale(dir.path()), 0);
+            return;
+        }
+        assert_eq!(sweep_stale(dir.path()), 3);
+        let mut left: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        left.sort();
+        // Process 1 (init) runs; this process runs.
+        let mut want = vec![
+            live,
+            ".d.png.part-1-0".into(),
+            ".hidden".into(),
+            "e.png".into(),
+        ];
+        want.sort();
+        assert_eq!(left, want);
+    }
 
     #[test]
     fn a_failed_write_keeps_the_previous_file_and_leaves_no_temporary() {

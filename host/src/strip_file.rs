@@ -7,11 +7,12 @@
 //! `STEM.0001.EXT`, …; in both cases `STEM.json` lists the segments with their first belt
 //! row and is written last, so it names only segments that are complete and of this run.
 //!
-//! An older strip of the same name stays whole until the new one is: a segment whose name
-//! is free is written in place as soon as it is full, one whose name an older file holds
-//! is written beside it under a hidden name and moved into place when the strip
+//! An older strip of the same name stays whole until the new one is: each segment is
+//! written as soon as it is full, beside its name under a hidden one that names the
+//! process ([`crate::files::temporary_beside`]), and moved into place when the strip
 //! finishes. A strip that fails (or is dropped unfinished) removes what it wrote and
-//! leaves the older strip, its index included, as it was.
+//! leaves the older strip, its index included, as it was; a run killed outright leaves
+//! only its hidden files, which the next run writing to that folder removes.
 //!
 //! Memory: one segment, `segment_rows × width × channels` samples.
 
@@ -98,9 +99,9 @@ pub struct StripWriter {
 
 /// Where a written segment lies until the strip finishes.
 enum Written {
-    /// At its own name, which no file held.
+    /// At its own name (moved there as the strip finishes).
     InPlace(PathBuf),
-    /// Under a hidden name beside `target`, which an older file holds.
+    /// Under a hidden name beside `target`, until the strip finishes.
     Beside { hidden: PathBuf, target: PathBuf },
 }
 
@@ -238,19 +239,17 @@ impl StripWriter {
             return Ok(());
         };
         let path = self.numbered(self.written.len());
-        // An older file at this name stays until the strip finishes.
-        let written = if path.exists() {
-            let hidden = crate::files::temporary_beside(&path, "new");
-            let hidden = hidden.with_file_name(format!(
-                "{}.png",
-                hidden.file_name().unwrap_or_default().to_string_lossy()
-            ));
-            Written::Beside {
-                hidden,
-                target: path.clone(),
-            }
-        } else {
-            Written::InPlace(path.clone())
+        // Every segment waits under a hidden name, its owner's, until the strip finishes:
+        // an older file at its name stays whole until then, and a run killed midway
+        // leaves only hidden files that the next run in this folder sweeps away.
+        let hidden = crate::files::temporary_beside(&path, "new");
+        let hidden = hidden.with_file_name(format!(
+            "{}.png",
+            hidden.file_name().unwrap_or_default().to_string_lossy()
+        ));
+        let written = Written::Beside {
+            hidden,
+            target: path.clone(),
         };
         let at = match &written {
             Written::InPlace(p) | Written::Beside { hidden: p, .. } => p,
@@ -412,18 +411,25 @@ mod tests {
         }
         assert_eq!(old.finish("old").unwrap().len(), 3);
         let older = files(dir.path());
-        // A new strip longer than the old one, cut off midway: its segments at free
-        // names are written as they fill, those at the old names wait beside them; the
-        // old strip and its index stay as they were, and the cut strip takes back all
-        // it wrote.
+        // A new strip longer than the old one, cut off midway: its segments are written
+        // as they fill, each hidden beside its name, a free name too; the old strip and
+        // its index stay as they were, and the cut strip takes back all it wrote.
         let mut cut = StripWriter::new(&out, 2, 1, 8, 2).unwrap();
         for row in 0..9 {
             cut.push(row, &[&[1.0; 2]]).unwrap();
         }
         assert!(
-            dir.path().join("strip.0003.png").exists(),
-            "a free name waits"
+            !dir.path().join("strip.0003.png").exists(),
+            "a free name is taken before the strip is whole"
         );
+        let hidden = std::fs::read_dir(dir.path())
+            .unwrap()
+            .filter(|e| {
+                let name = e.as_ref().unwrap().file_name();
+                crate::files::temporary_owner(&name.to_string_lossy()) == Some(std::process::id())
+            })
+            .count();
+        assert_eq!(hidden, 4, "the full segments are on disk, hidden");
         for (name, bytes) in &older {
             assert_eq!(
                 std::fs::read(dir.path().join(name)).unwrap(),

@@ -594,3 +594,65 @@ fn a_roll_whose_frames_match_nothing_is_written_marked_and_exits_3() {
             .unwrap();
     assert_eq!(index["details"]["trusted"], false);
 }
+
+/// What killed runs leave — hidden files naming a process no longer running — goes with
+/// the next run's first output in that folder; hidden files of running processes, and
+/// everything else, stay.
+#[test]
+fn a_run_sweeps_away_what_killed_runs_left_in_its_folder() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = simulate(tmp.path(), "dots", 3);
+    let out = tmp.path().join("strips");
+    std::fs::create_dir(&out).unwrap();
+    // No process has an id this high (Linux's limit is 2²²).
+    let debris = [
+        ".strip.0001.png.new-999999999-3.png",
+        ".strip.json.part-999999999-7",
+        ".strip.png.part-999999999-0",
+    ];
+    for name in debris {
+        std::fs::write(out.join(name), b"half").unwrap();
+    }
+    let running = format!(".strip.png.part-{}-0", std::process::id());
+    std::fs::write(out.join(&running), b"mine").unwrap();
+    std::fs::write(out.join(".notes"), b"the user's").unwrap();
+    let strip = out.join("strip.png");
+    let o = fuse(&args(&frames, &["--out", strip.to_str().unwrap()]));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let left = |name: &str| out.join(name).exists();
+    if Path::new("/proc/self").exists() {
+        assert!(debris.iter().all(|d| !left(d)), "debris stayed");
+    }
+    assert!(left(&running) && left(".notes") && left("strip.png"));
+}
+
+/// An output that is a symbolic link is written through to its target; one that is a
+/// device or a FIFO is refused, and the command says so.
+#[test]
+fn outputs_write_through_links_and_refuse_special_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = simulate(tmp.path(), "dots", 2);
+    let real = tmp.path().join("kept.png");
+    std::fs::write(&real, b"old").unwrap();
+    let link = tmp.path().join("link.png");
+    std::os::unix::fs::symlink(&real, &link).unwrap();
+    let o = fuse(&args(&frames, &["--out", link.to_str().unwrap()]));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+    assert!(
+        image::open(&real).is_ok(),
+        "the link's target holds the strip"
+    );
+    // A link to a device leads to the device, which is not replaced.
+    let device = tmp.path().join("null.png");
+    std::os::unix::fs::symlink("/dev/null", &device).unwrap();
+    let err = fails(&args(&frames, &["--out", device.to_str().unwrap()]));
+    assert!(err.contains("is a device"), "{err}");
+    let meta = std::fs::metadata("/dev/null").unwrap();
+    assert!(!meta.is_file(), "/dev/null was replaced");
+}
