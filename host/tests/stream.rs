@@ -863,3 +863,61 @@ fn a_reconfiguration_is_recorded_from_the_tile_it_applies_to() {
     assert!(m.configurations.is_empty(), "{m:?}");
     assert_eq!(m.tiles_received, 1);
 }
+
+/// A recording's bytes from its messages.
+fn recording_of(messages: &[Vec<u8>]) -> Vec<u8> {
+    let mut bytes = b"RFSTRM01".to_vec();
+    for m in messages {
+        bytes.extend((m.len() as u32).to_le_bytes());
+        bytes.extend(m);
+    }
+    bytes
+}
+
+/// Replays `bytes` from the command line: the manifest, and stderr.
+fn replayed(bytes: &[u8]) -> (serde_json::Value, String) {
+    let tmp = tempfile::tempdir().unwrap();
+    let rec = tmp.path().join("rec.bin");
+    std::fs::write(&rec, bytes).unwrap();
+    let out = tmp.path().join("s");
+    let o = rollfuse(&[
+        "stream",
+        "--device",
+        &format!("replay:{}", rec.display()),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(o.status.success(), "{err}");
+    let manifest = std::fs::read(out.join("manifest.json")).unwrap();
+    (serde_json::from_slice(&manifest).unwrap(), err)
+}
+
+/// A flipped bit in a length prefix near the end, and two recordings joined: every tile
+/// the damage did not touch is kept, and the damage is said.
+#[test]
+fn a_damaged_or_joined_recording_keeps_every_tile_around_the_damage() {
+    let messages = clean_stream();
+    let good = recording_of(messages);
+    let (clean, _) = replayed(&good);
+    let tiles = clean["tiles_received"].as_u64().unwrap();
+    // The length prefix of the third message from the end, its top byte flipped.
+    let k = messages.len() - 3;
+    let at = 8 + messages[..k].iter().map(|m| 4 + m.len()).sum::<usize>();
+    let mut damaged = good.clone();
+    damaged[at + 3] ^= 0x40;
+    let (manifest, err) = replayed(&damaged);
+    let kept = manifest["tiles_received"].as_u64().unwrap();
+    assert!(kept + 1 >= tiles && kept > 0, "{kept} of {tiles} tiles");
+    assert!(err.contains("damaged bytes skipped in 1 places"), "{err}");
+    // Two recordings joined with cat: the second's tiles repeat the first's indices, so
+    // they are counted as repeats; every message of both is read.
+    let mut joined = good.clone();
+    joined.extend(&good);
+    let (manifest, err) = replayed(&joined);
+    assert_eq!(
+        manifest["messages"].as_u64().unwrap(),
+        2 * clean["messages"].as_u64().unwrap()
+    );
+    assert!(err.contains("2 joined recordings"), "{err}");
+}

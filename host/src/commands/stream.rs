@@ -199,6 +199,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => stream::run(link.as_mut(), &opts, &bars)?,
     };
     print_summary(&args.out, &outcome);
+    if let Some(damage) = link.damage() {
+        eprintln!("warning: the recording is damaged: {damage}");
+    }
     if let Some(d) = server.as_ref().and_then(serve::Server::detector_status) {
         print_defects(&d);
     }

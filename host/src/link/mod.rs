@@ -37,4 +37,8 @@ pub trait Transport: Send {
     fn is_live(&self) -> bool {
         true
     }
+    /// What was stepped over to go on, in a line (a damaged recording), if anything.
+    fn damage(&self) -> Option<String> {
+        None
+    }
 }

@@ -3,20 +3,69 @@
 //!
 //! File format: the 8 bytes `RFSTRM01`, then one record per message: its length as a
 //! little-endian `u32`, then its bytes.
+//!
+//! Damage is stepped over, not refused: a record whose length no message can have (a
+//! flipped bit in its prefix, say) starts a search, byte by byte, for the next place
+//! where a record holds a message that decodes (its CRC and structure check out); what
+//! lies between is skipped and counted ([`Damage`]). A file's header met again (two
+//! recordings joined with `cat`) is passed over and the second recording plays on. A
+//! record cut off by the end of the file ends the replay; what came before stands.
 
 use super::{Received, Transport};
-use anyhow::{Context, bail};
-use rollfuse_core::protocol::MAX_MESSAGE;
-use std::io::{BufReader, Read};
+use anyhow::Context;
+use rollfuse_core::protocol::{self, DeviceMessage, MAX_MESSAGE};
+use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 const MAGIC: &[u8; 8] = b"RFSTRM01";
 
+/// The longest record taken as it is: messages as they arrived may be longer than any
+/// valid one (junk on the wire), not this much.
+const MAX_RECORD: usize = 2 * MAX_MESSAGE;
+
+/// What a replay stepped over.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Damage {
+    /// Bytes skipped while searching for the next good record.
+    pub bytes_skipped: u64,
+    /// Places where the records lost their framing.
+    pub places: u64,
+    /// Recordings joined after the first (their headers passed over).
+    pub joined: u64,
+}
+
+impl Damage {
+    /// A line for the user, or `None` when nothing was stepped over.
+    pub fn describe(&self) -> Option<String> {
+        let mut parts = Vec::new();
+        if self.places > 0 {
+            parts.push(format!(
+                "{} damaged bytes skipped in {} places (every record after them that checks out was kept)",
+                self.bytes_skipped, self.places
+            ));
+        }
+        if self.joined > 0 {
+            parts.push(format!(
+                "{} joined recordings played in turn",
+                self.joined + 1
+            ));
+        }
+        (!parts.is_empty()).then(|| parts.join("; "))
+    }
+}
+
 /// Plays a recorded stream back; commands sent to it are ignored.
 pub struct Replay {
     path: PathBuf,
-    reader: BufReader<std::fs::File>,
+    file: std::fs::File,
+    /// Bytes read and not yet taken, from `start` on.
+    window: Vec<u8>,
+    start: usize,
+    eof: bool,
+    /// Whether the records lost their framing and the next good one is being searched for.
+    searching: bool,
+    damage: Damage,
 }
 
 impl Replay {
@@ -24,17 +73,70 @@ impl Replay {
     pub fn open(path: &Path) -> anyhow::Result<Self> {
         let file = std::fs::File::open(path)
             .with_context(|| format!("cannot open recording {}", path.display()))?;
-        let mut reader = BufReader::new(file);
-        let mut magic = [0u8; 8];
-        reader
-            .read_exact(&mut magic)
-            .ok()
-            .filter(|_| &magic == MAGIC)
-            .with_context(|| format!("{} is not a rollfuse stream recording", path.display()))?;
-        Ok(Self {
+        let mut me = Self {
             path: path.to_path_buf(),
-            reader,
-        })
+            file,
+            window: Vec::new(),
+            start: 0,
+            eof: false,
+            searching: false,
+            damage: Damage::default(),
+        };
+        let n = me.fill(MAGIC.len())?;
+        anyhow::ensure!(
+            me.at_hand(n) == MAGIC,
+            "{} is not a rollfuse stream recording",
+            path.display()
+        );
+        me.start += MAGIC.len();
+        Ok(me)
+    }
+
+    /// What the replay has stepped over so far.
+    pub fn damage(&self) -> Damage {
+        self.damage
+    }
+
+    /// Reads until `want` bytes are at hand, or the file ends: how many are.
+    fn fill(&mut self, want: usize) -> anyhow::Result<usize> {
+        while self.window.len() - self.start < want && !self.eof {
+            self.window.drain(..self.start);
+            self.start = 0;
+            let had = self.window.len();
+            self.window.resize(had + (1 << 16).max(want), 0);
+            let n = loop {
+                match self.file.read(&mut self.window[had..]) {
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                    other => break other,
+                }
+            };
+            let n = n.with_context(|| format!("reading {}", self.path.display()))?;
+            self.window.truncate(had + n);
+            self.eof = n == 0;
+        }
+        Ok((self.window.len() - self.start).min(want))
+    }
+
+    /// The `n` bytes at hand from the current place.
+    fn at_hand(&self, n: usize) -> &[u8] {
+        &self.window[self.start..self.start + n]
+    }
+
+    /// Ends the replay at a cut-off end: the `n` bytes left are skipped.
+    fn cut_end(&mut self, n: usize) -> Received {
+        self.damage.bytes_skipped += n as u64;
+        self.start += n;
+        Received::Closed
+    }
+
+    /// Steps one byte further in a search for the next good record.
+    fn skip_byte(&mut self) {
+        if !self.searching {
+            self.searching = true;
+            self.damage.places += 1;
+        }
+        self.start += 1;
+        self.damage.bytes_skipped += 1;
     }
 }
 
@@ -44,31 +146,46 @@ impl Transport for Replay {
     }
 
     fn receive(&mut self, buf: &mut [u8], _timeout: Duration) -> anyhow::Result<Received> {
-        let mut len = [0u8; 4];
-        match self.reader.read_exact(&mut len) {
-            Ok(()) => {}
-            Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => {
-                return Ok(Received::Closed);
+        loop {
+            let got = self.fill(MAGIC.len())?;
+            if got < 4 {
+                // The end, or a length prefix cut off by it.
+                return Ok(self.cut_end(got));
             }
-            Err(e) => return Err(e).context(format!("reading {}", self.path.display())),
-        }
-        let n = u32::from_le_bytes(len) as usize;
-        if n > buf.len() || n > 2 * MAX_MESSAGE {
-            bail!(
-                "{}: a record of {n} bytes is longer than any message: the file is damaged",
-                self.path.display()
-            );
-        }
-        match self.reader.read_exact(&mut buf[..n]) {
-            Ok(()) => Ok(Received::Message(n)),
-            // A recording cut off mid-record ends there; what came before stands.
-            Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => Ok(Received::Closed),
-            Err(e) => Err(e).context(format!("reading {}", self.path.display())),
+            if self.at_hand(got) == MAGIC {
+                self.start += MAGIC.len();
+                self.damage.joined += 1;
+                self.searching = false;
+                continue;
+            }
+            let head = self.at_hand(4);
+            let n = u32::from_le_bytes([head[0], head[1], head[2], head[3]]) as usize;
+            if n <= MAX_RECORD.min(buf.len()) {
+                let got = self.fill(4 + n)?;
+                if got == 4 + n {
+                    let message = &self.at_hand(got)[4..];
+                    // While searching, only a message that decodes ends the search.
+                    if !self.searching || protocol::decode::<DeviceMessage>(message).is_ok() {
+                        buf[..n].copy_from_slice(message);
+                        self.start += 4 + n;
+                        self.searching = false;
+                        return Ok(Received::Message(n));
+                    }
+                } else if !self.searching {
+                    // A recording cut off mid-record ends there; what came before stands.
+                    return Ok(self.cut_end(got));
+                }
+            }
+            self.skip_byte();
         }
     }
 
     fn is_live(&self) -> bool {
         false
+    }
+
+    fn damage(&self) -> Option<String> {
+        self.damage.describe()
     }
 }
 
@@ -103,5 +220,106 @@ impl Recorder {
     /// file is at its name (it never replaces an older one); whether it was kept.
     pub fn keep_if_new(self) -> anyhow::Result<bool> {
         self.file.commit_if_new()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rollfuse_core::protocol::Tile;
+
+    /// A recording's bytes: the header, then `count` tile messages (indices from `first`).
+    fn recording(first: u32, count: u32) -> Vec<u8> {
+        let mut bytes = MAGIC.to_vec();
+        let mut buf = vec![0u8; MAX_MESSAGE];
+        for index in first..first + count {
+            // Mostly black pixels: runs of zeros look like plausible lengths.
+            let pixels: Vec<u8> = (0..64u32)
+                .map(|i| if i % 9 == 0 { index as u8 } else { 0 })
+                .collect();
+            let tile = DeviceMessage::Tile(Tile {
+                index,
+                width: 8,
+                height: 8,
+                observations: 4,
+                pixels: &pixels,
+            });
+            let n = protocol::encode(index, &tile, &mut buf).unwrap();
+            bytes.extend((n as u32).to_le_bytes());
+            bytes.extend(&buf[..n]);
+        }
+        bytes
+    }
+
+    /// Every tile index the replay of `bytes` gives, and its damage.
+    fn replayed(bytes: &[u8]) -> (Vec<u32>, Damage) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.rfs");
+        std::fs::write(&path, bytes).unwrap();
+        let mut replay = Replay::open(&path).unwrap();
+        let mut buf = vec![0u8; MAX_RECORD];
+        let mut indices = Vec::new();
+        while let Received::Message(n) = replay.receive(&mut buf, Duration::ZERO).unwrap() {
+            if let Ok((_, DeviceMessage::Tile(t))) = protocol::decode::<DeviceMessage>(&buf[..n]) {
+                indices.push(t.index);
+            }
+        }
+        (indices, replay.damage())
+    }
+
+    /// Where record `k` (from 0) starts.
+    fn record_at(bytes: &[u8], k: usize) -> usize {
+        let mut at = MAGIC.len();
+        for _ in 0..k {
+            let n = u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+            at += 4 + n;
+        }
+        at
+    }
+
+    #[test]
+    fn a_flipped_length_loses_at_most_its_neighbours_and_is_counted() {
+        let good = recording(0, 133);
+        for (record, bit) in [(130, 31), (130, 20), (0, 30), (131, 3), (132, 28)] {
+            let mut bytes = good.clone();
+            let at = record_at(&bytes, record);
+            bytes[at + bit / 8] ^= 1 << (bit % 8);
+            let (indices, damage) = replayed(&bytes);
+            let lost: Vec<u32> = (0..133).filter(|i| !indices.contains(i)).collect();
+            assert!(lost.len() <= 2, "record {record} bit {bit}: lost {lost:?}");
+            assert!(indices.windows(2).all(|w| w[0] < w[1]), "{indices:?}");
+            assert!(
+                lost.is_empty() || damage.places >= 1 || record == 132,
+                "record {record} bit {bit}: {damage:?}"
+            );
+        }
+        let (indices, damage) = replayed(&good);
+        assert_eq!((indices.len(), damage), (133, Damage::default()));
+    }
+
+    #[test]
+    fn joined_recordings_play_in_turn_and_junk_between_them_is_skipped() {
+        let mut bytes = recording(0, 50);
+        bytes.extend(recording(50, 50));
+        let (indices, damage) = replayed(&bytes);
+        assert_eq!(indices, (0..100).collect::<Vec<_>>());
+        assert_eq!(damage.joined, 1);
+        assert!(damage.describe().unwrap().contains("2 joined recordings"));
+        let mut bytes = recording(0, 20);
+        bytes.extend(b"\xff\xff\xff\x7fjunk junk junk");
+        bytes.extend(&recording(20, 20)[MAGIC.len()..]);
+        let (indices, damage) = replayed(&bytes);
+        assert_eq!(indices, (0..40).collect::<Vec<_>>());
+        assert_eq!((damage.places, damage.bytes_skipped), (1, 18));
+    }
+
+    #[test]
+    fn a_recording_cut_anywhere_keeps_what_came_before() {
+        let good = recording(0, 10);
+        for cut in [good.len() - 1, good.len() - 30, record_at(&good, 5) + 2] {
+            let (indices, _) = replayed(&good[..cut]);
+            let whole = (0..10).filter(|&k| record_at(&good, k + 1) <= cut).count() as u32;
+            assert_eq!(indices, (0..whole).collect::<Vec<_>>(), "cut at {cut}");
+        }
     }
 }
