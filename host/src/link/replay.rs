@@ -7,13 +7,16 @@
 //! Damage is stepped over, not refused: a record whose length no message can have (a
 //! flipped bit in its prefix, say) starts a search, byte by byte, for the next place
 //! where a record holds a message that decodes (its CRC and structure check out); what
-//! lies between is skipped and counted ([`Damage`]). A file's header met again (two
-//! recordings joined with `cat`) is passed over and the second recording plays on. A
-//! record cut off by the end of the file ends the replay; what came before stands.
+//! lies between is skipped and counted ([`Damage`]). A record whose message does not
+//! decode is kept as it is (messages are recorded as they arrived, corrupt ones too) when
+//! what follows it starts a record; otherwise its length was damaged, and the search
+//! starts there too. A file's header met again (two recordings joined with `cat`) is
+//! passed over and the second recording plays on. A record cut off by the end of the file
+//! is skipped like damage; what came before stands.
 
 use super::{Received, Transport};
 use anyhow::Context;
-use rollfuse_core::protocol::{self, DeviceMessage, MAX_MESSAGE};
+use rollfuse_core::protocol::{self, DeviceMessage, MAX_MESSAGE, MIN_MESSAGE};
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -23,6 +26,9 @@ const MAGIC: &[u8; 8] = b"RFSTRM01";
 /// The longest record taken as it is: messages as they arrived may be longer than any
 /// valid one (junk on the wire), not this much.
 const MAX_RECORD: usize = 2 * MAX_MESSAGE;
+
+/// How many records after an undecodable one must look like records for it to be kept.
+const FOLLOWING: u32 = 2;
 
 /// What a replay stepped over.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -129,6 +135,42 @@ impl Replay {
         Received::Closed
     }
 
+    /// Whether the `n`-byte record at hand is one: its message decodes, or — outside a
+    /// search, where messages recorded corrupt as they arrived are kept — what follows it
+    /// starts records too ([`Replay::records_follow`]).
+    fn record_holds(&mut self, n: usize) -> anyhow::Result<bool> {
+        if protocol::decode::<DeviceMessage>(&self.at_hand(4 + n)[4..]).is_ok() {
+            return Ok(true);
+        }
+        Ok(!self.searching && self.records_follow(4 + n, FOLLOWING)?)
+    }
+
+    /// Whether records start `at` bytes on: the file ends there, or a header is there, or
+    /// a record whose message decodes — or, `depth` more times, one of a length a message
+    /// can have whose following bytes pass the same test.
+    fn records_follow(&mut self, at: usize, depth: u32) -> anyhow::Result<bool> {
+        let got = self.fill(at + MAGIC.len())?;
+        if got == at {
+            return Ok(true);
+        }
+        if got < at + 4 {
+            return Ok(false);
+        }
+        let after = &self.at_hand(got)[at..];
+        if after == MAGIC {
+            return Ok(true);
+        }
+        let n = u32::from_le_bytes([after[0], after[1], after[2], after[3]]) as usize;
+        if !(MIN_MESSAGE..=MAX_RECORD).contains(&n) || self.fill(at + 4 + n)? < at + 4 + n {
+            return Ok(false);
+        }
+        let message = &self.at_hand(at + 4 + n)[at + 4..];
+        if protocol::decode::<DeviceMessage>(message).is_ok() {
+            return Ok(true);
+        }
+        Ok(depth > 0 && self.records_follow(at + 4 + n, depth - 1)?)
+    }
+
     /// Steps one byte further in a search for the next good record.
     fn skip_byte(&mut self) {
         if !self.searching {
@@ -161,21 +203,15 @@ impl Transport for Replay {
             let head = self.at_hand(4);
             let n = u32::from_le_bytes([head[0], head[1], head[2], head[3]]) as usize;
             if n <= MAX_RECORD.min(buf.len()) {
-                let got = self.fill(4 + n)?;
-                if got == 4 + n {
-                    let message = &self.at_hand(got)[4..];
-                    // While searching, only a message that decodes ends the search.
-                    if !self.searching || protocol::decode::<DeviceMessage>(message).is_ok() {
-                        buf[..n].copy_from_slice(message);
-                        self.start += 4 + n;
-                        self.searching = false;
-                        return Ok(Received::Message(n));
-                    }
-                } else if !self.searching {
-                    // A recording cut off mid-record ends there; what came before stands.
-                    return Ok(self.cut_end(got));
+                if self.fill(4 + n)? == 4 + n && self.record_holds(n)? {
+                    buf[..n].copy_from_slice(&self.at_hand(4 + n)[4..]);
+                    self.start += 4 + n;
+                    self.searching = false;
+                    return Ok(Received::Message(n));
                 }
             }
+            // A length no message has, a record the file's end cuts off, or one that
+            // does not fit between its neighbours: the framing is lost here.
             self.skip_byte();
         }
     }
@@ -311,6 +347,40 @@ mod tests {
         let (indices, damage) = replayed(&bytes);
         assert_eq!(indices, (0..40).collect::<Vec<_>>());
         assert_eq!((damage.places, damage.bytes_skipped), (1, 18));
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(
+            std::env::var("ROLLFUSE_FUZZ_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(64)
+        ))]
+
+        /// Any damage (bytes replaced, inserted, removed, the file cut): no error, no tile
+        /// that is not the recording's, in order, and the tiles no damage touched kept.
+        #[test]
+        fn damage_anywhere_keeps_the_untouched_tiles_and_makes_up_none(
+            edits in proptest::collection::vec(
+                (proptest::prelude::any::<proptest::sample::Index>(), 0u8..3, proptest::prelude::any::<u8>()),
+                1..6,
+            ),
+        ) {
+            let good = recording(0, 40);
+            let mut bytes = good.clone();
+            let mut touched = Vec::new();
+            for (at, kind, b) in edits {
+                let i = MAGIC.len() + at.index(bytes.len() - MAGIC.len());
+                touched.push(i);
+                match kind {
+                    0 => bytes[i] ^= b | 1,
+                    1 => bytes.insert(i, b),
+                    _ => { bytes.remove(i); }
+                }
+            }
+            let (indices, _) = replayed(&bytes);
+            proptest::prop_assert!(indices.iter().all(|&i| i < 40), "{:?}", indices);
+            proptest::prop_assert!(indices.windows(2).all(|w| w[0] < w[1]), "{:?}", indices);
+            // Each edit can break the framing around it: at most a few tiles each.
+            proptest::prop_assert!(indices.len() + 3 * touched.len() >= 40, "{} kept", indices.len());
+        }
     }
 
     #[test]

@@ -45,7 +45,7 @@ pub const MAX_MESSAGE: usize = MAX_TILE_BYTES + 64;
 
 /// The smallest encoded message: a one-byte version, a one-byte sequence number, a
 /// one-byte body and the CRC.
-const MIN_MESSAGE: usize = 3 + CRC_LEN;
+pub const MIN_MESSAGE: usize = 3 + CRC_LEN;
 
 const CRC_LEN: usize = 4;
 
