@@ -202,13 +202,14 @@ impl Transport for Replay {
             }
             let head = self.at_hand(4);
             let n = u32::from_le_bytes([head[0], head[1], head[2], head[3]]) as usize;
-            if n <= MAX_RECORD.min(buf.len()) {
-                if self.fill(4 + n)? == 4 + n && self.record_holds(n)? {
-                    buf[..n].copy_from_slice(&self.at_hand(4 + n)[4..]);
-                    self.start += 4 + n;
-                    self.searching = false;
-                    return Ok(Received::Message(n));
-                }
+            if n <= MAX_RECORD.min(buf.len())
+                && self.fill(4 + n)? == 4 + n
+                && self.record_holds(n)?
+            {
+                buf[..n].copy_from_slice(&self.at_hand(4 + n)[4..]);
+                self.start += 4 + n;
+                self.searching = false;
+                return Ok(Received::Message(n));
             }
             // A length no message has, a record the file's end cuts off, or one that
             // does not fit between its neighbours: the framing is lost here.
