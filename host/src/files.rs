@@ -40,6 +40,43 @@ pub fn temporary_beside(target: &Path, tag: &str) -> PathBuf {
     parent.join(format!(".{name}.{tag}-{}-{call}", std::process::id()))
 }
 
+/// An output folder made for a command: the folders it made are removed again when it is
+/// dropped while they are still empty, so a command that fails before writing anything
+/// leaves nothing behind (a folder that holds anything stays).
+#[derive(Debug)]
+pub struct NewFolder {
+    /// The folders made, the outermost first.
+    made: Vec<PathBuf>,
+}
+
+impl NewFolder {
+    /// Makes `path` and its missing parents.
+    pub fn create(path: &Path) -> anyhow::Result<Self> {
+        let made: Vec<PathBuf> = path
+            .ancestors()
+            .filter(|p| !p.as_os_str().is_empty() && !p.exists())
+            .map(Path::to_path_buf)
+            .collect::<Vec<_>>()
+            .into_iter()
+            .rev()
+            .collect();
+        std::fs::create_dir_all(path)
+            .with_context(|| format!("cannot create output folder {}", path.display()))?;
+        Ok(Self { made })
+    }
+}
+
+impl Drop for NewFolder {
+    fn drop(&mut self) {
+        // `remove_dir` removes only an empty folder: anything written keeps it.
+        for dir in self.made.iter().rev() {
+            if std::fs::remove_dir(dir).is_err() {
+                break;
+            }
+        }
+    }
+}
+
 /// The tags of [`temporary_beside`]'s names.
 const TEMPORARY_TAGS: [&str; 3] = ["part", "new", "old"];
 

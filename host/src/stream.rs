@@ -510,6 +510,8 @@ enum Flow {
 
 /// A session under way: what has been received, and where the device stands.
 struct Session<'a> {
+    /// Removed again if the session ends having written nothing to it.
+    _folder: crate::files::NewFolder,
     opts: &'a Options,
     progress: &'a dyn Progress,
     watch: &'a mut dyn Watch,
@@ -538,8 +540,7 @@ impl<'a> Session<'a> {
         progress: &'a dyn Progress,
         watch: &'a mut dyn Watch,
     ) -> anyhow::Result<Self> {
-        std::fs::create_dir_all(&opts.out)
-            .with_context(|| format!("cannot create {}", opts.out.display()))?;
+        let folder = crate::files::NewFolder::create(&opts.out)?;
         let recorder = opts.record.as_deref().map(Recorder::create).transpose()?;
         let started = Instant::now();
         let live = link.is_live();
@@ -552,6 +553,7 @@ impl<'a> Session<'a> {
         progress.start("receiving tiles", None, "tiles");
         let [strip_path, _, manifest_path] = output_files(&opts.out);
         Ok(Self {
+            _folder: folder,
             opts,
             progress,
             watch,

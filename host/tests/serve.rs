@@ -374,6 +374,8 @@ fn the_command_line_refuses_bad_serve_options_clearly() {
             !o.status.success() && err.contains(says),
             "{extra:?}: {err}"
         );
+        // A port in use, like every failed start, leaves no output folder behind.
+        assert!(!out.exists(), "{extra:?} left {}", out.display());
     }
 }
 

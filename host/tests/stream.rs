@@ -265,7 +265,9 @@ fn bad_stream_arguments_are_refused_clearly() {
     let junk = tmp.path().join("junk.bin");
     std::fs::write(&junk, b"not a recording").unwrap();
     let replay = format!("replay:{}", junk.display());
-    let cases: [(&[&str], &str); 7] = [
+    let missing = format!("replay:{}", tmp.path().join("none.bin").display());
+    let cases: [(&[&str], &str); 8] = [
+        (&["--device", &missing, "--out", o], "cannot open recording"),
         (&["--device", "sim", "--out", o], "--scene"),
         (&["--device", "tcp", "--out", o], "usb, sim or replay"),
         (
@@ -317,6 +319,13 @@ fn bad_stream_arguments_are_refused_clearly() {
         let err = String::from_utf8_lossy(&run.stderr);
         assert!(err.contains(says), "{args:?}: {err}");
         assert!(!err.contains("panicked"), "{err}");
+        // A start that fails leaves no empty output folder behind: nothing, or a
+        // session's manifest saying what the device refused.
+        assert!(
+            !out.exists() || out.join("manifest.json").exists(),
+            "{args:?} left {} empty",
+            out.display()
+        );
     }
 }
 

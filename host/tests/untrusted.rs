@@ -107,6 +107,13 @@ fn a_manifest_offset_far_off_is_refused_before_the_canvas_is_allocated() {
         .collect();
     fails_saying(&args, "larger than the limit");
     assert!(!out.exists());
+    // A strip row that is not a number is said to be one, not missing.
+    doc["frames"][2]["strip_row"] = serde_json::json!("NaN");
+    std::fs::write(&manifest, doc.to_string()).unwrap();
+    fails_saying(&args, "has strip_row \"NaN\", not a number");
+    doc["frames"][2].as_object_mut().unwrap().remove("strip_row");
+    std::fs::write(&manifest, doc.to_string()).unwrap();
+    fails_saying(&args, "has no strip_row");
 }
 
 /// `letters.toml` with `edit` applied, written into `dir`.

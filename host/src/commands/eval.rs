@@ -5,7 +5,7 @@ use crate::eval::depth;
 use crate::eval::tables::{csv, evaluate_scene, markdown};
 use crate::files::Batch;
 use crate::sim::Scene;
-use anyhow::Context;
+
 use rollfuse_core::FuseConfig;
 use std::path::PathBuf;
 
@@ -56,8 +56,7 @@ fn run_depth(args: &Args) -> anyhow::Result<()> {
         _ => anyhow::bail!("--depth takes one scene"),
     };
     let scene = Scene::load(&path)?;
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let _folder = crate::files::NewFolder::create(&args.out)?;
     let rows = depth::evaluate_depth(&scene)?;
     let mut batch = Batch::new();
     for (r, name) in rows.iter().zip(["single", "fused3", "fused2"]) {
@@ -97,8 +96,7 @@ fn run_roll(args: &Args) -> anyhow::Result<()> {
         bar.set_position(k as u64 + 1);
     }
     bar.finish_and_clear();
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let _folder = crate::files::NewFolder::create(&args.out)?;
     let md = crate::eval::roll::markdown(&rows);
     let mut batch = Batch::new();
     batch.add_bytes(&args.out.join("roll.csv"), csv(&rows).as_bytes())?;
@@ -118,8 +116,7 @@ fn run_detect(args: &Args) -> anyhow::Result<()> {
     };
     let shape = crate::detect::data::RollShape::STANDARD;
     let rows = evaluate_detect(&detector, args.rolls, &shape, &Bars::new())?;
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let _folder = crate::files::NewFolder::create(&args.out)?;
     let md = format!(
         "Held-out rolls: {} (seeds {}..{}), model: {}\n\n{}",
         args.rolls,
@@ -158,8 +155,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         args.scene.clone()
     };
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let _folder = crate::files::NewFolder::create(&args.out)?;
     let bar = progress(scenes.len(), "scenes", "evaluating".into());
     let mut rows = Vec::new();
     for (k, path) in scenes.iter().enumerate() {

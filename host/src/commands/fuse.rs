@@ -247,9 +247,17 @@ pub fn motion_offsets(manifest: &Path, paths: &[PathBuf]) -> anyhow::Result<Vec<
                 .iter()
                 .find(|f| f["file"].as_str() == Some(name))
                 .with_context(|| format!("{} is not in {}", p.display(), manifest.display()))?;
-            let row = rec["strip_row"].as_f64().with_context(|| {
-                format!("{}: frame {name} has no strip_row", manifest.display())
-            })?;
+            let row = match &rec["strip_row"] {
+                serde_json::Value::Null => {
+                    anyhow::bail!("{}: frame {name} has no strip_row", manifest.display())
+                }
+                value => value.as_f64().filter(|r| r.is_finite()).with_context(|| {
+                    format!(
+                        "{}: frame {name} has strip_row {value}, not a number",
+                        manifest.display()
+                    )
+                })?,
+            };
             Ok(Offset {
                 dy: row.round() as i64,
                 dx: 0,

@@ -150,6 +150,8 @@ pub struct Opened {
     pub opts: Options,
     /// `--serve`'s address.
     pub serve: Option<std::net::SocketAddr>,
+    /// The output folder, removed again if the session writes nothing to it.
+    pub folder: crate::files::NewFolder,
 }
 
 /// Checks every option of `args` (and that no output is an input), makes the output
@@ -157,8 +159,7 @@ pub struct Opened {
 /// `rollfuse.stream`.
 pub fn open(args: &Args) -> anyhow::Result<Opened> {
     let checked = check(args)?;
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create output folder {}", args.out.display()))?;
+    let folder = crate::files::NewFolder::create(&args.out)?;
     super::check_writable(&args.out.join("manifest.json"))?;
     if let Some(r) = &args.record {
         super::check_writable(r)?;
@@ -175,6 +176,7 @@ pub fn open(args: &Args) -> anyhow::Result<Opened> {
         link,
         opts,
         serve: checked.serve,
+        folder,
     })
 }
 
@@ -185,6 +187,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         mut link,
         opts,
         serve,
+        folder: _folder,
     } = open(&args)?;
     let server = serve
         .map(|addr| start_server(&args, addr, link.is_live()))

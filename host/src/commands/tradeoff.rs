@@ -5,7 +5,7 @@ use super::bars::Bars;
 use crate::sim::Scene;
 use crate::tradeoff::bench::McuTable;
 use crate::tradeoff::{acquire, report, study, sweep};
-use anyhow::{Context, ensure};
+use anyhow::ensure;
 use std::path::PathBuf;
 
 /// Arguments of `rollfuse tradeoff`.
@@ -56,8 +56,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
         McuTable::empty()
     };
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let _folder = crate::files::NewFolder::create(&args.out)?;
     let mut acquisitions = Vec::new();
     for path in &scenes {
         acquisitions.push(acquire(&Scene::load(path)?)?);
