@@ -50,6 +50,10 @@ impl Default for TemplateParams {
 /// called ambiguous.
 pub const AMBIGUITY_MARGIN: f32 = 0.05;
 
+/// A match is also ambiguous when the runner-up's mismatch (1 − correlation) is within
+/// this factor of the best one's: a weak match needs a wider gap to stand out.
+pub const AMBIGUITY_RATIO: f32 = 1.25;
+
 /// The result of matching one frame against the previous one.
 #[derive(Debug, Clone, Copy, serde::Serialize)]
 pub struct Match {
@@ -177,10 +181,11 @@ pub enum Aligned {
 
 impl Match {
     /// Whether another shift, away from the best one, scores within
-    /// [`AMBIGUITY_MARGIN`] of it (periodic texture, or little of it): the offset is then
-    /// a guess among several.
+    /// [`AMBIGUITY_MARGIN`] of it, or mismatches within [`AMBIGUITY_RATIO`] times as much
+    /// (periodic texture, or little of it): the offset is then a guess among several.
     pub fn is_ambiguous(&self) -> bool {
         self.score - self.runner_up < AMBIGUITY_MARGIN
+            || 1.0 - self.runner_up < AMBIGUITY_RATIO * (1.0 - self.score)
     }
 
     /// Why this match may be wrong, each reason a phrase that follows the frame's name:
@@ -262,9 +267,11 @@ mod tests {
 
     #[test]
     fn a_runner_up_within_the_margin_makes_a_match_ambiguous() {
-        // Frames 100 rows apart matched at 17 (score 0.70, runner-up 0.66).
+        // Frames 100 rows apart matched at 17 (score 0.70, runner-up 0.66, or 0.647).
         assert!(matched(0.70, 0.66).is_ambiguous());
+        assert!(matched(0.700, 0.647).is_ambiguous());
         assert!(matched(0.99, 0.97).is_ambiguous());
         assert!(!matched(0.90, 0.70).is_ambiguous());
+        assert!(!matched(0.70, 0.55).is_ambiguous());
     }
 }
