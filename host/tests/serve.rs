@@ -12,23 +12,9 @@ use std::io::{BufRead, BufReader, Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
+mod session;
 
-fn letters(frames: usize) -> Scene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/letters.toml");
-    let mut scene = Scene::load(&path).unwrap();
-    scene.sensor.frames = frames;
-    scene
-}
-
-fn options(out: &Path) -> Options {
-    Options {
-        out: out.to_path_buf(),
-        config: None,
-        max_tiles: None,
-        max_duration: None,
-        record: None,
-    }
-}
+use session::{letters, options};
 
 fn serve_options(control: bool) -> ServeOptions {
     ServeOptions {

@@ -9,28 +9,14 @@ use rollfuse::progress::Silent;
 use rollfuse::serve::http::{MAX_HEAD_BYTES, MAX_TARGET_BYTES};
 use rollfuse::serve::{MAX_REQUESTS, ServeOptions, Server};
 use rollfuse::sim::Scene;
-use rollfuse::stream::{self, Options};
+use rollfuse::stream;
 use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::path::Path;
 use std::time::Duration;
+mod session;
 
-fn letters(frames: usize) -> Scene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/letters.toml");
-    let mut scene = Scene::load(&path).unwrap();
-    scene.sensor.frames = frames;
-    scene
-}
-
-fn options(out: &Path) -> Options {
-    Options {
-        out: out.to_path_buf(),
-        config: None,
-        max_tiles: None,
-        max_duration: None,
-        record: None,
-    }
-}
+use session::{letters, options};
 
 fn server() -> Server {
     Server::start(&ServeOptions {

@@ -111,7 +111,10 @@ fn a_manifest_offset_far_off_is_refused_before_the_canvas_is_allocated() {
     doc["frames"][2]["strip_row"] = serde_json::json!("NaN");
     std::fs::write(&manifest, doc.to_string()).unwrap();
     fails_saying(&args, "has strip_row \"NaN\", not a number");
-    doc["frames"][2].as_object_mut().unwrap().remove("strip_row");
+    doc["frames"][2]
+        .as_object_mut()
+        .unwrap()
+        .remove("strip_row");
     std::fs::write(&manifest, doc.to_string()).unwrap();
     fails_saying(&args, "has no strip_row");
 }
