@@ -257,6 +257,8 @@ pub fn stream(
         frame_rate,
         serve: None,
         control: false,
+        allow_remote_control: false,
+        allow_host: Vec::new(),
         detect: false,
         model: None,
         keep_serving: false,

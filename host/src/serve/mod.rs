@@ -134,7 +134,7 @@ impl Server {
         let stopping = Arc::new(AtomicBool::new(false));
         let accept = {
             let (shared, stopping) = (Arc::clone(&shared), Arc::clone(&stopping));
-            let hosts = opts.allowed_hosts.clone();
+            let hosts: Arc<[String]> = opts.allowed_hosts.clone().into();
             std::thread::Builder::new()
                 .name("serve-accept".into())
                 .spawn(move || accept_loop(&listener, &shared, &stopping, &hosts))
@@ -229,7 +229,7 @@ fn accept_loop(
     listener: &TcpListener,
     shared: &Arc<Shared>,
     stopping: &AtomicBool,
-    hosts: &[String],
+    hosts: &Arc<[String]>,
 ) {
     loop {
         let accepted = listener.accept();
@@ -246,7 +246,7 @@ fn accept_loop(
             let _ = http::write_answer(&mut stream, &busy, false);
             continue;
         };
-        let (shared, hosts) = (Arc::clone(shared), hosts.to_vec());
+        let (shared, hosts) = (Arc::clone(shared), Arc::clone(hosts));
         // A thread that cannot be had drops the connection and its count with it.
         let _ = std::thread::Builder::new()
             .name("serve-request".into())
