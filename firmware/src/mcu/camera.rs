@@ -65,10 +65,19 @@ const PID_OV77XX: u8 = 0x77;
 const COM7_RESET: u8 = 0x80;
 /// COM7: QVGA resolution (YUV output: the format bits clear).
 const COM7_QVGA_YUV: u8 = 0x40;
-/// COM3: bytes Y U Y V (bit 3; clear, the reset state, gives U Y V Y), bit 4 as at reset.
-const COM3_YUYV: u8 = 0x18;
-/// CLKRC: internal clock = input / (1 + 1).
-const CLKRC_HALF: u8 = 0x01;
+/// COM3 bit 4, SWAP_YUV: in YUV output, Y before U/V (bytes Y U Y V). Set at reset.
+const COM3_SWAP_YUV: u8 = 1 << 4;
+/// COM3 bit 3, SWAP_MSB: swaps each output byte's bit order. Never wanted: the pipeline
+/// reads Y as sent.
+const COM3_SWAP_MSB: u8 = 1 << 3;
+/// COM3: bytes Y U Y V, bits in order (the reset value; Linux's ov772x driver and
+/// OpenMV's set SWAP_YUV alone for YUYV).
+const COM3_YUYV: u8 = COM3_SWAP_YUV;
+const _: () = assert!(COM3_YUYV & COM3_SWAP_MSB == 0);
+/// CLKRC bit 7 is reserved and set at reset: writes keep it.
+const CLKRC_RESERVED: u8 = 1 << 7;
+/// CLKRC: internal clock = input / (1 + 1) (pre-scaler bits 5..0), the reserved bit kept.
+const CLKRC_HALF: u8 = CLKRC_RESERVED | 0x01;
 /// DSP_Ctrl4: YUV output from the DSP.
 const DSP_CTRL4_YUV: u8 = 0x00;
 
