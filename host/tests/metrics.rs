@@ -63,6 +63,8 @@ fn ms_ssim_of_an_image_with_itself_is_one_and_sizes_must_match() {
 #[test]
 fn entropy_extremes_and_regional_std() {
     assert_eq!(entropy(&[7; 100]), 0.0);
+    // +0, not −0 (which prints as `-0.0000`).
+    assert!(entropy(&[7; 100]).is_sign_positive());
     let all: Vec<u8> = (0..=255).collect();
     assert!((entropy(&all) - 8.0).abs() < 1e-12);
     assert_eq!(

@@ -16,7 +16,9 @@ pub fn entropy(pixels: &[u8]) -> f64 {
             let p = c as f64 / n;
             -p * p.log2()
         })
-        .sum()
+        .sum::<f64>()
+        // Every term is ≥ 0: this only turns a one-valued image's −0 into 0.
+        .abs()
 }
 
 /// Stretches an image to the full 0..=255 range (min → 0, max → 255), as the paper
