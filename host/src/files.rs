@@ -45,7 +45,7 @@ pub fn temporary_beside(target: &Path, tag: &str) -> PathBuf {
 /// leaves nothing behind (a folder that holds anything stays).
 #[derive(Debug)]
 pub struct NewFolder {
-    /// The folders made, the outermost first.
+    /// The folders made, the innermost first.
     made: Vec<PathBuf>,
 }
 
@@ -56,9 +56,6 @@ impl NewFolder {
             .ancestors()
             .filter(|p| !p.as_os_str().is_empty() && !p.exists())
             .map(Path::to_path_buf)
-            .collect::<Vec<_>>()
-            .into_iter()
-            .rev()
             .collect();
         std::fs::create_dir_all(path)
             .with_context(|| format!("cannot create output folder {}", path.display()))?;
@@ -69,7 +66,7 @@ impl NewFolder {
 impl Drop for NewFolder {
     fn drop(&mut self) {
         // `remove_dir` removes only an empty folder: anything written keeps it.
-        for dir in self.made.iter().rev() {
+        for dir in &self.made {
             if std::fs::remove_dir(dir).is_err() {
                 break;
             }

@@ -128,6 +128,17 @@ impl Replay {
         &self.window[self.start..self.start + n]
     }
 
+    /// The record length written `at` bytes on (4 bytes there at hand).
+    fn length_at(&self, at: usize) -> usize {
+        let b = self.at_hand(at + 4);
+        u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]]) as usize
+    }
+
+    /// Whether the `n`-byte message of the record `at` bytes on (at hand) decodes.
+    fn decodes_at(&self, at: usize, n: usize) -> bool {
+        protocol::decode::<DeviceMessage>(&self.at_hand(at + 4 + n)[at + 4..]).is_ok()
+    }
+
     /// Ends the replay at a cut-off end: the `n` bytes left are skipped.
     fn cut_end(&mut self, n: usize) -> Received {
         self.damage.bytes_skipped += n as u64;
@@ -139,7 +150,7 @@ impl Replay {
     /// search, where messages recorded corrupt as they arrived are kept — what follows it
     /// starts records too ([`Replay::records_follow`]).
     fn record_holds(&mut self, n: usize) -> anyhow::Result<bool> {
-        if protocol::decode::<DeviceMessage>(&self.at_hand(4 + n)[4..]).is_ok() {
+        if self.decodes_at(0, n) {
             return Ok(true);
         }
         Ok(!self.searching && self.records_follow(4 + n, FOLLOWING)?)
@@ -156,16 +167,14 @@ impl Replay {
         if got < at + 4 {
             return Ok(false);
         }
-        let after = &self.at_hand(got)[at..];
-        if after == MAGIC {
+        if &self.at_hand(got)[at..] == MAGIC {
             return Ok(true);
         }
-        let n = u32::from_le_bytes([after[0], after[1], after[2], after[3]]) as usize;
+        let n = self.length_at(at);
         if !(MIN_MESSAGE..=MAX_RECORD).contains(&n) || self.fill(at + 4 + n)? < at + 4 + n {
             return Ok(false);
         }
-        let message = &self.at_hand(at + 4 + n)[at + 4..];
-        if protocol::decode::<DeviceMessage>(message).is_ok() {
+        if self.decodes_at(at, n) {
             return Ok(true);
         }
         Ok(depth > 0 && self.records_follow(at + 4 + n, depth - 1)?)
@@ -200,8 +209,7 @@ impl Transport for Replay {
                 self.searching = false;
                 continue;
             }
-            let head = self.at_hand(4);
-            let n = u32::from_le_bytes([head[0], head[1], head[2], head[3]]) as usize;
+            let n = self.length_at(0);
             if n <= MAX_RECORD.min(buf.len())
                 && self.fill(4 + n)? == 4 + n
                 && self.record_holds(n)?

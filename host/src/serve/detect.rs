@@ -52,10 +52,10 @@ pub struct DetectorStatus {
 }
 
 impl DetectorStatus {
-    /// Counts a failure on a window.
-    fn failed(&mut self, why: String) {
+    /// Counts a failure on a window, for the reason given.
+    fn failed(&mut self, why: &str) {
         self.failures += 1;
-        self.last_failure = Some(why);
+        self.last_failure = Some(format!("the detector failed: {why}"));
     }
 }
 
@@ -150,9 +150,7 @@ impl Windows {
                             .map(|s| s.to_string())
                             .or_else(|| panic.downcast_ref::<String>().cloned())
                             .unwrap_or_else(|| "a panic".into());
-                        lock(&shared.findings)
-                            .status
-                            .failed(format!("the detector failed: {why}"));
+                        lock(&shared.findings).status.failed(&why);
                     }
                 }
                 None if last => return,
@@ -218,11 +216,8 @@ impl Windows {
             Ok(found) => Some(found),
             Err(_) if small => None,
             Err(e) => {
-                let why = format!(
-                    "the detector failed: {}",
-                    crate::detect::model::first_line(&e)
-                );
-                lock(&shared.findings).status.failed(why);
+                let why = crate::detect::model::first_line(&e);
+                lock(&shared.findings).status.failed(&why);
                 return;
             }
         };

@@ -55,6 +55,11 @@ impl Request {
             .map(|(_, v)| v.as_str())
     }
 
+    /// The target's path and its query (empty without one).
+    pub fn path_and_query(&self) -> (&str, &str) {
+        self.target.split_once('?').unwrap_or((&self.target, ""))
+    }
+
     /// Whether a body follows the head.
     pub fn has_body(&self) -> bool {
         self.header("Transfer-Encoding").is_some()

@@ -22,10 +22,6 @@ const DEFAULT_SPEED_UM_S: u32 = 10_000;
 /// The most of an unknown path a 404 repeats, characters.
 const ECHOED_PATH: usize = 120;
 
-fn text(code: u16, message: &str) -> Answer {
-    Answer::text(code, message)
-}
-
 /// Answers the one request of a connection (an `/events` request holds its thread until
 /// the client goes), then closes it.
 pub fn handle(mut stream: TcpStream, shared: &Shared, allowed_hosts: &[String]) {
@@ -40,12 +36,15 @@ pub fn handle(mut stream: TcpStream, shared: &Shared, allowed_hosts: &[String]) 
     };
     let head_only = request.method == "HEAD";
     let reply = match request.header("Host") {
-        None if request.minor >= 1 => text(400, "an HTTP/1.1 request needs a Host header"),
-        Some(host) if !http::known_host(host, allowed_hosts) => text(
+        None if request.minor >= 1 => Answer::text(400, "an HTTP/1.1 request needs a Host header"),
+        Some(host) if !http::known_host(host, allowed_hosts) => Answer::text(
             421,
             "this server answers to its IP address and localhost (and names given with --allow-host)",
         ),
-        _ if request.method == "GET" && path_of(&request) == "/events" && !request.has_body() => {
+        _ if request.method == "GET"
+            && request.path_and_query().0 == "/events"
+            && !request.has_body() =>
+        {
             return events_stream(stream, &request, shared);
         }
         _ => route(&request, shared),
@@ -55,20 +54,9 @@ pub fn handle(mut stream: TcpStream, shared: &Shared, allowed_hosts: &[String]) 
     http::close(stream);
 }
 
-/// The request's path (its target without the query).
-fn path_of(request: &Request) -> &str {
-    request
-        .target
-        .split_once('?')
-        .map_or(&request.target, |(p, _)| p)
-}
-
 /// The answer to every request but an event stream.
 fn route(request: &Request, shared: &Shared) -> Answer {
-    let (path, query) = request
-        .target
-        .split_once('?')
-        .unwrap_or((&request.target, ""));
+    let (path, query) = request.path_and_query();
     match (request.method.as_str(), path) {
         ("GET" | "HEAD", "/" | "/index.html") => {
             Answer::new(200, "text/html; charset=utf-8", PAGE.as_bytes().to_vec())
@@ -77,13 +65,13 @@ fn route(request: &Request, shared: &Shared) -> Answer {
         ("GET" | "HEAD", "/strip.png") => strip_png(shared, query),
         ("POST", p) if p.starts_with("/control/") => control(request, shared, p, query),
         (_, "/" | "/index.html" | "/status.json" | "/strip.png" | "/events") => {
-            text(405, "method not allowed: this path is read with GET")
+            Answer::text(405, "method not allowed: this path is read with GET")
         }
-        (_, p) if p.starts_with("/control/") => text(405, "control requests are POST"),
+        (_, p) if p.starts_with("/control/") => Answer::text(405, "control requests are POST"),
         _ => {
             let shown: String = path.chars().take(ECHOED_PATH).collect();
             let more = if shown.len() < path.len() { "…" } else { "" };
-            text(404, &format!("no such page: {shown}{more}"))
+            Answer::text(404, &format!("no such page: {shown}{more}"))
         }
     }
 }
@@ -117,15 +105,15 @@ fn rows_asked(query: &str) -> Result<usize, String> {
 fn strip_png(shared: &Shared, query: &str) -> Answer {
     let rows = match rows_asked(query) {
         Ok(n) => n,
-        Err(message) => return text(400, &message),
+        Err(message) => return Answer::text(400, &message),
     };
     let newest = lock(&shared.ring).newest_rows(rows);
     let Some((width, height, pixels)) = newest else {
-        return text(503, "no tile has arrived yet");
+        return Answer::text(503, "no tile has arrived yet");
     };
     match encode_png(width, height, &pixels) {
         Ok(png) => Answer::new(200, "image/png", png),
-        Err(e) => text(500, &format!("cannot encode the strip: {e}")),
+        Err(e) => Answer::text(500, &format!("cannot encode the strip: {e}")),
     }
 }
 
@@ -207,10 +195,10 @@ fn same_secret(a: &str, b: &str) -> bool {
 /// session to send.
 fn control(request: &Request, shared: &Shared, path: &str, query: &str) -> Answer {
     let Some(token) = &shared.token else {
-        return text(403, "control is off: start the stream with --control");
+        return Answer::text(403, "control is off: start the stream with --control");
     };
     if !authorized(request, token) {
-        return text(
+        return Answer::text(
             401,
             "a control request needs the token printed at start-up (Authorization: Bearer TOKEN)",
         )
@@ -218,26 +206,26 @@ fn control(request: &Request, shared: &Shared, path: &str, query: &str) -> Answe
     }
     let command = match command_for(path, query) {
         Ok(c) => c,
-        Err((code, message)) => return text(code, &message),
+        Err((code, message)) => return Answer::text(code, &message),
     };
     if !shared.live {
-        return text(
+        return Answer::text(
             409,
             "the tiles come from a recording: there is no device to command",
         );
     }
     if shared.ended.load(Ordering::Acquire) {
-        return text(
+        return Answer::text(
             409,
             "the stream has ended: there is no session to send commands",
         );
     }
     let mut queue = lock(&shared.commands);
     if queue.len() >= COMMAND_QUEUE {
-        return text(503, "commands are waiting to be sent; try again");
+        return Answer::text(503, "commands are waiting to be sent; try again");
     }
     queue.push_back(command);
-    text(202, "queued for the device")
+    Answer::text(202, "queued for the device")
 }
 
 /// The command a control path names.
