@@ -5,7 +5,7 @@ use super::bars::Bars;
 use crate::detect::anomaly::NormalModel;
 use crate::detect::draw::{draw, outline};
 use crate::detect::train::{TrainOptions, train};
-use crate::detect::{Detection, Detector, model};
+use crate::detect::{Detection, Detector, UNKNOWN_FABRIC, model};
 use crate::files::{Batch, PngLayout, add_png};
 use crate::image::Planes;
 use anyhow::Context;
@@ -32,6 +32,10 @@ pub struct TrainArgs {
     /// Seed of the initial weights and the crops.
     #[arg(long, default_value_t = TrainOptions::default().seed)]
     pub seed: u64,
+    /// Start from this model's weights instead of new ones; with `--steps 0`, only
+    /// measure it and calibrate its familiarity statistics.
+    #[arg(long)]
+    pub from: Option<PathBuf>,
 }
 
 /// Runs `rollfuse train`.
@@ -50,24 +54,54 @@ pub fn train_run(args: TrainArgs) -> anyhow::Result<()> {
         seed: args.seed,
         ..TrainOptions::default()
     };
-    let made_by = format!(
+    let start = match &args.from {
+        Some(path) => {
+            crate::files::refuse_overwriting(&[args.out.as_path()], &[("model", path)])?;
+            let (net, about) = model::load(path)?;
+            anyhow::ensure!(
+                about.widths == opts.widths,
+                "model {} has widths {:?}; training continues only the shipped widths {:?}",
+                path.display(),
+                about.widths.0,
+                opts.widths.0
+            );
+            Some((net, about.made_by))
+        }
+        None => None,
+    };
+    let mut made_by = format!(
         "rollfuse train --steps {} --rolls {} --validation-rolls {} --batch {} --seed {}",
         args.steps, args.rolls, args.validation_rolls, args.batch, args.seed
     );
+    if let Some((_, before)) = &start {
+        made_by = format!("{before}; then {made_by} --from it");
+    }
     let started = std::time::Instant::now();
     // Kept on the terminal: the loss the training ended at stays readable.
-    let (net, about, report) = train(&opts, &made_by, &Bars::kept())?;
+    let (net, about, report) = train(&opts, start.map(|s| s.0), &made_by, &Bars::kept())?;
     model::save(&args.out, &net, &about)?;
     let l = &report.losses;
     let mean = |s: &[f32]| s.iter().sum::<f32>() / s.len().max(1) as f32;
     let tail = l.len().min(50);
     let accuracy = |a: Option<f64>| a.map_or("no validation".to_string(), |a| format!("{a:.3}"));
+    let familiarity = match (&report.familiarity_missing, report.validation_unfamiliar) {
+        (Some(why), _) => format!("no familiarity statistics ({why})"),
+        (None, Some(u)) => format!("{:.1} % of validation images called unknown", 100.0 * u),
+        (None, None) => "familiarity calibrated".to_string(),
+    };
+    let trained = if l.is_empty() {
+        "measured without training".to_string()
+    } else {
+        format!(
+            "trained {} steps: loss {:.3} → {:.3}",
+            l.len(),
+            mean(&l[..tail]),
+            mean(&l[l.len() - tail..])
+        )
+    };
     println!(
-        "trained {} steps in {:.0} s: loss {:.3} → {:.3}; validation fabric accuracy {} on fused tiles, {} on frames → {}",
-        l.len(),
+        "{trained} in {:.0} s; validation fabric accuracy {} on fused tiles, {} on frames; {familiarity} → {}",
         started.elapsed().as_secs_f64(),
-        mean(&l[..tail]),
-        mean(&l[l.len() - tail..]),
         accuracy(report.validation_fused_accuracy),
         accuracy(report.validation_frame_accuracy),
         args.out.display()
@@ -210,12 +244,24 @@ fn summary(path: &Path, d: &Detection) -> String {
         .map(|f| format!("{} {:.2} at {}", f.kind.name(), f.score, box_text(f.box_px)))
         .collect();
     format!(
-        "{}: {} (p {:.2}); {}",
+        "{}: {}; {}",
         path.display(),
-        d.fabric,
-        d.probability,
+        fabric_text(d),
         counted(&defects, "defect")
     )
+}
+
+/// The fabric as a reader needs it: the name and its probability, or, for an image unlike
+/// every fabric the model knows, that it is unknown, how far off, and what it is most like.
+pub fn fabric_text(d: &Detection) -> String {
+    match d.unfamiliarity {
+        Some(u) if d.fabric == UNKNOWN_FABRIC => format!(
+            "unknown fabric ({u:.1}× the distance of the cloth the model knows; most like {} \
+             at p {:.2}, so its defects are unreliable too)",
+            d.most_like, d.probability
+        ),
+        _ => format!("{} (p {:.2})", d.fabric, d.probability),
+    }
 }
 
 /// Arguments of `rollfuse fit-normal`.

@@ -251,12 +251,14 @@ fn print_defects(d: &serve::detect::DetectorStatus) {
         } else {
             String::new()
         },
-        d.fabric
-            .as_ref()
-            .map_or("not known".to_string(), |f| format!(
-                "{f} ({:.0} %)",
-                100.0 * d.probability
-            )),
+        match d.fabric.as_deref() {
+            None => "not known".to_string(),
+            Some(crate::detect::UNKNOWN_FABRIC) => format!(
+                "unknown ({} of {} rows unlike every fabric the model knows)",
+                d.unknown_rows, d.rows_checked
+            ),
+            Some(f) => format!("{f} ({:.0} %)", 100.0 * d.probability),
+        },
     );
 }
 

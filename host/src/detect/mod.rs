@@ -13,6 +13,7 @@
 pub mod anomaly;
 pub mod data;
 pub mod draw;
+pub mod familiar;
 pub mod model;
 pub mod net;
 pub mod targets;
@@ -33,16 +34,24 @@ pub const TILE_ROWS: usize = 480;
 pub const TILE_OVERLAP: usize = 64;
 /// Heatmap score a detection needs.
 pub const DEFAULT_THRESHOLD: f32 = 0.3;
+/// The fabric reported for an image unlike every fabric the model knows.
+pub const UNKNOWN_FABRIC: &str = "unknown";
 /// Most detections reported per tile.
 const MAX_PER_TILE: usize = 100;
 
 /// What the detector finds in one image.
 #[derive(Debug, Clone, Serialize)]
 pub struct Detection {
-    /// The most probable fabric.
+    /// The most probable fabric, or [`UNKNOWN_FABRIC`] when the image is unlike every
+    /// fabric the model knows (`unfamiliarity` above 1).
     pub fabric: String,
+    /// The fabric the classifier finds most probable, known or not.
+    pub most_like: String,
     /// Its probability.
     pub probability: f32,
+    /// How unlike the model's training cloth the image is, over the calibrated limit
+    /// ([`familiar`]); none when the model carries no familiarity statistics.
+    pub unfamiliarity: Option<f64>,
     /// Every class's probability, in the model's label order.
     pub probabilities: Vec<f32>,
     /// Defects, best first.
@@ -112,11 +121,12 @@ impl Detector {
         for (top, own) in tiles(h) {
             let rows = (h - top).min(TILE_ROWS);
             let tile = &image.planes[0][top * w..(top + rows) * w];
-            let (probs, found) = self.run(tile, w, rows)?;
-            for (m, p) in mean.iter_mut().zip(&probs) {
-                *m += p * (own.end - own.start) as f32 / h as f32;
+            let out = self.run(tile, w, rows)?;
+            let share = (own.end - own.start) as f32 / h as f32;
+            for (m, p) in mean.iter_mut().zip(&out.probabilities) {
+                *m += p * share;
             }
-            defects.extend(found.into_iter().filter_map(|mut f| {
+            defects.extend(out.found.into_iter().filter_map(|mut f| {
                 let centre = (f.box_px[1] + f.box_px[3]) / 2.0 + top as f32;
                 let (wf, hf) = (w as f32, h as f32);
                 let [x0, y0, x1, y1] = f.box_px;
@@ -141,9 +151,19 @@ impl Detector {
             .enumerate()
             .max_by(|a, b| a.1.total_cmp(&b.1))
             .context("the model has no classes")?;
+        let unfamiliarity = match &self.about.familiarity {
+            Some(f) => Some(f.judge(&familiar::Places::of(image)?)?.unfamiliarity),
+            None => None,
+        };
+        let most_like = self.about.fabrics[class].clone();
         Ok(Detection {
-            fabric: self.about.fabrics[class].clone(),
+            fabric: match unfamiliarity {
+                Some(u) if u > 1.0 => UNKNOWN_FABRIC.to_string(),
+                _ => most_like.clone(),
+            },
+            most_like,
             probability,
+            unfamiliarity,
             probabilities: mean,
             defects,
         })
@@ -164,12 +184,12 @@ impl Detector {
         Ok(found)
     }
 
-    /// One tile through the network: class probabilities and decoded boxes.
-    fn run(&self, pixels: &[f32], w: usize, h: usize) -> anyhow::Result<(Vec<f32>, Vec<Found>)> {
+    /// One tile through the network.
+    fn run(&self, pixels: &[f32], w: usize, h: usize) -> anyhow::Result<TileOutput> {
         let data = TensorData::new(normalized(pixels), [1, 1, h, w]);
         let x = Tensor::<4>::from_data(data, &Device::flex());
         let raw = self.net.forward(x);
-        let probs = floats(activation::softmax(raw.fabric, 1))?;
+        let probabilities = floats(activation::softmax(raw.fabric, 1))?;
         let heat = floats(activation::sigmoid(raw.heat))?;
         let size = floats(raw.size)?;
         let offset = floats(raw.offset)?;
@@ -179,8 +199,24 @@ impl Detector {
             size: &size,
             offset: &offset,
         };
-        Ok((probs, targets::decode(&out, self.threshold, MAX_PER_TILE)))
+        Ok(TileOutput {
+            probabilities,
+            found: targets::decode(&out, self.threshold, MAX_PER_TILE),
+        })
     }
+
+    /// Replaces the model's familiarity statistics (training's calibration).
+    pub fn set_familiarity(&mut self, familiarity: Option<familiar::Familiarity>) {
+        self.about.familiarity = familiarity;
+    }
+}
+
+/// What one tile gives.
+struct TileOutput {
+    /// Fabric probabilities.
+    probabilities: Vec<f32>,
+    /// Decoded boxes.
+    found: Vec<Found>,
 }
 
 /// A tensor's values, row-major.

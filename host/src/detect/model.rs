@@ -1,7 +1,9 @@
 //! The model file: the network's tensors in safetensors, with what is needed to use them
-//! in its metadata — the format, the channel widths, the fabric and defect names, and the
-//! command that trained it.
+//! in its metadata — the format, the channel widths, the fabric and defect names, the
+//! command that trained it and, when it was calibrated, what its training cloth looks like
+//! to it ([`super::familiar`]).
 
+use super::familiar::Familiarity;
 use super::net::{Net, Widths};
 use crate::files::write_bytes_atomic;
 use crate::sim::textile::DefectKind;
@@ -26,19 +28,26 @@ pub struct About {
     pub fabrics: Vec<String>,
     /// How it was made (command line and seed).
     pub made_by: String,
+    /// What the training cloth's features look like (none in models made before they
+    /// were recorded: such a model cannot tell an unknown fabric).
+    pub familiarity: Option<Familiarity>,
 }
 
 impl About {
-    fn metadata(&self) -> HashMap<String, String> {
+    fn metadata(&self) -> anyhow::Result<HashMap<String, String>> {
         let w = self.widths.0.map(|c| c.to_string()).join(",");
         let kinds: Vec<&str> = DefectKind::ALL.iter().map(|k| k.name()).collect();
-        HashMap::from([
+        let mut meta = HashMap::from([
             ("format".into(), FORMAT.into()),
             ("widths".into(), w),
             ("fabrics".into(), self.fabrics.join(",")),
             ("kinds".into(), kinds.join(",")),
             ("made_by".into(), self.made_by.clone()),
-        ])
+        ]);
+        if let Some(f) = &self.familiarity {
+            meta.insert("familiarity".into(), f.to_metadata()?);
+        }
+        Ok(meta)
     }
 
     fn parse(meta: &HashMap<String, String>) -> anyhow::Result<Self> {
@@ -75,10 +84,15 @@ impl About {
             (1..=1000).contains(&fabrics.len()),
             "it lists no fabric classes"
         );
+        let familiarity = meta
+            .get("familiarity")
+            .map(|text| Familiarity::from_metadata(text, super::anomaly::DIM, fabrics.len()))
+            .transpose()?;
         Ok(Self {
             widths: Widths(widths),
             fabrics,
             made_by: meta.get("made_by").cloned().unwrap_or_default(),
+            familiarity,
         })
     }
 }
@@ -86,7 +100,7 @@ impl About {
 /// Writes `net` and `about` to `path`, whole or not at all.
 pub fn save(path: &Path, net: &Net, about: &About) -> anyhow::Result<()> {
     let mut store = SafetensorsStore::from_bytes(None).clear_metadata();
-    for (k, v) in about.metadata() {
+    for (k, v) in about.metadata()? {
         store = store.metadata(k, v);
     }
     net.valid()

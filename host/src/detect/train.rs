@@ -5,7 +5,9 @@
 //! `rollfuse eval --detect` measures on seeds below [`TRAIN_SEEDS`], which training never
 //! touches.
 
+use super::UNKNOWN_FABRIC;
 use super::data::{Roll, RollShape, Sample, Source, roll};
+use super::familiar::{Familiarity, Kind, Places};
 use super::model::About;
 use super::net::{Net, Widths};
 use super::targets::{KINDS, Labelled, Targets, encode};
@@ -83,6 +85,10 @@ pub struct TrainReport {
     pub validation_fused_accuracy: Option<f64>,
     /// Fabric accuracy on the validation rolls' frames (none without validation rolls).
     pub validation_frame_accuracy: Option<f64>,
+    /// Why the model carries no familiarity statistics, if it does not.
+    pub familiarity_missing: Option<String>,
+    /// Share of the validation images the calibrated model finds unfamiliar.
+    pub validation_unfamiliar: Option<f64>,
 }
 
 /// Simulates `count` rolls from `first_seed` in parallel.
@@ -115,10 +121,15 @@ pub fn rolls(
     made.map_err(|_| anyhow::anyhow!("a simulation thread panicked"))?
 }
 
-/// Trains a network; returns it with its model description and what was measured.
-/// `progress` sees two stages: the rolls simulated, then the optimizer's steps.
+/// Trains a network — a new one, or `start` further (fine-tuning) — then measures its
+/// fabric accuracy on the validation rolls and calibrates its familiarity statistics
+/// ([`super::familiar`]: fitted on the training images, the limit from the validation
+/// images). Returns it with its model description and what was measured. `progress` sees
+/// the rolls simulated, the optimizer's steps and the calibration. With `start`, 0 steps
+/// only measures and calibrates it.
 pub fn train(
     opts: &TrainOptions,
+    start: Option<Net>,
     made_by: &str,
     progress: &dyn Progress,
 ) -> anyhow::Result<(Net, About, TrainReport)> {
@@ -127,7 +138,7 @@ pub fn train(
         "the crop side must be a multiple of 8, at least 32"
     );
     ensure!(
-        opts.rolls > 0 && opts.batch > 0 && opts.steps > 0,
+        opts.rolls > 0 && opts.batch > 0 && (opts.steps > 0 || start.is_some()),
         "training needs at least one roll, one step and one crop a step"
     );
     // Each roll is simulated and held; each step's batch is held with its activations.
@@ -158,7 +169,10 @@ pub fn train(
 
     let device = Device::flex().autodiff();
     device.seed(opts.seed);
-    let mut net = Net::new(opts.widths, FABRICS.len(), &device);
+    let mut net = match start {
+        Some(net) => net.to_device(&device),
+        None => Net::new(opts.widths, FABRICS.len(), &device),
+    };
     let mut optim = AdamWConfig::new().init();
     let mut rng = Pcg64Mcg::seed_from_u64(opts.seed);
     let mut losses = Vec::with_capacity(opts.steps);
@@ -190,28 +204,84 @@ pub fn train(
         widths: opts.widths,
         fabrics: FABRICS.iter().map(|f| f.name.to_string()).collect(),
         made_by: made_by.to_string(),
+        familiarity: None,
     };
     let net = net.valid();
-    let detector = super::Detector::from_net(net.clone(), about.clone());
+    let validation: Vec<&Sample> = validation
+        .iter()
+        .flat_map(|r| r.frames.iter().chain(&r.fused))
+        .collect();
+    let seen: Vec<&Sample> = frames.iter().chain(&fused).copied().collect();
+    let (about, report) = measure(&net, about, &seen, &validation, losses, progress)?;
+    Ok((net, about, report))
+}
+
+/// The trained network's fabric accuracy on the `validation` images, and its familiarity
+/// statistics calibrated on the images it was trained on (`seen`) and those.
+fn measure(
+    net: &Net,
+    mut about: About,
+    seen: &[&Sample],
+    validation: &[&Sample],
+    losses: Vec<f32>,
+    progress: &dyn Progress,
+) -> anyhow::Result<(About, TrainReport)> {
+    let mut detector = super::Detector::from_net(net.clone(), about.clone());
     let accuracy = |source: Source| -> anyhow::Result<Option<f64>> {
-        let samples: Vec<&Sample> = validation
-            .iter()
-            .flat_map(|r| r.frames.iter().chain(&r.fused))
-            .filter(|s| s.source == source)
-            .collect();
+        let samples: Vec<&&Sample> = validation.iter().filter(|s| s.source == source).collect();
         let mut right = 0;
         for s in &samples {
             let d = detector.detect(&s.image)?;
-            right += usize::from(d.fabric == FABRICS[s.class].name);
+            right += usize::from(d.most_like == FABRICS[s.class].name);
         }
         Ok((!samples.is_empty()).then(|| right as f64 / samples.len() as f64))
     };
-    let report = TrainReport {
+    let mut report = TrainReport {
         validation_fused_accuracy: accuracy(Source::Fused)?,
         validation_frame_accuracy: accuracy(Source::Frame)?,
         losses,
+        familiarity_missing: None,
+        validation_unfamiliar: None,
     };
-    Ok((net, about, report))
+    match calibrate(seen, validation, progress) {
+        Ok(familiarity) => {
+            detector.set_familiarity(Some(familiarity.clone()));
+            let mut unfamiliar = 0;
+            for s in validation {
+                unfamiliar += usize::from(detector.detect(&s.image)?.fabric == UNKNOWN_FABRIC);
+            }
+            report.validation_unfamiliar = Some(unfamiliar as f64 / validation.len() as f64);
+            about.familiarity = Some(familiarity);
+        }
+        Err(e) => report.familiarity_missing = Some(format!("{e:#}")),
+    }
+    Ok((about, report))
+}
+
+/// The familiarity statistics of the training cloth: fitted on the images the network
+/// was trained on, the limit from `held_out` images, frames and fused tiles apart.
+fn calibrate(
+    trained_on: &[&Sample],
+    held_out: &[&Sample],
+    progress: &dyn Progress,
+) -> anyhow::Result<Familiarity> {
+    let total = (trained_on.len() + held_out.len()) as u64;
+    progress.start("calibrating familiarity", Some(total), "images");
+    let mut kinds = [Kind::default(), Kind::default()];
+    let kind = |s: &Sample| usize::from(s.source == Source::Fused);
+    let mut done = 0;
+    for s in trained_on {
+        kinds[kind(s)].fit.push((Places::of(&s.image)?, s.class));
+        done += 1;
+        progress.advance_to(done);
+    }
+    for s in held_out {
+        kinds[kind(s)].held_out.push(Places::of(&s.image)?);
+        done += 1;
+        progress.advance_to(done);
+    }
+    progress.finish();
+    Familiarity::fit(&kinds, FABRICS.len())
 }
 
 /// A training crop: normalized pixels, targets and the fabric's label.
@@ -361,12 +431,33 @@ mod tests {
                 defects: 1,
             },
         };
-        let (_, about, report) = train(&opts, "test", &crate::progress::Silent).unwrap();
+        let (net, about, report) = train(&opts, None, "test", &crate::progress::Silent).unwrap();
         assert_eq!(about.fabrics.len(), 17);
+        // Too few images to calibrate familiarity: said, not faked.
+        assert!(about.familiarity.is_none());
+        let why = report.familiarity_missing.as_deref().unwrap_or_default();
+        assert!(why.contains("at least"), "{why}");
         let l = &report.losses;
         assert!(l.iter().all(|v| v.is_finite()), "{l:?}");
         let first: f32 = l[..5].iter().sum::<f32>() / 5.0;
         let last: f32 = l[l.len() - 5..].iter().sum::<f32>() / 5.0;
         assert!(last < 0.7 * first, "loss {first} → {last}");
+        // Continued for no steps on more rolls: the same network, measured and calibrated.
+        let more = TrainOptions {
+            rolls: 4,
+            validation_rolls: 4,
+            steps: 0,
+            ..opts.clone()
+        };
+        let silent = &crate::progress::Silent;
+        let (_, again, measured) = train(&more, Some(net), "test", silent).unwrap();
+        assert!(measured.losses.is_empty());
+        assert!(again.familiarity.is_some(), "{measured:?}");
+        assert!(
+            measured.validation_unfamiliar.unwrap() < 0.1,
+            "{measured:?}"
+        );
+        // A new network needs steps.
+        assert!(train(&more, None, "test", silent).is_err());
     }
 }

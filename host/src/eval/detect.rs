@@ -9,10 +9,10 @@
 //! A detection is right when it has the true kind and IoU ≥ [`MIN_IOU`] with the box.
 //! Erroneous predictions are false alarms plus misses, per true defect.
 
-use crate::detect::Detector;
 use crate::detect::data::{Roll, RollShape, Sample};
 use crate::detect::targets::{Tally, tally_ignoring};
 use crate::detect::train::{TRAIN_SEEDS, rolls};
+use crate::detect::{Detector, UNKNOWN_FABRIC};
 use crate::progress::Progress;
 use crate::sim::textile::FABRICS;
 use anyhow::ensure;
@@ -34,6 +34,8 @@ pub struct DetectRow {
     pub tally: Tally,
     /// Images whose fabric was classified right.
     pub right_fabric: usize,
+    /// Images called an unknown fabric (all of them known cloth: each is also wrong).
+    pub unknown_fabric: usize,
     /// Mean probability given to the true fabric.
     pub mean_true_probability: f64,
 }
@@ -74,6 +76,7 @@ fn row(detector: &Detector, images: &str, samples: &[&Sample]) -> anyhow::Result
         count: samples.len(),
         tally: Tally::default(),
         right_fabric: 0,
+        unknown_fabric: 0,
         mean_true_probability: 0.0,
     };
     for s in samples {
@@ -81,6 +84,7 @@ fn row(detector: &Detector, images: &str, samples: &[&Sample]) -> anyhow::Result
         r.tally
             .add(tally_ignoring(&d.defects, &s.boxes, &s.blurred, MIN_IOU));
         r.right_fabric += usize::from(d.fabric == FABRICS[s.class].name);
+        r.unknown_fabric += usize::from(d.fabric == UNKNOWN_FABRIC);
         let p = d.probabilities.get(s.class).copied().unwrap_or(0.0);
         r.mean_true_probability += f64::from(p) / samples.len().max(1) as f64;
     }
@@ -115,13 +119,13 @@ pub fn evaluate_detect(
 /// The rows as a Markdown table, with the change from frames to fused and the paper's.
 pub fn markdown(rows: &[DetectRow]) -> String {
     let mut out = String::from(
-        "| images | count | true defects | hits | false alarms | misses | precision | recall | erroneous / defect | fabric accuracy | mean p(true fabric) |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| images | count | true defects | hits | false alarms | misses | precision | recall | erroneous / defect | fabric accuracy | called unknown | mean p(true fabric) |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let t = &r.tally;
         out += &format!(
-            "| {} | {} | {} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} |\n",
+            "| {} | {} | {} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {} | {:.3} |\n",
             r.images,
             r.count,
             t.hits + t.misses,
@@ -132,6 +136,7 @@ pub fn markdown(rows: &[DetectRow]) -> String {
             r.recall(),
             r.errors_per_defect(),
             r.accuracy(),
+            r.unknown_fabric,
             r.mean_true_probability
         );
     }

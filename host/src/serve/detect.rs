@@ -35,10 +35,14 @@ pub struct LiveBox {
 /// What the detector has said so far, as `/status.json` and the page show it.
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct DetectorStatus {
-    /// The most probable fabric over the rows checked (their probabilities averaged).
+    /// The most probable fabric over the rows checked (their probabilities averaged), or
+    /// [`crate::detect::UNKNOWN_FABRIC`] when most of those rows were unlike every fabric
+    /// the model knows.
     pub fabric: Option<String>,
-    /// Its mean probability.
+    /// The most probable fabric's mean probability.
     pub probability: f64,
+    /// Rows checked in windows unlike every fabric the model knows.
+    pub unknown_rows: u64,
     /// Defects found, by kind.
     pub defects: BTreeMap<String, u64>,
     /// Strip rows the detector has looked at.
@@ -282,6 +286,9 @@ impl Findings {
         let Some(found) = found else {
             return;
         };
+        if found.fabric == crate::detect::UNKNOWN_FABRIC {
+            self.status.unknown_rows += rows;
+        }
         self.weights.resize(found.probabilities.len(), 0.0);
         for (w, &p) in self.weights.iter_mut().zip(&found.probabilities) {
             *w += f64::from(p) * rows as f64;
@@ -294,7 +301,11 @@ impl Findings {
             .max_by(|a, b| a.1.total_cmp(b.1))
             .filter(|_| total > 0.0)
         {
-            self.status.fabric = fabrics.get(class).cloned();
+            self.status.fabric = if 2 * self.status.unknown_rows > self.status.rows_checked {
+                Some(crate::detect::UNKNOWN_FABRIC.to_string())
+            } else {
+                fabrics.get(class).cloned()
+            };
             self.status.probability = w / total;
         }
     }
@@ -307,4 +318,33 @@ fn downsample_of(shared: &Shared) -> Option<usize> {
     status
         .device
         .map(|d| usize::from(d.config.downsample.max(1)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::detect::{Detection, UNKNOWN_FABRIC};
+
+    fn window(fabric: &str) -> Detection {
+        Detection {
+            fabric: fabric.to_string(),
+            most_like: "canvas".to_string(),
+            probability: 0.9,
+            unfamiliarity: Some(if fabric == UNKNOWN_FABRIC { 2.0 } else { 0.2 }),
+            probabilities: vec![0.1, 0.9],
+            defects: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn the_fabric_is_unknown_while_most_rows_checked_were() {
+        let fabrics = ["plain".to_string(), "canvas".to_string()];
+        let mut f = Findings::default();
+        f.take(&[], Some(&window(UNKNOWN_FABRIC)), 300, &fabrics);
+        f.take(&[], Some(&window("canvas")), 100, &fabrics);
+        assert_eq!(f.status.fabric.as_deref(), Some(UNKNOWN_FABRIC));
+        assert_eq!((f.status.unknown_rows, f.status.rows_checked), (300, 400));
+        f.take(&[], Some(&window("canvas")), 300, &fabrics);
+        assert_eq!(f.status.fabric.as_deref(), Some("canvas"));
+    }
 }
