@@ -87,7 +87,10 @@ fn detect_writes_json_and_drawings_and_keeps_its_inputs() {
     );
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     assert_eq!(v[0]["image"], i);
-    assert_eq!(v[0]["probabilities"].as_array().unwrap().len(), 17);
+    // Every fabric's probability, by name.
+    let p = v[0]["probabilities"].as_object().unwrap();
+    assert_eq!(p.len(), 17);
+    assert!(p["twill_2_2"].as_f64().unwrap() >= 0.0);
     assert!(v[0]["defects"].is_array());
     let drawn = Planes::load(&draw.join("frame_detect.png")).unwrap();
     assert_eq!(
@@ -147,6 +150,24 @@ fn detect_writes_json_and_drawings_and_keeps_its_inputs() {
     }
     // The JSON may not be written over the image it reads.
     fails(&["detect", i, "--model", m, "--json", i], "input image");
+    // Nor into a folder that is not there: said before any image is run.
+    let nowhere = tmp.path().join("nd2/x.json");
+    let out = rollfuse(&[
+        "detect",
+        i,
+        "--model",
+        m,
+        "--json",
+        nowhere.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(
+        out.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("does not exist"), "{err}");
 }
 
 #[test]

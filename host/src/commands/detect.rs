@@ -138,12 +138,13 @@ pub struct Args {
     pub upsample: u8,
 }
 
-/// One image's results in the JSON file.
+/// One image's results in the JSON file: the detection, its fabric probabilities by name.
 #[derive(serde::Serialize)]
 struct ImageResult<'a> {
     image: String,
     #[serde(flatten)]
     detection: &'a Detection,
+    probabilities: std::collections::BTreeMap<&'a str, f32>,
 }
 
 /// Runs `rollfuse detect`.
@@ -172,6 +173,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     inputs.extend(args.model.as_deref().map(|m| ("model", m)));
     inputs.extend(args.normal.as_deref().map(|m| ("normal model", m)));
     crate::files::refuse_overwriting(&outputs, &inputs)?;
+    if let Some(json) = &args.json {
+        // Before any work: a JSON that cannot be written is said first, not after the results.
+        super::check_writable(json)?;
+    }
     if let Some(dir) = &args.draw {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
@@ -200,6 +205,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(|(image, detection)| ImageResult {
                 image: image.clone(),
                 detection,
+                probabilities: detector
+                    .about()
+                    .fabrics
+                    .iter()
+                    .map(String::as_str)
+                    .zip(detection.probabilities.iter().copied())
+                    .collect(),
             })
             .collect();
         batch.add_bytes(

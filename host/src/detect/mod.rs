@@ -52,7 +52,8 @@ pub struct Detection {
     /// How unlike the model's training cloth the image is, over the calibrated limit
     /// ([`familiar`]); none when the model carries no familiarity statistics.
     pub unfamiliarity: Option<f64>,
-    /// Every class's probability, in the model's label order.
+    /// Every class's probability, in the model's label order (written by name, not here).
+    #[serde(skip)]
     pub probabilities: Vec<f32>,
     /// Defects, best first.
     pub defects: Vec<Found>,

@@ -128,8 +128,14 @@ pub struct Outputs<'a> {
     pub offset: &'a [f32],
 }
 
+/// Boxes of different kinds overlapping at least this much are one defect: the size and
+/// offset heads are shared by the kinds, so two kinds peaking in one cell give one box
+/// twice.
+pub const SAME_DEFECT_IOU: f32 = 0.7;
+
 /// Boxes at the heatmap's 3 × 3 local maxima scoring at least `threshold`, best first, at
-/// most `limit`.
+/// most `limit`; of boxes of different kinds at one place ([`SAME_DEFECT_IOU`]) only the
+/// best-scoring is kept.
 pub fn decode(out: &Outputs, threshold: f32, limit: usize) -> Vec<Found> {
     let (gw, gh) = out.cells;
     let n = gw * gh;
@@ -160,8 +166,19 @@ pub fn decode(out: &Outputs, threshold: f32, limit: usize) -> Vec<Found> {
         }
     }
     found.sort_by(|a, b| b.score.total_cmp(&a.score));
-    found.truncate(limit);
-    found
+    let mut kept: Vec<Found> = Vec::with_capacity(found.len().min(limit));
+    for f in found {
+        if kept.len() == limit {
+            break;
+        }
+        if !kept
+            .iter()
+            .any(|k| iou(k.box_px, f.box_px) >= SAME_DEFECT_IOU)
+        {
+            kept.push(f);
+        }
+    }
+    kept
 }
 
 /// Whether `(x, y)` is at least every neighbour (ties keep the first in reading order).
@@ -272,6 +289,30 @@ mod tests {
         assert_eq!(found.len(), 2);
         let r = tally(&found, &boxes, 0.99);
         assert_eq!((r.hits, r.false_alarms, r.misses), (2, 0, 0));
+    }
+
+    #[test]
+    fn two_kinds_peaking_at_one_place_are_one_defect_of_the_better_kind() {
+        let boxes = [Labelled {
+            kind: DefectKind::Slub,
+            box_px: [40.0, 40.0, 90.0, 64.0],
+        }];
+        let mut t = encode(&boxes, &[], 160, 120);
+        let n = t.cells.0 * t.cells.1;
+        // The snag plane peaks at the slub's cell too, less strongly.
+        let (slub, snag) = (kind_index(DefectKind::Slub), kind_index(DefectKind::Snag));
+        for i in 0..n {
+            t.heat[snag * n + i] = 0.6 * t.heat[slub * n + i];
+        }
+        let out = Outputs {
+            cells: t.cells,
+            heat: &t.heat,
+            size: &t.size,
+            offset: &t.offset,
+        };
+        let found = decode(&out, 0.3, 10);
+        assert_eq!(found.len(), 1, "{found:?}");
+        assert_eq!(found[0].kind, DefectKind::Slub);
     }
 
     #[test]
