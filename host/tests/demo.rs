@@ -94,8 +94,8 @@ fn the_demo_writes_a_self_contained_report_with_sane_figures() {
     let out = tmp.path().join("demo");
     let opts = Options {
         out: out.clone(),
-        letters: letters.clone(),
-        spheres: spheres.clone(),
+        letters: Some(letters.clone()),
+        spheres: Some(spheres.clone()),
         bench: None,
     };
     let started = Started::default();

@@ -10,28 +10,32 @@ pub struct Args {
     /// Output folder: report.html and every image and table it shows.
     #[arg(long, default_value = "out/demo")]
     pub out: PathBuf,
-    /// The gray scene rolled under the sensor.
-    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/letters.toml"))]
-    pub letters: PathBuf,
-    /// The RGB three-sphere scene for depth.
-    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/spheres.toml"))]
-    pub spheres: PathBuf,
-    /// Cortex-M7 bench results for the trade-off plot (`bash tests/mcu-bench/run.sh`);
+    /// The gray scene rolled under the sensor (default: the built-in letters scene).
+    #[arg(long)]
+    pub letters: Option<PathBuf>,
+    /// The RGB three-sphere scene for depth (default: the built-in one).
+    #[arg(long)]
+    pub spheres: Option<PathBuf>,
+    /// Cortex-M7 bench results for the trade-off plot (`bash tests/mcu-bench/run.sh`
+    /// writes them to the default path, relative to the folder the command runs in);
     /// without them the plot shows host time only.
-    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/../target/mcu-bench/mcu-bench.csv"))]
+    #[arg(long, default_value = super::tradeoff::DEFAULT_BENCH)]
     pub bench: PathBuf,
 }
 
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    crate::files::refuse_inside(
-        &args.out,
-        &[
-            ("letters scene", &args.letters),
-            ("spheres scene", &args.spheres),
-            ("bench CSV", &args.bench),
-        ],
-    )?;
+    let mut inputs = vec![("bench CSV", args.bench.as_path())];
+    inputs.extend(args.letters.as_deref().map(|p| ("letters scene", p)));
+    inputs.extend(args.spheres.as_deref().map(|p| ("spheres scene", p)));
+    crate::files::refuse_inside(&args.out, &inputs)?;
+    if !args.bench.exists() {
+        eprintln!(
+            "note: no MCU bench results at {}: the trade-off shows host time only \
+             (`bash tests/mcu-bench/run.sh` measures the instruction counts)",
+            args.bench.display()
+        );
+    }
     let started = Instant::now();
     let bars = super::bars::Bars::new();
     // The report's folder is replaced whole: a failed run leaves the last report as it was.

@@ -4,7 +4,7 @@ use super::bars::{Bars, progress};
 use crate::eval::depth;
 use crate::eval::tables::{csv, evaluate_scene, markdown};
 use crate::files::Batch;
-use crate::sim::Scene;
+use crate::sim::{Scene, built_in};
 
 use rollfuse_core::FuseConfig;
 use std::path::PathBuf;
@@ -40,22 +40,21 @@ pub struct Args {
 }
 
 /// The built-in standardized samples.
-pub fn default_scenes() -> Vec<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes");
-    ["dots", "lines", "curves"]
-        .iter()
-        .map(|s| dir.join(format!("{s}.toml")))
-        .collect()
+pub const SAMPLES: [&str; 3] = ["dots", "lines", "curves"];
+
+/// The scene files at `paths`, loaded, or without any the built-in scenes `names`.
+pub fn scenes_or(paths: &[PathBuf], names: &[&str]) -> anyhow::Result<Vec<Scene>> {
+    if paths.is_empty() {
+        names.iter().map(|n| built_in::scene(n)).collect()
+    } else {
+        paths.iter().map(|p| Scene::load(p)).collect()
+    }
 }
 
 /// Runs `rollfuse eval --depth`.
 fn run_depth(args: &Args) -> anyhow::Result<()> {
-    let path = match args.scene.as_slice() {
-        [] => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/spheres.toml"),
-        [one] => one.clone(),
-        _ => anyhow::bail!("--depth takes one scene"),
-    };
-    let scene = Scene::load(&path)?;
+    anyhow::ensure!(args.scene.len() <= 1, "--depth takes one scene");
+    let scene = built_in::scene_or(args.scene.first().map(PathBuf::as_path), "spheres")?;
     let _folder = crate::files::NewFolder::create(&args.out)?;
     let rows = depth::evaluate_depth(&scene)?;
     let mut batch = Batch::new();
@@ -77,18 +76,8 @@ fn run_depth(args: &Args) -> anyhow::Result<()> {
 
 /// Runs `rollfuse eval --roll`.
 fn run_roll(args: &Args) -> anyhow::Result<()> {
-    let scenes = if args.scene.is_empty() {
-        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes");
-        let mut s = vec![dir.join("letters.toml")];
-        s.extend(default_scenes());
-        s
-    } else {
-        args.scene.clone()
-    };
-    let loaded: Vec<Scene> = scenes
-        .iter()
-        .map(|p| Scene::load(p))
-        .collect::<anyhow::Result<_>>()?;
+    let [dots, lines, curves] = SAMPLES;
+    let loaded = scenes_or(&args.scene, &["letters", dots, lines, curves])?;
     let bar = progress(loaded.len(), "scenes", "rolling".into());
     let mut rows = Vec::new();
     for (k, scene) in loaded.iter().enumerate() {
@@ -150,17 +139,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.roll {
         return run_roll(&args);
     }
-    let scenes = if args.scene.is_empty() {
-        default_scenes()
-    } else {
-        args.scene.clone()
-    };
+    let scenes = scenes_or(&args.scene, &SAMPLES)?;
     let _folder = crate::files::NewFolder::create(&args.out)?;
     let bar = progress(scenes.len(), "scenes", "evaluating".into());
     let mut rows = Vec::new();
-    for (k, path) in scenes.iter().enumerate() {
-        let scene = Scene::load(path)?;
-        rows.extend(evaluate_scene(&scene, &FuseConfig::default(), 10)?);
+    for (k, scene) in scenes.iter().enumerate() {
+        rows.extend(evaluate_scene(scene, &FuseConfig::default(), 10)?);
         bar.set_position(k as u64 + 1);
     }
     bar.finish_and_clear();

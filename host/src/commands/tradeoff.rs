@@ -2,7 +2,6 @@
 //! (docs/tradeoff.md).
 
 use super::bars::Bars;
-use crate::sim::Scene;
 use crate::tradeoff::bench::McuTable;
 use crate::tradeoff::{acquire, report, study, sweep};
 use anyhow::ensure;
@@ -19,20 +18,16 @@ pub struct Args {
     pub scene: Vec<PathBuf>,
     /// The Cortex-M7 bench's CSV (written by `bash tests/mcu-bench/run.sh`); without it
     /// the study reports host time only.
-    #[arg(long, default_value = default_bench())]
+    #[arg(long, default_value = DEFAULT_BENCH)]
     pub bench: PathBuf,
     /// Timed runs per configuration and scene; the fastest counts.
     #[arg(long, default_value_t = 3)]
     pub repeats: usize,
 }
 
-/// Where `tests/mcu-bench/run.sh` writes by default.
-fn default_bench() -> &'static str {
-    concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../target/mcu-bench/mcu-bench.csv"
-    )
-}
+/// Where `tests/mcu-bench/run.sh` writes by default, relative to the repository's root
+/// (where the docs' commands run).
+pub const DEFAULT_BENCH: &str = "target/mcu-bench/mcu-bench.csv";
 
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -41,11 +36,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "--repeats must be 1..=100, not {}",
         args.repeats
     );
-    let scenes = if args.scene.is_empty() {
-        vec![PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/letters.toml")]
-    } else {
-        args.scene.clone()
-    };
+    let scenes = super::eval::scenes_or(&args.scene, &["letters"])?;
     let mcu = if args.bench.exists() {
         McuTable::load(&args.bench)?
     } else {
@@ -58,8 +49,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let _folder = crate::files::NewFolder::create(&args.out)?;
     let mut acquisitions = Vec::new();
-    for path in &scenes {
-        acquisitions.push(acquire(&Scene::load(path)?)?);
+    for scene in &scenes {
+        acquisitions.push(acquire(scene)?);
     }
     let setups = sweep();
     let rows = study(&acquisitions, &setups, args.repeats, &mcu, &Bars::new())?;

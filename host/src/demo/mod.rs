@@ -34,7 +34,7 @@ use crate::fullres::{Placed, Precision, fuse_mosaic};
 use crate::image::Planes;
 use crate::link::sim::SimDevice;
 use crate::progress::{Progress, Silent};
-use crate::sim::Scene;
+use crate::sim::{Scene, built_in};
 use crate::stream::{self, Manifest, Outcome, StopReason};
 use crate::tradeoff::{self, Measured, bench::McuTable, report as tradeoff_report};
 use anyhow::{Context, ensure};
@@ -47,10 +47,10 @@ use std::time::Instant;
 pub struct Options {
     /// Output folder.
     pub out: PathBuf,
-    /// The gray scene rolled under the sensor (default: the letters).
-    pub letters: PathBuf,
-    /// The RGB three-sphere scene for depth.
-    pub spheres: PathBuf,
+    /// The gray scene rolled under the sensor (none: the built-in letters).
+    pub letters: Option<PathBuf>,
+    /// The RGB three-sphere scene for depth (none: the built-in one).
+    pub spheres: Option<PathBuf>,
     /// The Cortex-M7 bench results, if measured (instruction counts in the trade-off).
     pub bench: Option<PathBuf>,
 }
@@ -174,8 +174,8 @@ fn run_stages(opts: &Options, progress: &dyn Progress) -> anyhow::Result<Demo> {
     std::fs::create_dir_all(&opts.out)
         .with_context(|| format!("cannot create {}", opts.out.display()))?;
     crate::files::check_writable(&opts.out.join(Files::REPORT))?;
-    let letters = Scene::load(&opts.letters)?;
-    let spheres = Scene::load(&opts.spheres)?;
+    let letters = built_in::scene_or(opts.letters.as_deref(), "letters")?;
+    let spheres = built_in::scene_or(opts.spheres.as_deref(), "spheres")?;
     let out = opts.out.as_path();
     let mut clock = Clock::new(progress);
 

@@ -2,11 +2,13 @@
 //! object, computing only the effects a scene lists, and the ground truth beside it.
 //!
 //! - [`scene`]: the scene file (TOML) and its checks.
+//! - [`built_in`]: the scenes compiled into the tool.
 //! - [`object`]: the objects' height maps.
 //! - [`textile`]: the detector's fabrics and their defects.
 //! - [`render`]: the stages — contact, gel, shading, defocus, background, noise, jitter.
 //! - [`output`]: frames, truth and manifest on disk.
 
+pub mod built_in;
 pub mod font;
 pub mod object;
 pub mod output;
