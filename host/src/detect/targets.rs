@@ -266,6 +266,16 @@ pub fn tally_ignoring(
 mod tests {
     use super::*;
 
+    /// Targets read back as if the network had output them.
+    fn outputs(t: &Targets) -> Outputs<'_> {
+        Outputs {
+            cells: t.cells,
+            heat: &t.heat,
+            size: &t.size,
+            offset: &t.offset,
+        }
+    }
+
     #[test]
     fn encoding_then_decoding_gives_the_boxes_back() {
         let boxes = [
@@ -279,13 +289,7 @@ mod tests {
             },
         ];
         let t = encode(&boxes, &[], 320, 240);
-        let out = Outputs {
-            cells: t.cells,
-            heat: &t.heat,
-            size: &t.size,
-            offset: &t.offset,
-        };
-        let found = decode(&out, 0.5, 10);
+        let found = decode(&outputs(&t), 0.5, 10);
         assert_eq!(found.len(), 2);
         let r = tally(&found, &boxes, 0.99);
         assert_eq!((r.hits, r.false_alarms, r.misses), (2, 0, 0));
@@ -304,13 +308,7 @@ mod tests {
         for i in 0..n {
             t.heat[snag * n + i] = 0.6 * t.heat[slub * n + i];
         }
-        let out = Outputs {
-            cells: t.cells,
-            heat: &t.heat,
-            size: &t.size,
-            offset: &t.offset,
-        };
-        let found = decode(&out, 0.3, 10);
+        let found = decode(&outputs(&t), 0.3, 10);
         assert_eq!(found.len(), 1, "{found:?}");
         assert_eq!(found[0].kind, DefectKind::Slub);
     }
