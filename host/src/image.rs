@@ -49,6 +49,17 @@ fn open_within_limit(path: &Path) -> anyhow::Result<image::DynamicImage> {
         .with_context(|| format!("cannot read image {}", path.display()))
 }
 
+/// Whether `path` is a PNG whose pixels are palette indices (colour type 3 in its header).
+fn is_palette_png(path: &Path) -> bool {
+    use std::io::Read;
+    let mut head = [0u8; 26];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok_and(|()| {
+            head.starts_with(b"\x89PNG\r\n\x1a\n") && &head[12..16] == b"IHDR" && head[25] == 3
+        })
+}
+
 /// A 16-bit sample on the 8-bit scale of [`Planes`] (times 255/65535).
 pub fn from_u16(v: u16) -> f32 {
     f32::from(v) * (255.0 / 65535.0)
@@ -204,9 +215,15 @@ impl Planes {
                         .map(from_u16)
                         .collect()
                 };
-                (0..3)
+                let planes: Vec<Vec<f32>> = (0..3)
                     .map(|c| data.iter().skip(c).step_by(3).copied().collect())
-                    .collect()
+                    .collect();
+                // A palette of grays (how some tools save gray images) is gray.
+                if planes[1..].iter().all(|p| *p == planes[0]) && is_palette_png(path) {
+                    planes.into_iter().take(1).collect()
+                } else {
+                    planes
+                }
             }
         };
         if w == 0 || h == 0 {

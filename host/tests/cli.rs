@@ -113,3 +113,117 @@ fn simulate_refuses_missing_and_bad_scenes_in_one_line() {
     assert!(!zero.status.success());
     assert!(String::from_utf8_lossy(&zero.stderr).contains("sensor.frames"));
 }
+
+/// A `w × h` palette PNG whose palette is 256 grays, pixel values `v(x, y)`.
+fn palette_png(path: &std::path::Path, w: u32, h: u32, v: impl Fn(u32, u32) -> u8) {
+    let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+    let chunk = |out: &mut Vec<u8>, kind: &[u8], data: &[u8]| {
+        out.extend((data.len() as u32).to_be_bytes());
+        let mut d = crc.digest();
+        d.update(kind);
+        d.update(data);
+        out.extend(kind);
+        out.extend(data);
+        out.extend(d.finalize().to_be_bytes());
+    };
+    // Scanlines: a filter byte 0, then the pixels.
+    let mut raw = Vec::new();
+    for y in 0..h {
+        raw.push(0);
+        raw.extend((0..w).map(|x| v(x, y)));
+    }
+    // zlib with stored (uncompressed) deflate blocks.
+    let mut z = vec![0x78, 0x01];
+    let blocks: Vec<&[u8]> = raw.chunks(65_535).collect();
+    for (k, b) in blocks.iter().enumerate() {
+        z.push(u8::from(k + 1 == blocks.len()));
+        z.extend((b.len() as u16).to_le_bytes());
+        z.extend((!(b.len() as u16)).to_le_bytes());
+        z.extend(*b);
+    }
+    let (mut a, mut b) = (1u32, 0u32);
+    for &x in &raw {
+        a = (a + u32::from(x)) % 65_521;
+        b = (b + a) % 65_521;
+    }
+    z.extend(((b << 16) | a).to_be_bytes());
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut ihdr = Vec::new();
+    ihdr.extend(w.to_be_bytes());
+    ihdr.extend(h.to_be_bytes());
+    ihdr.extend([8, 3, 0, 0, 0]);
+    chunk(&mut png, b"IHDR", &ihdr);
+    let grays: Vec<u8> = (0..=255u8).flat_map(|g| [g, g, g]).collect();
+    chunk(&mut png, b"PLTE", &grays);
+    chunk(&mut png, b"IDAT", &z);
+    chunk(&mut png, b"IEND", &[]);
+    std::fs::write(path, png).unwrap();
+}
+
+/// Each error names the input at fault and what to do.
+#[test]
+fn errors_name_the_input_at_fault() {
+    use rollfuse::image::Planes;
+    let tmp = tempfile::tempdir().unwrap();
+    let at = |name: &str| tmp.path().join(name);
+    let textured = |w: usize, h: usize| Planes {
+        width: w,
+        height: h,
+        planes: vec![
+            (0..w * h)
+                .map(|i| ((i * 37 + i / w * 11) % 251) as f32)
+                .collect(),
+        ],
+    };
+    // A gray palette is gray: it fuses with a gray frame.
+    palette_png(&at("palette.png"), 64, 48, |x, y| {
+        ((x * 37 + y * 11) % 251) as u8
+    });
+    assert_eq!(Planes::load(&at("palette.png")).unwrap().planes.len(), 1);
+    textured(64, 48).save_png(&at("gray.png")).unwrap();
+    let out = rollfuse(&[
+        "fuse",
+        at("palette.png").to_str().unwrap(),
+        at("gray.png").to_str().unwrap(),
+        "--out",
+        at("fused.png").to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    // A flat first frame is blamed, not the frame matched against it.
+    Planes {
+        width: 64,
+        height: 48,
+        planes: vec![vec![128.0; 64 * 48]],
+    }
+    .save_png(&at("flat.png"))
+    .unwrap();
+    let out = rollfuse(&[
+        "fuse",
+        at("flat.png").to_str().unwrap(),
+        at("gray.png").to_str().unwrap(),
+        "--out",
+        at("never.png").to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("frame 1 of the list, which it is matched against, is flat"),
+        "{err}"
+    );
+    // MS-SSIM strips too thin for its window: how many strips would do.
+    textured(16, 16).save_png(&at("tiny.png")).unwrap();
+    let tiny = at("tiny.png");
+    let out = rollfuse(&[
+        "metrics",
+        tiny.to_str().unwrap(),
+        "--reference",
+        tiny.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("16 rows in 10 strips leave 1: pass --strips 1 or fewer"),
+        "{err}"
+    );
+}

@@ -40,7 +40,8 @@ pub fn gray_normalize(pixels: &[f64]) -> Vec<f64> {
 
 /// MS-SSIM scale weights (Wang, Simoncelli & Bovik 2003).
 pub const MS_SSIM_WEIGHTS: [f64; 5] = [0.0448, 0.2856, 0.3001, 0.2363, 0.1333];
-const WINDOW: usize = 11;
+/// Side of the SSIM window, pixels: the least an image (and each scale) must measure.
+pub const WINDOW: usize = 11;
 const SIGMA: f64 = 1.5;
 const C1: f64 = (0.01 * 255.0) * (0.01 * 255.0);
 const C2: f64 = (0.03 * 255.0) * (0.03 * 255.0);

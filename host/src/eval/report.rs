@@ -3,7 +3,8 @@
 //! tabulate them.
 
 use super::metrics::{
-    Gray, StripAxis, entropy, gray_normalize, ms_ssim_raw, population_std, strip, strip_ranges,
+    Gray, StripAxis, WINDOW, entropy, gray_normalize, ms_ssim_raw, population_std, strip,
+    strip_ranges,
 };
 use crate::image::Planes;
 use anyhow::{bail, ensure};
@@ -70,6 +71,29 @@ fn same_size(image: &Planes, reference: &Planes) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Whether MS-SSIM fits `image` and each of its `strips` strips along `axis`: its window
+/// needs [`WINDOW`] pixels each way.
+fn ms_ssim_fits(image: &Planes, strips: usize, axis: StripAxis) -> anyhow::Result<()> {
+    let (len, across, unit) = match axis {
+        StripAxis::Rows => (image.height, image.width, "rows"),
+        StripAxis::Columns => (image.width, image.height, "columns"),
+    };
+    ensure!(
+        across >= WINDOW && len >= WINDOW,
+        "MS-SSIM needs at least {WINDOW}×{WINDOW} pixels; the image is {}×{}",
+        image.width,
+        image.height
+    );
+    let thinnest = len / strips;
+    ensure!(
+        thinnest >= WINDOW,
+        "MS-SSIM of each strip needs strips at least {WINDOW} {unit} thick; {len} {unit} in \
+         {strips} strips leave {thinnest}: pass --strips {} or fewer",
+        len / WINDOW
+    );
+    Ok(())
+}
+
 /// Measures `image` (and against `reference`), with `strips` strips along `axis`.
 pub fn measure(
     image: &Planes,
@@ -95,6 +119,7 @@ pub fn measure(
     let (mut ms, mut strip_ms) = (None, None);
     if let Some(reference) = reference {
         same_size(image, reference)?;
+        ms_ssim_fits(image, strips, axis)?;
         let r = normalized_gray(reference)?;
         ms = Some(ms_ssim_raw(&g, &r)?);
         strip_ms = Some(

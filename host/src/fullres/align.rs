@@ -243,6 +243,13 @@ pub fn align_chain(
                 "best match score {:.3} is below the minimum score {} (--min-score)",
                 m.score, params.min_score
             ))),
+            // A flat frame matched against is named: the frame skipped is not to blame.
+            None if gradient_image(&frames[last]).pixels().all(|p| p[0] == 0) => {
+                out.push(Aligned::Skipped(format!(
+                    "frame {} of the list, which it is matched against, is flat (no texture)",
+                    last + 1
+                )))
+            }
             None => out.push(Aligned::Skipped(
                 "no texture to match (flat frame or no overlap)".into(),
             )),
