@@ -211,6 +211,20 @@ fn errors_name_the_input_at_fault() {
         err.contains("frame 1 of the list, which it is matched against, is flat"),
         "{err}"
     );
+    // A frame over the pixel limit by itself: no mode helps, the limit must rise.
+    let out = rollfuse(&[
+        "fuse",
+        at("gray.png").to_str().unwrap(),
+        at("gray.png").to_str().unwrap(),
+        "--max-pixels",
+        "1000",
+        "--out",
+        at("never.png").to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("raise --max-pixels to at least 3072"), "{err}");
+    assert!(!err.contains("--mode roll"), "{err}");
     // MS-SSIM strips too thin for its window: how many strips would do.
     textured(16, 16).save_png(&at("tiny.png")).unwrap();
     let tiny = at("tiny.png");

@@ -176,12 +176,20 @@ pub fn refuse_overwriting_inputs(
 /// Loads every frame, checking they agree in size and colour.
 pub fn load_frames(paths: &[PathBuf]) -> anyhow::Result<Vec<Planes>> {
     // Held together, the frames share the pixel limit: checked from their headers first.
+    let limit = crate::image::max_pixels();
     let mut pixels = 0u64;
     for p in paths {
         let (w, h) = crate::image::dimensions(p)?;
-        pixels = pixels.saturating_add(u64::from(w) * u64::from(h));
+        let one = u64::from(w) * u64::from(h);
+        // One frame over the limit: no mode holds fewer than one frame.
+        ensure!(
+            one <= limit,
+            "frame {} is {w}×{h} = {one} pixels, over the limit of {limit}: raise --max-pixels \
+             to at least {one} to read it",
+            p.display()
+        );
+        pixels = pixels.saturating_add(one);
     }
-    let limit = crate::image::max_pixels();
     ensure!(
         pixels <= limit,
         "{} frames of {pixels} pixels in all are over the limit of {limit} held at once \
