@@ -50,8 +50,48 @@ enum Command {
     Devices,
 }
 
+/// A command-line error as every other error is: one line on stderr (with clap's tip, if
+/// it has one) and exit code 1. Help and version go to stdout with exit code 0.
+fn parse() -> Result<Cli, ExitCode> {
+    use clap::error::ErrorKind;
+    let e = match Cli::try_parse() {
+        Ok(cli) => return Ok(cli),
+        Err(e) => e,
+    };
+    match e.kind() {
+        ErrorKind::DisplayHelp | ErrorKind::DisplayVersion => e.exit(),
+        ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => {
+            let _ = e.print();
+            return Err(ExitCode::FAILURE);
+        }
+        _ => {}
+    }
+    // clap's message runs until its usage; lines of it may list arguments, or give a tip.
+    let text = e.render().to_string();
+    let (mut said, mut tips) = (Vec::new(), Vec::new());
+    for line in text.lines().map(str::trim).filter(|l| !l.is_empty()) {
+        if line.starts_with("Usage:") || line.starts_with("For more information") {
+            break;
+        }
+        match line.strip_prefix("tip: ") {
+            Some(tip) => tips.push(tip),
+            None => said.push(line),
+        }
+    }
+    let tip = if tips.is_empty() {
+        String::new()
+    } else {
+        format!(" ({})", tips.join("; "))
+    };
+    eprintln!("{}{tip}; see rollfuse --help", said.join(" "));
+    Err(ExitCode::FAILURE)
+}
+
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match parse() {
+        Ok(cli) => cli,
+        Err(code) => return code,
+    };
     rollfuse::image::set_max_pixels(cli.max_pixels);
     let result = match cli.command {
         Command::Demo(args) => demo::run(args),

@@ -41,6 +41,35 @@ fn unknown_subcommand_fails_with_a_message() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("frobnicate"));
 }
 
+/// Bad arguments are one line and exit code 1, as every other error; help is exit code 0.
+#[test]
+fn argument_errors_are_one_line_and_exit_1() {
+    for (args, says) in [
+        (&["frobnicate"][..], "unrecognized subcommand 'frobnicate'"),
+        (
+            &["fuse", "--outt", "x.png", "a.png"],
+            "similar argument exists: '--out'",
+        ),
+        (
+            &["fuse"],
+            "required arguments were not provided: --out <OUT> <FRAMES>...",
+        ),
+        (
+            &["eval", "--depth", "--roll"],
+            "'--depth' cannot be used with '--roll'",
+        ),
+    ] {
+        let out = rollfuse(args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+    let help = rollfuse(&["fuse", "--help"]);
+    assert_eq!(help.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&help.stdout).contains("Usage:"));
+}
+
 #[test]
 fn simulate_writes_frames_truth_and_manifest() {
     let out = tempfile::tempdir().unwrap();
