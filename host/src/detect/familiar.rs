@@ -1,7 +1,8 @@
 //! Whether an image looks like the cloth a model was trained on.
 //!
 //! A classifier's softmax says which known fabric an image is most like, never that it is
-//! like none of them (the letters scene, no fabric at all, came out `canvas` at 0.95). Each
+//! like none of them (the shipped classifier gives frames of the letters scene, no fabric
+//! at all, `canvas` at 0.94–0.98). Each
 //! place of the image — anomaly mode's cells ([`super::anomaly::cells`]: 32 × 32 pixels
 //! every 8, the log energy of 4 Haar octaves in 3 orientations and the mean, after the
 //! image's median and spread are taken out) — is compared instead with the training
@@ -96,6 +97,13 @@ pub struct Familiarity {
 pub struct Verdict {
     /// Distance over the calibrated limit: above 1, unlike the training cloth.
     pub unfamiliarity: f64,
+}
+
+impl Verdict {
+    /// Whether the image is unlike the training cloth: an unknown fabric.
+    pub fn unfamiliar(&self) -> bool {
+        self.unfamiliarity > 1.0
+    }
 }
 
 impl Familiarity {

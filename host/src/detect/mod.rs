@@ -152,19 +152,20 @@ impl Detector {
             .enumerate()
             .max_by(|a, b| a.1.total_cmp(&b.1))
             .context("the model has no classes")?;
-        let unfamiliarity = match &self.about.familiarity {
-            Some(f) => Some(f.judge(&familiar::Places::of(image)?)?.unfamiliarity),
+        let verdict = match &self.about.familiarity {
+            Some(f) => Some(f.judge(&familiar::Places::of(image)?)?),
             None => None,
         };
         let most_like = self.about.fabrics[class].clone();
         Ok(Detection {
-            fabric: match unfamiliarity {
-                Some(u) if u > 1.0 => UNKNOWN_FABRIC.to_string(),
-                _ => most_like.clone(),
+            fabric: if verdict.is_some_and(|v| v.unfamiliar()) {
+                UNKNOWN_FABRIC.to_string()
+            } else {
+                most_like.clone()
             },
             most_like,
             probability,
-            unfamiliarity,
+            unfamiliarity: verdict.map(|v| v.unfamiliarity),
             probabilities: mean,
             defects,
         })
@@ -204,11 +205,6 @@ impl Detector {
             probabilities,
             found: targets::decode(&out, self.threshold, MAX_PER_TILE),
         })
-    }
-
-    /// Replaces the model's familiarity statistics (training's calibration).
-    pub fn set_familiarity(&mut self, familiarity: Option<familiar::Familiarity>) {
-        self.about.familiarity = familiarity;
     }
 }
 

@@ -5,7 +5,6 @@
 //! `rollfuse eval --detect` measures on seeds below [`TRAIN_SEEDS`], which training never
 //! touches.
 
-use super::UNKNOWN_FABRIC;
 use super::data::{Roll, RollShape, Sample, Source, roll};
 use super::familiar::{Familiarity, Kind, Places};
 use super::model::About;
@@ -226,7 +225,7 @@ fn measure(
     losses: Vec<f32>,
     progress: &dyn Progress,
 ) -> anyhow::Result<(About, TrainReport)> {
-    let mut detector = super::Detector::from_net(net.clone(), about.clone());
+    let detector = super::Detector::from_net(net.clone(), about.clone());
     let accuracy = |source: Source| -> anyhow::Result<Option<f64>> {
         let samples: Vec<&&Sample> = validation.iter().filter(|s| s.source == source).collect();
         let mut right = 0;
@@ -244,13 +243,8 @@ fn measure(
         validation_unfamiliar: None,
     };
     match calibrate(seen, validation, progress) {
-        Ok(familiarity) => {
-            detector.set_familiarity(Some(familiarity.clone()));
-            let mut unfamiliar = 0;
-            for s in validation {
-                unfamiliar += usize::from(detector.detect(&s.image)?.fabric == UNKNOWN_FABRIC);
-            }
-            report.validation_unfamiliar = Some(unfamiliar as f64 / validation.len() as f64);
+        Ok((familiarity, unfamiliar)) => {
+            report.validation_unfamiliar = Some(unfamiliar);
             about.familiarity = Some(familiarity);
         }
         Err(e) => report.familiarity_missing = Some(format!("{e:#}")),
@@ -258,13 +252,14 @@ fn measure(
     Ok((about, report))
 }
 
-/// The familiarity statistics of the training cloth: fitted on the images the network
-/// was trained on, the limit from `held_out` images, frames and fused tiles apart.
+/// The familiarity statistics of the training cloth — fitted on the images the network
+/// was trained on, the limit from `held_out` images, frames and fused tiles apart — and
+/// the share of the held-out images they call unfamiliar.
 fn calibrate(
     trained_on: &[&Sample],
     held_out: &[&Sample],
     progress: &dyn Progress,
-) -> anyhow::Result<Familiarity> {
+) -> anyhow::Result<(Familiarity, f64)> {
     let total = (trained_on.len() + held_out.len()) as u64;
     progress.start("calibrating familiarity", Some(total), "images");
     let mut kinds = [Kind::default(), Kind::default()];
@@ -281,7 +276,15 @@ fn calibrate(
         progress.advance_to(done);
     }
     progress.finish();
-    Familiarity::fit(&kinds, FABRICS.len())
+    let familiarity = Familiarity::fit(&kinds, FABRICS.len())?;
+    let mut unfamiliar = 0;
+    for places in kinds.iter().flat_map(|k| &k.held_out) {
+        unfamiliar += usize::from(familiarity.judge(places)?.unfamiliar());
+    }
+    Ok((
+        familiarity,
+        unfamiliar as f64 / held_out.len().max(1) as f64,
+    ))
 }
 
 /// A training crop: normalized pixels, targets and the fabric's label.
