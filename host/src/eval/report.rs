@@ -3,8 +3,8 @@
 //! tabulate them.
 
 use super::metrics::{
-    Gray, StripAxis, WINDOW, entropy, gray_normalize, ms_ssim_raw, population_std, strip,
-    strip_ranges,
+    Gray, StripAxis, WINDOW, entropy, gray_normalize, ms_ssim_raw, ms_ssim_scales, population_std,
+    strip, strip_ranges,
 };
 use crate::image::Planes;
 use anyhow::{bail, ensure};
@@ -71,24 +71,29 @@ fn same_size(image: &Planes, reference: &Planes) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Whether MS-SSIM fits `image` and each of its `strips` strips along `axis`: its window
-/// needs [`WINDOW`] pixels each way.
-fn ms_ssim_fits(image: &Planes, strips: usize, axis: StripAxis) -> anyhow::Result<()> {
-    let (len, across, unit) = match axis {
-        StripAxis::Rows => (image.height, image.width, "rows"),
-        StripAxis::Columns => (image.width, image.height, "columns"),
+/// Whether MS-SSIM fits `image` and each of its strips `ranges` (of `len` along `axis`):
+/// [`ms_ssim_scales`], the rule MS-SSIM itself applies, checked before any work.
+fn ms_ssim_fits(
+    image: &Planes,
+    len: usize,
+    ranges: &[std::ops::Range<usize>],
+    axis: StripAxis,
+) -> anyhow::Result<()> {
+    let (w, h) = (image.width, image.height);
+    ensure!(
+        ms_ssim_scales(w, h) > 0,
+        "MS-SSIM needs at least {WINDOW}×{WINDOW} pixels; the image is {w}×{h}"
+    );
+    let thinnest = ranges.iter().map(|r| r.len()).min().unwrap_or(0);
+    let (strip_size, unit) = match axis {
+        StripAxis::Rows => ((w, thinnest), "rows"),
+        StripAxis::Columns => ((thinnest, h), "columns"),
     };
     ensure!(
-        across >= WINDOW && len >= WINDOW,
-        "MS-SSIM needs at least {WINDOW}×{WINDOW} pixels; the image is {}×{}",
-        image.width,
-        image.height
-    );
-    let thinnest = len / strips;
-    ensure!(
-        thinnest >= WINDOW,
+        ms_ssim_scales(strip_size.0, strip_size.1) > 0,
         "MS-SSIM of each strip needs strips at least {WINDOW} {unit} thick; {len} {unit} in \
-         {strips} strips leave {thinnest}: pass --strips {} or fewer",
+         {} strips leave {thinnest}: pass --strips {} or fewer",
+        ranges.len(),
         len / WINDOW
     );
     Ok(())
@@ -119,7 +124,7 @@ pub fn measure(
     let (mut ms, mut strip_ms) = (None, None);
     if let Some(reference) = reference {
         same_size(image, reference)?;
-        ms_ssim_fits(image, strips, axis)?;
+        ms_ssim_fits(image, len, &ranges, axis)?;
         let r = normalized_gray(reference)?;
         ms = Some(ms_ssim_raw(&g, &r)?);
         strip_ms = Some(
