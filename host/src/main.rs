@@ -1,10 +1,12 @@
 //! `rollfuse`: the command-line tool of the rollfuse tactile sensor module.
 
 use clap::{Parser, Subcommand};
+use rollfuse::commands::bars::{Mode, Show};
 use rollfuse::commands::{
     demo, depth, detect, eval, fuse, metrics, simulate, splice, stream, tradeoff,
 };
 use std::process::ExitCode;
+use std::time::Duration;
 
 /// Cyclic wavelet fusion of tactile images from a rolling, curved elastomer sensor.
 #[derive(Parser)]
@@ -14,6 +16,14 @@ struct Cli {
     /// header before anything is decoded.
     #[arg(long, global = true, default_value_t = rollfuse::image::DEFAULT_MAX_PIXELS)]
     max_pixels: u64,
+    /// How progress on long work is shown: a bar on a terminal and plain lines elsewhere
+    /// (auto), or always one of them, or none.
+    #[arg(long, global = true, value_enum, default_value_t = Mode::Auto)]
+    progress: Mode,
+    /// Plain progress lines: a stage prints none in its first SECONDS, then at most one
+    /// every SECONDS, and a last one when it ends.
+    #[arg(long, global = true, value_name = "SECONDS", default_value_t = 10)]
+    progress_every: u64,
     #[command(subcommand)]
     command: Command,
 }
@@ -93,20 +103,24 @@ fn main() -> ExitCode {
         Err(code) => return code,
     };
     rollfuse::image::set_max_pixels(cli.max_pixels);
+    let show = Show {
+        mode: cli.progress,
+        every: Duration::from_secs(cli.progress_every),
+    };
     let result = match cli.command {
-        Command::Demo(args) => demo::run(args),
-        Command::Simulate(args) => simulate::run(args),
-        Command::Fuse(args) => fuse::run(args),
+        Command::Demo(args) => demo::run(args, show),
+        Command::Simulate(args) => simulate::run(args, show),
+        Command::Fuse(args) => fuse::run(args, show),
         Command::Splice(args) => splice::run(args),
         Command::Metrics(args) => metrics::run(args),
-        Command::Eval(args) => eval::run(args),
-        Command::Tradeoff(args) => tradeoff::run(args),
+        Command::Eval(args) => eval::run(args, show),
+        Command::Tradeoff(args) => tradeoff::run(args, show),
         Command::Depth(args) => depth::run(args),
         Command::Calibrate(args) => depth::calibrate_run(args),
-        Command::Train(args) => detect::train_run(args),
+        Command::Train(args) => detect::train_run(args, show),
         Command::Detect(args) => detect::run(args),
         Command::FitNormal(args) => detect::fit_normal_run(args),
-        Command::Stream(args) => stream::run(args),
+        Command::Stream(args) => stream::run(args, show),
         Command::Devices => stream::devices(),
     };
     match result {

@@ -77,6 +77,33 @@ pub fn is_segment_name(out: &Path, path: &Path) -> bool {
     numbered && at.parent() == crate::files::resolved(out).parent()
 }
 
+/// Where a strip image lies on the belt, as its index says: the index's path and the belt
+/// row of the image's first row, for a lone strip `OUT` (index `STEM.json`) or one of its
+/// segments `STEM.NNNN.EXT`. None when no readable index beside it lists it.
+pub fn first_row_of(image: &Path) -> Option<(PathBuf, i64)> {
+    #[derive(serde::Deserialize)]
+    struct Listed {
+        file: String,
+        first_row: i64,
+    }
+    #[derive(serde::Deserialize)]
+    struct Index {
+        segments: Vec<Listed>,
+    }
+    let name = image.file_name()?.to_str()?;
+    let stem = image.file_stem()?.to_str()?;
+    // `STEM.0003.png` has the stem `STEM.0003`; its index is `STEM.json`.
+    let strip_stem = match stem.rsplit_once('.') {
+        Some((s, n)) if n.len() == 4 && n.bytes().all(|b| b.is_ascii_digit()) => s,
+        _ => stem,
+    };
+    let index = image.with_file_name(format!("{strip_stem}.json"));
+    let text = std::fs::read_to_string(&index).ok()?;
+    let parsed: Index = serde_json::from_str(&text).ok()?;
+    let first = parsed.segments.iter().find(|s| s.file == name)?.first_row;
+    Some((index, first))
+}
+
 /// Collects rows and writes segments.
 pub struct StripWriter {
     out: PathBuf,
@@ -143,9 +170,14 @@ impl StripWriter {
 
     /// `STEM.NNNN.EXT` beside `out`.
     fn numbered(&self, n: usize) -> PathBuf {
-        let stem = self.out.file_stem().unwrap_or_default().to_string_lossy();
-        let ext = self.out.extension().unwrap_or_default().to_string_lossy();
-        self.out.with_file_name(format!("{stem}.{n:04}.{ext}"))
+        Self::segment_path(&self.out, n)
+    }
+
+    /// Segment `n`'s path, `STEM.NNNN.EXT` beside `out`.
+    pub fn segment_path(out: &Path, n: usize) -> PathBuf {
+        let stem = out.file_stem().unwrap_or_default().to_string_lossy();
+        let ext = out.extension().unwrap_or_default().to_string_lossy();
+        out.with_file_name(format!("{stem}.{n:04}.{ext}"))
     }
 
     /// Moves the segments written beside older files into place, the older index first

@@ -270,3 +270,43 @@ fn errors_name_the_input_at_fault() {
         "{err}"
     );
 }
+
+/// Off a terminal (here: a pipe) progress is plain lines, a stage's last saying it is
+/// done; `--progress-every 0` prints one at every step, so the test needs no clock.
+#[test]
+fn progress_off_a_terminal_is_plain_lines() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/dots.toml");
+    let out = tmp.path().join("sim");
+    let simulate = |extra: &[&str]| {
+        let mut args = vec!["simulate", scene, "--frames", "3", "--out"];
+        args.push(out.to_str().unwrap());
+        args.extend_from_slice(extra);
+        let run = rollfuse(&args);
+        assert!(run.status.success(), "{args:?}");
+        String::from_utf8(run.stderr).unwrap()
+    };
+    let lines = simulate(&["--progress-every", "0"]);
+    let said: Vec<&str> = lines.lines().collect();
+    assert_eq!(said.len(), 4, "a line a frame and one at the end: {lines}");
+    assert!(
+        said[0].starts_with("simulating dots: 1/3 frames (33 %), "),
+        "{lines}"
+    );
+    assert!(
+        said[2].starts_with("simulating dots: 3/3 frames (100 %), "),
+        "{lines}"
+    );
+    assert!(
+        said[3].starts_with("simulating dots: done, 3 frames in "),
+        "{lines}"
+    );
+    // Work shorter than the interval says nothing; `none` says nothing at all.
+    assert_eq!(simulate(&["--progress-every", "3600"]), "");
+    assert_eq!(
+        simulate(&["--progress", "none", "--progress-every", "0"]),
+        ""
+    );
+    let plain = simulate(&["--progress", "plain", "--progress-every", "0"]);
+    assert_eq!(plain.lines().count(), 4, "{plain}");
+}

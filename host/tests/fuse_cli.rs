@@ -656,3 +656,91 @@ fn outputs_write_through_links_and_refuse_special_files() {
     let meta = std::fs::metadata("/dev/null").unwrap();
     assert!(!meta.is_file(), "/dev/null was replaced");
 }
+
+/// Side files belong to one output: a mosaic written over a segmented roll's name takes
+/// the roll's index and segments away, a roll over a mosaic its offsets, a splice both.
+#[test]
+fn an_output_keeps_no_side_file_of_the_one_it_replaced() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = simulate(&tmp.path().join("letters"), "letters", 20);
+    let out = tmp.path().join("strip.png");
+    let o = out.to_str().unwrap();
+    let at = |name: &str| tmp.path().join(name).exists();
+    let ok = |run: Output| assert!(run.status.success(), "{run:?}");
+    ok(fuse(&args(&frames, &["--out", o, "--segment-rows", "100"])));
+    assert!(at("strip.json") && at("strip.frames.csv") && at("strip.0001.png"));
+    ok(fuse(&args(&frames[..3], &["--out", o, "--mode", "mosaic"])));
+    assert!(at("strip.png") && at("strip.offsets.json"));
+    for roll_file in [
+        "strip.json",
+        "strip.frames.csv",
+        "strip.0000.png",
+        "strip.0001.png",
+    ] {
+        assert!(!at(roll_file), "{roll_file} outlived its roll");
+    }
+    ok(fuse(&args(&frames, &["--out", o])));
+    assert!(at("strip.json") && !at("strip.offsets.json"));
+    // A file of that name the tool did not write stays.
+    std::fs::write(tmp.path().join("strip.offsets.json"), "{\"mine\": 1}").unwrap();
+    ok(rollfuse(
+        &[&["splice"], &args(&frames[..3], &["--out", o])[..]].concat(),
+    ));
+    assert!(!at("strip.json") && !at("strip.frames.csv") && at("strip.offsets.json"));
+}
+
+/// A strip is compared with the part of the ideal belt it covers: the rows come from its
+/// index, or from `--reference-rows`; rows the reference lacks are refused by number.
+#[test]
+fn metrics_cuts_the_reference_to_a_strips_rows() {
+    let tmp = tempfile::tempdir().unwrap();
+    let letters = tmp.path().join("letters");
+    simulate(&letters, "letters", 20);
+    let out = tmp.path().join("strip.png");
+    let o = out.to_str().unwrap();
+    assert!(
+        fuse(&[letters.to_str().unwrap(), "--out", o])
+            .status
+            .success()
+    );
+    let ideal = letters.join("truth/ideal.png");
+    let i = ideal.to_str().unwrap();
+    let run = rollfuse(&["metrics", o, "--reference", i, "--json"]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{err}");
+    let first: usize = err
+        .strip_prefix("reference rows ")
+        .and_then(|r| r.split("..").next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("the rows are said: {err}"));
+    let by_index: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let ms_ssim = by_index["ms_ssim"].as_f64().unwrap();
+    assert!(
+        ms_ssim > 0.8,
+        "the strip is like its part of the belt: {ms_ssim}"
+    );
+    // The same rows given by hand measure the same; rows further on, less.
+    let given = |row: usize| {
+        let row = row.to_string();
+        let run = rollfuse(&[
+            "metrics",
+            o,
+            "--reference",
+            i,
+            "--reference-rows",
+            &row,
+            "--json",
+        ]);
+        assert!(run.status.success(), "{run:?}");
+        let v: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+        v["ms_ssim"].as_f64().unwrap()
+    };
+    assert_eq!(given(first), ms_ssim);
+    assert!(given(first + 7) < ms_ssim);
+    let run = rollfuse(&["metrics", o, "--reference", i, "--reference-rows", "100000"]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        !run.status.success() && err.contains("has no rows 100000.."),
+        "{err}"
+    );
+}

@@ -23,8 +23,8 @@ pub struct Args {
     pub bench: PathBuf,
 }
 
-/// Runs the command.
-pub fn run(args: Args) -> anyhow::Result<()> {
+/// Runs the command, showing progress as `show` says.
+pub fn run(args: Args, show: super::bars::Show) -> anyhow::Result<()> {
     let mut inputs = vec![("bench CSV", args.bench.as_path())];
     inputs.extend(args.letters.as_deref().map(|p| ("letters scene", p)));
     inputs.extend(args.spheres.as_deref().map(|p| ("spheres scene", p)));
@@ -37,7 +37,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let started = Instant::now();
-    let bars = super::bars::Bars::new();
+    let bars = super::bars::Bars::new(show);
     // The report's folder is replaced whole: a failed run leaves the last report as it was.
     let result = crate::files::replace_folder(&args.out, |staging| {
         let opts = Options {

@@ -1,7 +1,7 @@
 //! `rollfuse train` and `rollfuse detect`: the fabric defect detector's model, and the
 //! detector run on images (frames, fused images, strips).
 
-use super::bars::Bars;
+use super::bars::{Bars, Show};
 use crate::detect::anomaly::NormalModel;
 use crate::detect::draw::{draw, outline};
 use crate::detect::train::{TrainOptions, train};
@@ -38,8 +38,8 @@ pub struct TrainArgs {
     pub from: Option<PathBuf>,
 }
 
-/// Runs `rollfuse train`.
-pub fn train_run(args: TrainArgs) -> anyhow::Result<()> {
+/// Runs `rollfuse train`, showing progress as `show` says.
+pub fn train_run(args: TrainArgs, show: Show) -> anyhow::Result<()> {
     super::check_writable(&args.out)?;
     anyhow::ensure!(
         args.out.extension().is_some_and(|e| e == "safetensors"),
@@ -78,7 +78,7 @@ pub fn train_run(args: TrainArgs) -> anyhow::Result<()> {
     }
     let started = std::time::Instant::now();
     // Kept on the terminal: the loss the training ended at stays readable.
-    let (net, about, report) = train(&opts, start.map(|s| s.0), &made_by, &Bars::kept())?;
+    let (net, about, report) = train(&opts, start.map(|s| s.0), &made_by, &Bars::kept(show))?;
     model::save(&args.out, &net, &about)?;
     let l = &report.losses;
     let mean = |s: &[f32]| s.iter().sum::<f32>() / s.len().max(1) as f32;

@@ -1,9 +1,10 @@
 //! `rollfuse eval`: Tables II and III on the simulated standardized samples.
 
-use super::bars::{Bars, progress};
+use super::bars::{Bars, Show};
 use crate::eval::depth;
 use crate::eval::tables::{csv, evaluate_scene, markdown};
 use crate::files::Batch;
+use crate::progress::Progress;
 use crate::sim::{Scene, built_in};
 
 use rollfuse_core::FuseConfig;
@@ -75,16 +76,17 @@ fn run_depth(args: &Args) -> anyhow::Result<()> {
 }
 
 /// Runs `rollfuse eval --roll`.
-fn run_roll(args: &Args) -> anyhow::Result<()> {
+fn run_roll(args: &Args, show: Show) -> anyhow::Result<()> {
     let [dots, lines, curves] = SAMPLES;
     let loaded = scenes_or(&args.scene, &["letters", dots, lines, curves])?;
-    let bar = progress(loaded.len(), "scenes", "rolling".into());
+    let bars = Bars::new(show);
+    bars.start("rolling", Some(loaded.len() as u64), "scenes");
     let mut rows = Vec::new();
     for (k, scene) in loaded.iter().enumerate() {
         rows.extend(crate::eval::roll::evaluate_roll(scene, 10)?);
-        bar.set_position(k as u64 + 1);
+        bars.advance_to(k as u64 + 1);
     }
-    bar.finish_and_clear();
+    bars.finish();
     let _folder = crate::files::NewFolder::create(&args.out)?;
     let md = crate::eval::roll::markdown(&rows);
     let mut batch = Batch::new();
@@ -97,14 +99,14 @@ fn run_roll(args: &Args) -> anyhow::Result<()> {
 }
 
 /// Runs `rollfuse eval --detect`.
-fn run_detect(args: &Args) -> anyhow::Result<()> {
+fn run_detect(args: &Args, show: Show) -> anyhow::Result<()> {
     use crate::eval::detect::{evaluate_detect, markdown};
     let detector = match &args.model {
         Some(m) => crate::detect::Detector::load(m)?,
         None => crate::detect::Detector::built_in()?,
     };
     let shape = crate::detect::data::RollShape::STANDARD;
-    let rows = evaluate_detect(&detector, args.rolls, &shape, &Bars::new())?;
+    let rows = evaluate_detect(&detector, args.rolls, &shape, &Bars::new(show))?;
     let _folder = crate::files::NewFolder::create(&args.out)?;
     let md = format!(
         "Held-out rolls: {} (seeds {}..{}), model: {}\n\n{}",
@@ -128,26 +130,27 @@ fn run_detect(args: &Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Runs the command.
-pub fn run(args: Args) -> anyhow::Result<()> {
+/// Runs the command, showing progress as `show` says.
+pub fn run(args: Args, show: Show) -> anyhow::Result<()> {
     if args.detect {
-        return run_detect(&args);
+        return run_detect(&args, show);
     }
     if args.depth {
         return run_depth(&args);
     }
     if args.roll {
-        return run_roll(&args);
+        return run_roll(&args, show);
     }
     let scenes = scenes_or(&args.scene, &SAMPLES)?;
     let _folder = crate::files::NewFolder::create(&args.out)?;
-    let bar = progress(scenes.len(), "scenes", "evaluating".into());
+    let bars = Bars::new(show);
+    bars.start("evaluating", Some(scenes.len() as u64), "scenes");
     let mut rows = Vec::new();
     for (k, scene) in scenes.iter().enumerate() {
         rows.extend(evaluate_scene(scene, &FuseConfig::default(), 10)?);
-        bar.set_position(k as u64 + 1);
+        bars.advance_to(k as u64 + 1);
     }
-    bar.finish_and_clear();
+    bars.finish();
     let md = markdown(&rows);
     let mut batch = Batch::new();
     batch.add_bytes(&args.out.join("eval.csv"), csv(&rows).as_bytes())?;

@@ -2,7 +2,12 @@
 //! into one image (the mosaic, paper Tables II–III), or a whole roll into a strip fused
 //! over the contact window (docs/fusion.md, "Whole rolls").
 
-use super::{AblationArg, LlWeightingArg, WaveletArg, bars::Bars, check_writable};
+use super::{
+    AblationArg, LlWeightingArg, WaveletArg,
+    bars::{Bars, Show},
+    check_writable,
+    side_files::{self, Side},
+};
 use crate::fullres::align::{Aligned, Match, Offset, TemplateParams, align_chain};
 use crate::fullres::register::Tracker;
 use crate::fullres::{Precision, fuse_mosaic_mut};
@@ -320,8 +325,8 @@ enum Plan {
     Roll(Option<Vec<Planes>>),
 }
 
-/// Runs the command.
-pub fn run(mut args: Args) -> anyhow::Result<()> {
+/// Runs the command, showing progress as `show` says.
+pub fn run(mut args: Args, show: Show) -> anyhow::Result<()> {
     args.frames = expand_frames(&args.frames)?;
     if args.frames.len() < 2 {
         bail!(
@@ -371,8 +376,8 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         println!("mode: {why}");
     }
     match plan {
-        Plan::Mosaic(frames) => run_mosaic(&args, frames, &cfg),
-        Plan::Roll(loaded) => super::fuse_roll::run(&args, loaded, &cfg),
+        Plan::Mosaic(frames) => run_mosaic(&args, frames, &cfg, show),
+        Plan::Roll(loaded) => super::fuse_roll::run(&args, loaded, &cfg, show),
     }
 }
 
@@ -437,8 +442,13 @@ fn plan(args: &Args) -> anyhow::Result<(Plan, &'static str)> {
 }
 
 /// Fuses every frame over its whole footprint into one image (a few frames of one object).
-fn run_mosaic(args: &Args, frames: Vec<Planes>, cfg: &FuseConfig) -> anyhow::Result<()> {
-    let offsets_path = args.out.with_extension("offsets.json");
+fn run_mosaic(
+    args: &Args,
+    frames: Vec<Planes>,
+    cfg: &FuseConfig,
+    show: Show,
+) -> anyhow::Result<()> {
+    let offsets_path = Side::Offsets.path(&args.out);
     check_writable(&args.out)?;
     check_writable(&offsets_path)?;
     refuse_overwriting_inputs(
@@ -449,7 +459,7 @@ fn run_mosaic(args: &Args, frames: Vec<Planes>, cfg: &FuseConfig) -> anyhow::Res
     let (placed, record) = match args.align {
         AlignArg::None => unaligned(&args.frames),
         AlignArg::Motion => by_motion(args)?,
-        AlignArg::Template => by_template(args, &frames)?,
+        AlignArg::Template => by_template(args, &frames, show)?,
     };
 
     // Fusion may work in the frames (they are not needed afterwards): no copies.
@@ -464,6 +474,7 @@ fn run_mosaic(args: &Args, frames: Vec<Planes>, cfg: &FuseConfig) -> anyhow::Res
     fused.save_png_bits(&args.out, args.out_bits.bits())?;
     let json = serde_json::to_string_pretty(&record)? + "\n";
     crate::files::write_bytes_atomic(&offsets_path, json.as_bytes())?;
+    side_files::remove_others(&args.out, &[Side::Offsets])?;
     println!("offsets (rows, columns) on the canvas:");
     for f in &record.frames {
         println!("  {:>6} {:>4}  {}", f.at.dy, f.at.dx, f.file.display());
@@ -525,7 +536,7 @@ fn by_motion(args: &Args) -> anyhow::Result<Alignment<'_>> {
 
 /// Every frame matched against the last one kept (`--align template`); a frame that does
 /// not match is skipped, with a message.
-fn by_template<'a>(args: &'a Args, frames: &[Planes]) -> anyhow::Result<Alignment<'a>> {
+fn by_template<'a>(args: &'a Args, frames: &[Planes], show: Show) -> anyhow::Result<Alignment<'a>> {
     let defaults = TemplateParams::default();
     let params = TemplateParams {
         rows: (args.template_rows[0], args.template_rows[1]),
@@ -539,7 +550,7 @@ fn by_template<'a>(args: &'a Args, frames: &[Planes]) -> anyhow::Result<Alignmen
         frames: Vec::new(),
         skipped: Vec::new(),
     };
-    let chain = align_chain(frames, &params, &Bars::new());
+    let chain = align_chain(frames, &params, &Bars::new(show));
     for ((k, file), aligned) in args.frames.iter().enumerate().zip(chain) {
         match aligned {
             Aligned::Placed { at, matched } => {

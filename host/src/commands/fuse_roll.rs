@@ -1,16 +1,19 @@
 //! `rollfuse fuse` on a roll: frames decoded on a second thread, aligned, fused over the
 //! contact window and written as strip segments as they are finished.
 
+use super::bars::{Bars, Show};
+use super::check_writable;
 use super::fuse::{
     AlignArg, Args, OutBits, manifest_path, motion_offsets, refuse_overwriting_inputs,
 };
-use super::{bars::progress, check_writable};
+use super::side_files::{self, Side};
 use crate::files::PendingFile;
 use crate::fullres::register::{Placement, Summary, TrackParams};
 use crate::fullres::roll::{Bands, StripSink};
 use crate::fullres::strip::{Placing, StripOptions, StripReport, WindowChoice, fuse_strip};
 use crate::fullres::window::{Geometry, WindowSource};
 use crate::image::Planes;
+use crate::progress::Progress;
 use crate::strip_file::{Segment, StripWriter};
 use anyhow::bail;
 use rollfuse_core::FuseConfig;
@@ -71,20 +74,27 @@ struct Details<'a> {
 }
 
 /// Fuses the roll named by `args` (frames already decoded in `loaded`, if any).
-pub fn run(args: &Args, loaded: Option<Vec<Planes>>, cfg: &FuseConfig) -> anyhow::Result<()> {
+/// Progress is shown as `show` says.
+pub fn run(
+    args: &Args,
+    loaded: Option<Vec<Planes>>,
+    cfg: &FuseConfig,
+    show: Show,
+) -> anyhow::Result<()> {
     let out = &args.out;
-    let csv_path = out.with_extension("frames.csv");
+    let csv_path = Side::FramesCsv.path(out);
     let index_path = StripWriter::index_path(out);
     check_outputs(args, &csv_path, &index_path)?;
     let opts = strip_options(args, cfg)?;
     let mut csv = PendingFile::create(&csv_path)?;
     csv.write_all(b"frame,file,row,col,source,score,sigma\n")?;
-    let bar = progress(args.frames.len(), "frames", "fusing the roll".into());
+    let bars = Bars::new(show);
+    bars.start("fusing the roll", Some(args.frames.len() as u64), "frames");
     let started = std::time::Instant::now();
     let files = &args.frames;
     let on_frame = |p: &Placement| {
         let k = p.frame;
-        bar.set_position(k as u64 + 1);
+        bars.advance_to(k as u64 + 1);
         let score = p.score.map(|s| format!("{s:.4}")).unwrap_or_default();
         csv.write_all(
             format!(
@@ -108,7 +118,7 @@ pub fn run(args: &Args, loaded: Option<Vec<Planes>>, cfg: &FuseConfig) -> anyhow
         )
     };
     let (writer, report) = fuse_files(files, loaded, &opts, make_sink, on_frame)?;
-    bar.finish_and_clear();
+    bars.finish();
     let took = started.elapsed().as_secs_f64();
     let details = Details {
         mode: "roll",
@@ -127,6 +137,7 @@ pub fn run(args: &Args, loaded: Option<Vec<Planes>>, cfg: &FuseConfig) -> anyhow
     };
     csv.commit()?;
     let segments = writer.finish(&details)?;
+    side_files::remove_others(out, &[Side::Strip, Side::FramesCsv])?;
     print_summary(args, &report, &segments, took, &index_path);
     untrusted(&report, args.accept_untrusted, &index_path)
 }

@@ -8,6 +8,7 @@ pub mod eval;
 pub mod fuse;
 pub mod fuse_roll;
 pub mod metrics;
+pub mod side_files;
 pub mod simulate;
 pub mod splice;
 pub mod stream;

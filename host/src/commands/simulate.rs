@@ -20,8 +20,8 @@ pub struct Args {
     pub seed: Option<u64>,
 }
 
-/// Runs the command.
-pub fn run(args: Args) -> anyhow::Result<()> {
+/// Runs the command, showing progress as `show` says.
+pub fn run(args: Args, show: super::bars::Show) -> anyhow::Result<()> {
     output::refuse_overwriting(&args.scene, "scene", &args.out)?;
     let mut scene = Scene::load(&args.scene)?;
     if let Some(n) = args.frames {
@@ -37,7 +37,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprintln!("warning: {w}");
     }
     let sim = Simulator::new(&scene)?;
-    let manifest = output::write(&sim, &args.out, &super::bars::Bars::new())?;
+    let manifest = output::write(&sim, &args.out, &super::bars::Bars::new(show))?;
     println!(
         "{}: {} frames of {}×{} ({}) with [{}] → {}",
         manifest.scene,

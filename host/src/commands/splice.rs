@@ -45,6 +45,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect();
     let out = splice(&placed, args.blend)?;
     out.save_png(&args.out)?;
+    super::side_files::remove_others(&args.out, &[])?;
     println!(
         "spliced {} frames ({}×{}) → {}",
         placed.len(),

@@ -180,8 +180,8 @@ pub fn open(args: &Args) -> anyhow::Result<Opened> {
     })
 }
 
-/// Runs `rollfuse stream`.
-pub fn run(args: Args) -> anyhow::Result<()> {
+/// Runs `rollfuse stream`, showing progress as `show` says.
+pub fn run(args: Args, show: super::bars::Show) -> anyhow::Result<()> {
     // Every option checked, and no output an input, before the output folder is made.
     let Opened {
         mut link,
@@ -192,7 +192,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let server = serve
         .map(|addr| start_server(&args, addr, link.is_live()))
         .transpose()?;
-    let bars = super::bars::Bars::new();
+    let bars = super::bars::Bars::new(show);
     let outcome = match &server {
         Some(server) => {
             let outcome = stream::run_watched(link.as_mut(), &opts, &bars, &mut server.watcher())?;

@@ -1,7 +1,7 @@
 //! `rollfuse tradeoff`: the accuracy/time study over the device configurations
 //! (docs/tradeoff.md).
 
-use super::bars::Bars;
+use super::bars::{Bars, Show};
 use crate::tradeoff::bench::McuTable;
 use crate::tradeoff::{acquire, report, study, sweep};
 use anyhow::ensure;
@@ -29,8 +29,8 @@ pub struct Args {
 /// (where the docs' commands run).
 pub const DEFAULT_BENCH: &str = "target/mcu-bench/mcu-bench.csv";
 
-/// Runs the command.
-pub fn run(args: Args) -> anyhow::Result<()> {
+/// Runs the command, showing progress as `show` says.
+pub fn run(args: Args, show: Show) -> anyhow::Result<()> {
     ensure!(
         (1..=100).contains(&args.repeats),
         "--repeats must be 1..=100, not {}",
@@ -53,7 +53,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         acquisitions.push(acquire(scene)?);
     }
     let setups = sweep();
-    let rows = study(&acquisitions, &setups, args.repeats, &mcu, &Bars::new())?;
+    let rows = study(&acquisitions, &setups, args.repeats, &mcu, &Bars::new(show))?;
     let names: Vec<String> = acquisitions.iter().map(|a| a.name.clone()).collect();
     let md = report::markdown(&rows, &names, mcu.build.as_deref());
     let mut batch = crate::files::Batch::new();

@@ -196,7 +196,7 @@ pub fn train(
         let rate = 1e-5 + (opts.rate - 1e-5) * (1.0 + (std::f64::consts::PI * t).cos()) / 2.0;
         net = optim.step(rate, net, grads);
         progress.advance_to(step as u64 + 1);
-        progress.message(&format!("training, loss {:.3}", losses[step]));
+        progress.message(&format!("loss {:.3}", losses[step]));
     }
     progress.finish();
     let about = About {
