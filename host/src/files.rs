@@ -50,6 +50,11 @@ pub struct NewFolder {
 }
 
 impl NewFolder {
+    /// Makes the folder of the file `path` and its missing parents.
+    pub fn for_file(path: &Path) -> anyhow::Result<Self> {
+        Self::create(folder_of(path))
+    }
+
     /// Makes `path` and its missing parents.
     pub fn create(path: &Path) -> anyhow::Result<Self> {
         let made: Vec<PathBuf> = path
@@ -624,17 +629,27 @@ pub fn add_png(
 }
 
 /// Fails early, with the path in the message, if `path` cannot be written, before any
-/// long work starts. Leaves an existing file as it is and creates nothing.
-pub fn check_writable(path: &std::path::Path) -> anyhow::Result<()> {
-    let parent = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(std::path::Path::new("."));
+/// long work starts: its folder, or the nearest one above it that exists (the missing ones
+/// are made as the output is written: [`NewFolder::for_file`]), must be a folder that can
+/// be written to. Leaves an existing file as it is and creates nothing.
+pub fn check_writable(path: &Path) -> anyhow::Result<()> {
+    let parent = folder_of(path);
+    let existing = parent
+        .ancestors()
+        .map(|p| {
+            if p.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                p
+            }
+        })
+        .find(|p| p.exists())
+        .unwrap_or(Path::new("."));
     anyhow::ensure!(
-        parent.is_dir(),
-        "cannot write {}: folder {} does not exist",
+        existing.is_dir(),
+        "cannot write {}: {} is not a folder",
         path.display(),
-        parent.display()
+        existing.display()
     );
     let probe = if path.exists() {
         std::fs::OpenOptions::new()
@@ -642,10 +657,17 @@ pub fn check_writable(path: &std::path::Path) -> anyhow::Result<()> {
             .open(path)
             .map(|_| ())
     } else {
-        let tmp = parent.join(format!(".rollfuse-write-check-{}", std::process::id()));
+        let tmp = existing.join(format!(".rollfuse-write-check-{}", std::process::id()));
         std::fs::File::create(&tmp).and_then(|_| std::fs::remove_file(&tmp))
     };
     probe.map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
+}
+
+/// The folder `path` is in (`.` for a bare name).
+fn folder_of(path: &Path) -> &Path {
+    path.parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
 }
 
 #[cfg(test)]

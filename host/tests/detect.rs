@@ -150,15 +150,20 @@ fn detect_writes_json_and_drawings_and_keeps_its_inputs() {
     }
     // The JSON may not be written over the image it reads.
     fails(&["detect", i, "--model", m, "--json", i], "input image");
-    // Nor into a folder that is not there: said before any image is run.
-    let nowhere = tmp.path().join("nd2/x.json");
+    // A folder that is not there is made (`--out` rule, README); one that cannot be, as
+    // under a file, is said before any image is run.
+    let nd2 = tmp.path().join("nd2/x.json");
+    let out = rollfuse(&["detect", i, "--model", m, "--json", nd2.to_str().unwrap()]);
+    assert!(out.status.success(), "{out:?}");
+    assert!(nd2.exists());
+    let under_a_file = tmp.path().join("nd2/x.json/y.json");
     let out = rollfuse(&[
         "detect",
         i,
         "--model",
         m,
         "--json",
-        nowhere.to_str().unwrap(),
+        under_a_file.to_str().unwrap(),
     ]);
     assert!(!out.status.success());
     assert!(
@@ -167,7 +172,7 @@ fn detect_writes_json_and_drawings_and_keeps_its_inputs() {
         String::from_utf8_lossy(&out.stdout)
     );
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("does not exist"), "{err}");
+    assert!(err.contains("x.json is not a folder"), "{err}");
 }
 
 #[test]

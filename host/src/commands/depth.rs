@@ -5,7 +5,7 @@ use super::check_writable;
 use crate::depth::calibrate::{Circle, calibrate};
 use crate::depth::lights::Lights;
 use crate::depth::{output, reconstruct};
-use crate::files::Batch;
+use crate::files::{Batch, NewFolder};
 use crate::image::Planes;
 use anyhow::{Context, bail};
 use std::path::{Path, PathBuf};
@@ -21,7 +21,8 @@ pub struct Args {
     /// The no-contact frame (else a smooth estimate from the image).
     #[arg(long)]
     pub background: Option<PathBuf>,
-    /// Output stem: writes STEM.npy (float32 mm) and STEM.png (colour map with scale bar).
+    /// Output stem: writes STEM.npy (float32 mm) and STEM.png (colour map with scale bar);
+    /// `--out d.png` is the stem `d` (an extension of these outputs is dropped).
     #[arg(long)]
     pub out: PathBuf,
     /// Also write STEM.ply, a point cloud in mm.
@@ -29,9 +30,21 @@ pub struct Args {
     pub ply: bool,
 }
 
-/// `STEM` + `.ext`, keeping any dots in the stem.
+/// The extensions `rollfuse depth` writes.
+const DEPTH_EXTENSIONS: [&str; 3] = ["npy", "png", "ply"];
+
+/// `STEM` + `.ext`, keeping any dots in the stem; a stem that ends in one of the outputs'
+/// extensions loses it first.
 fn with_ext(stem: &Path, ext: &str) -> PathBuf {
-    let mut s = stem.as_os_str().to_owned();
+    let own = stem
+        .extension()
+        .is_some_and(|e| DEPTH_EXTENSIONS.iter().any(|d| e == *d));
+    let stem = if own {
+        stem.with_extension("")
+    } else {
+        stem.to_path_buf()
+    };
+    let mut s = stem.into_os_string();
     s.push(".");
     s.push(ext);
     PathBuf::from(s)
@@ -39,9 +52,9 @@ fn with_ext(stem: &Path, ext: &str) -> PathBuf {
 
 /// Runs `rollfuse depth`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let outputs: Vec<PathBuf> = ["npy", "png"]
+    let outputs: Vec<PathBuf> = DEPTH_EXTENSIONS[..2]
         .iter()
-        .chain(args.ply.then_some(&"ply"))
+        .chain(args.ply.then_some(&DEPTH_EXTENSIONS[2]))
         .map(|e| with_ext(&args.out, e))
         .collect();
     let mut inputs = vec![
@@ -54,6 +67,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for o in &outputs {
         check_writable(o)?;
     }
+    let _folder = NewFolder::for_file(&outputs[0])?;
     let lights = Lights::load(&args.lights)?;
     let image = Planes::load(&args.image)?;
     let background = args.background.as_deref().map(Planes::load).transpose()?;
@@ -112,6 +126,7 @@ pub fn calibrate_run(args: CalibrateArgs) -> anyhow::Result<()> {
     inputs.extend(args.background.as_deref().map(|b| ("background", b)));
     crate::files::refuse_overwriting(&[&args.out], &inputs)?;
     check_writable(&args.out)?;
+    let _folder = NewFolder::for_file(&args.out)?;
     let circle = match args.circle.as_deref() {
         None => None,
         Some(&[x, y, r]) if x.is_finite() && y.is_finite() && r.is_finite() && r > 0.0 => {

@@ -6,7 +6,7 @@ use crate::detect::anomaly::NormalModel;
 use crate::detect::draw::{draw, outline};
 use crate::detect::train::{TrainOptions, train};
 use crate::detect::{Detection, Detector, UNKNOWN_FABRIC, model};
-use crate::files::{Batch, PngLayout, add_png};
+use crate::files::{Batch, NewFolder, PngLayout, add_png};
 use crate::image::Planes;
 use anyhow::Context;
 use std::path::{Path, PathBuf};
@@ -46,6 +46,7 @@ pub fn train_run(args: TrainArgs, show: Show) -> anyhow::Result<()> {
         "{}: models are written as safetensors; name the file .safetensors",
         args.out.display()
     );
+    let _folder = NewFolder::for_file(&args.out)?;
     let opts = TrainOptions {
         steps: args.steps,
         rolls: args.rolls,
@@ -173,12 +174,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     inputs.extend(args.model.as_deref().map(|m| ("model", m)));
     inputs.extend(args.normal.as_deref().map(|m| ("normal model", m)));
     crate::files::refuse_overwriting(&outputs, &inputs)?;
+    // Before any work: an output that cannot be written is said first, not after the
+    // results; folders made for the outputs go again if the command fails before using them.
+    let mut made = Vec::new();
     if let Some(json) = &args.json {
-        // Before any work: a JSON that cannot be written is said first, not after the results.
         super::check_writable(json)?;
+        made.push(NewFolder::for_file(json)?);
     }
     if let Some(dir) = &args.draw {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        made.push(NewFolder::create(dir)?);
     }
     if let Some(normal) = &args.normal {
         return anomalies_run(&args, normal, &drawn);
@@ -297,6 +301,7 @@ pub fn fit_normal_run(args: FitNormalArgs) -> anyhow::Result<()> {
         .collect();
     crate::files::refuse_overwriting(&[args.out.as_path()], &inputs)?;
     super::check_writable(&args.out)?;
+    let _folder = NewFolder::for_file(&args.out)?;
     let started = std::time::Instant::now();
     let images: Vec<Planes> = args
         .images

@@ -456,6 +456,7 @@ fn run_mosaic(
         &args.frames,
         args.manifest.as_deref(),
     )?;
+    let _folder = crate::files::NewFolder::for_file(&args.out)?;
     let (placed, record) = match args.align {
         AlignArg::None => unaligned(&args.frames),
         AlignArg::Motion => by_motion(args)?,

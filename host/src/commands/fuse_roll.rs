@@ -85,6 +85,7 @@ pub fn run(
     let csv_path = Side::FramesCsv.path(out);
     let index_path = StripWriter::index_path(out);
     check_outputs(args, &csv_path, &index_path)?;
+    let _folder = crate::files::NewFolder::for_file(out)?;
     let opts = strip_options(args, cfg)?;
     let mut csv = PendingFile::create(&csv_path)?;
     csv.write_all(b"frame,file,row,col,source,score,sigma\n")?;

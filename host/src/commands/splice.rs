@@ -35,6 +35,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     crate::files::require_png_name(&args.out)?;
     check_writable(&args.out)?;
     refuse_overwriting_inputs(&[&args.out], &args.frames, args.manifest.as_deref())?;
+    let _folder = crate::files::NewFolder::for_file(&args.out)?;
     let frames = load_frames(&args.frames)?;
     let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
     let offsets = motion_offsets(&manifest, &args.frames)?;
