@@ -141,9 +141,12 @@ fn bad_input_gets_one_clear_line_and_a_nonzero_exit() {
     // Zero frames: clap's own message.
     let zero = rollfuse(&["fuse", "--out", o]);
     assert!(!zero.status.success());
-    // An output that cannot be written, refused before any work.
-    let bad_out = tmp.path().join("no/such/dir/f.png");
-    assert!(fails(&args(&frames, &["--out", bad_out.to_str().unwrap()])).contains("cannot write"));
+    // An output that cannot be written (its folder would be under a file), refused before
+    // any work.
+    let bad_out = frames[0].join("f.png");
+    assert!(
+        fails(&args(&frames, &["--out", bad_out.to_str().unwrap()])).contains("is not a folder")
+    );
     // The offsets file beside the output cannot be written (a folder is in its place).
     std::fs::create_dir(tmp.path().join("o.offsets.json")).unwrap();
     assert!(fails(&args(&frames, &["--out", o])).contains("o.offsets.json"));
