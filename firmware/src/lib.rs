@@ -26,6 +26,7 @@ pub mod liveness;
 pub mod outbox;
 pub mod pipeline;
 pub mod roller;
+pub mod sensor;
 pub mod signals;
 #[cfg(target_os = "none")]
 pub mod stack_guard;

@@ -2,8 +2,9 @@
 //! clock from MCO1, frames captured by DCMI + DMA as single snapshots into a buffer in
 //! AXI SRAM (`FRAME_WORDS` words, under the DMA's 65 535-word limit), with a timeout.
 //!
-//! The register values are the OV7725 datasheet's QVGA settings; they are not yet tried on
-//! hardware (firmware/README.md).
+//! The register values (`rollfuse_fw::sensor`, host-tested: byte order, window, 30
+//! frames/s) are the OV7725 datasheet's QVGA settings; they are not yet tried on hardware
+//! (firmware/README.md).
 
 use super::Irqs;
 use core::sync::atomic::Ordering::Relaxed;
@@ -16,94 +17,13 @@ use embassy_stm32::peripherals::DCMI;
 use embassy_stm32::rcc::{Mco, Mco1Source, McoConfig, McoPrescaler};
 use embassy_stm32::{Peri, peripherals};
 use embassy_time::Timer;
-use rollfuse_core::device::CAMERA;
 use rollfuse_fw::counters::COUNTERS;
 use rollfuse_fw::frame_clock;
 use rollfuse_fw::pipeline::{Camera, FRAME_WORDS};
+use rollfuse_fw::sensor::{COM7_RESET, PID_OV77XX, Reg, SETUP};
 
 /// SCCB address of the sensor (7-bit).
 const ADDRESS: u8 = 0x21;
-
-/// The OV7725's registers this driver reads or writes, by their datasheet names.
-#[derive(Clone, Copy)]
-#[repr(u8)]
-enum Reg {
-    /// Product ID, high byte.
-    Pid = 0x0A,
-    /// Product ID, low byte.
-    Ver = 0x0B,
-    /// Common control 3: output byte order.
-    Com3 = 0x0C,
-    /// Internal clock prescaler.
-    Clkrc = 0x11,
-    /// Common control 7: reset, resolution, output format.
-    Com7 = 0x12,
-    /// Sensor window: horizontal start (high 8 bits).
-    Hstart = 0x17,
-    /// Sensor window: width / 4.
-    Hsize = 0x18,
-    /// Sensor window: vertical start (high 8 bits).
-    Vstart = 0x19,
-    /// Sensor window: height / 2.
-    Vsize = 0x1A,
-    /// Output width / 4.
-    HOutSize = 0x29,
-    /// Dummy pixels inserted per row (high bits).
-    Exhch = 0x2A,
-    /// Output height / 2.
-    VOutSize = 0x2C,
-    /// Low bits of the window and output sizes.
-    Href = 0x32,
-    /// DSP control 4: output selection.
-    DspCtrl4 = 0x67,
-}
-
-/// The high byte of every OV7725's product ID.
-const PID_OV77XX: u8 = 0x77;
-
-/// COM7: reset every register to its default.
-const COM7_RESET: u8 = 0x80;
-/// COM7: QVGA resolution (YUV output: the format bits clear).
-const COM7_QVGA_YUV: u8 = 0x40;
-/// COM3 bit 4, SWAP_YUV: in YUV output, Y before U/V (bytes Y U Y V). Set at reset.
-const COM3_SWAP_YUV: u8 = 1 << 4;
-/// COM3 bit 3, SWAP_MSB: swaps each output byte's bit order. Never wanted: the pipeline
-/// reads Y as sent.
-const COM3_SWAP_MSB: u8 = 1 << 3;
-/// COM3: bytes Y U Y V, bits in order (the reset value; Linux's ov772x driver and
-/// OpenMV's set SWAP_YUV alone for YUYV).
-const COM3_YUYV: u8 = COM3_SWAP_YUV;
-const _: () = assert!(COM3_YUYV & COM3_SWAP_MSB == 0);
-/// CLKRC bit 7 is reserved and set at reset: writes keep it.
-const CLKRC_RESERVED: u8 = 1 << 7;
-/// CLKRC: internal clock = input / (1 + 1) (pre-scaler bits 5..0), the reserved bit kept.
-const CLKRC_HALF: u8 = CLKRC_RESERVED | 0x01;
-/// DSP_Ctrl4: YUV output from the DSP.
-const DSP_CTRL4_YUV: u8 = 0x00;
-
-/// Width / 4 and height / 2 as the window and output-size registers take them.
-const WIDTH_4: u8 = (CAMERA.width / 4) as u8;
-const HEIGHT_2: u8 = (CAMERA.height / 2) as u8;
-// The camera's size fits the registers without its low bits (HREF stays 0).
-const _: () = assert!(CAMERA.width.is_multiple_of(4) && CAMERA.width / 4 <= 0xFF);
-const _: () = assert!(CAMERA.height.is_multiple_of(2) && CAMERA.height / 2 <= 0xFF);
-
-/// After the reset: QVGA, YUV output, the camera's window (the datasheet's QVGA
-/// settings: window start 0x3F, 0x03).
-const SETUP: &[(Reg, u8)] = &[
-    (Reg::Com7, COM7_QVGA_YUV),
-    (Reg::Clkrc, CLKRC_HALF),
-    (Reg::DspCtrl4, DSP_CTRL4_YUV),
-    (Reg::Com3, COM3_YUYV),
-    (Reg::Hstart, 0x3F),
-    (Reg::Hsize, WIDTH_4),
-    (Reg::Vstart, 0x03),
-    (Reg::Vsize, HEIGHT_2),
-    (Reg::Href, 0x00),
-    (Reg::HOutSize, WIDTH_4),
-    (Reg::VOutSize, HEIGHT_2),
-    (Reg::Exhch, 0x00),
-];
 
 /// Why the camera could not be used.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
@@ -201,7 +121,7 @@ pub struct DataPins {
     pub d7: Peri<'static, peripherals::PE6>,
 }
 
-/// Starts the sensor's clock (HSI / 3 ≈ 21 MHz), configures it over SCCB and brings up
+/// Starts the sensor's clock (HSI / 3 ≈ 21 MHz, `sensor::XCLK_HZ`), configures it over SCCB and brings up
 /// the DCMI. A sensor refused at start-up is reported in every status (`camera_ready`
 /// false); its captures then time out and are counted.
 pub async fn start(w: Wiring) -> DcmiCamera {
