@@ -1,16 +1,20 @@
-//! A sensor that free-runs at 30 frames/s, as the OV7725 does: each frame is 30 ms of
-//! pixels then 3.3 ms of vertical blanking, whose start raises the frame-sync edge the
-//! board's DCMI interrupt gives `frame_clock`. A capture waits for the next whole frame and
-//! draws it as the belt stands when that frame begins.
+//! A sensor that free-runs as the firmware's register writes program the OV7725
+//! (`rollfuse_fw::sensor::timing` of its `SETUP` at its XCLK: 29.97 frames/s, 7.5 ms of
+//! vertical blanking): each frame is its lines of pixels then the blanking, whose start
+//! raises the frame-sync edge the board's DCMI interrupt gives `frame_clock`. A capture
+//! waits for the next whole frame and draws it as the belt stands when that frame begins.
 
 use embassy_time::{Instant, Timer};
 use rollfuse_fw::pipeline::{Camera, FRAME_WORDS};
+use rollfuse_fw::sensor::{SETUP, XCLK_HZ, timing};
 use rollfuse_fw::{frame_clock, roller};
 
-/// A frame period, board microseconds.
-const PERIOD_US: u64 = 33_333;
-/// The part of it with pixels.
-const ACTIVE_US: u64 = 30_000;
+/// A frame period and the part of it with pixels, board microseconds.
+fn frame_us() -> (u64, u64) {
+    let t = timing(SETUP, XCLK_HZ);
+    let period = 1e6 / t.frames_per_s;
+    (period as u64, (period - 1e6 * t.blanking_s) as u64)
+}
 
 const WIDTH: usize = 320;
 
@@ -19,18 +23,19 @@ pub struct Sensor;
 
 impl Camera for Sensor {
     async fn capture(&mut self, frame: &mut [u32; FRAME_WORDS]) -> bool {
+        let (period, active) = frame_us();
         let now = Instant::now().as_micros();
-        let n = now / PERIOD_US;
-        let into = now % PERIOD_US;
+        let n = now / period;
+        let into = now % period;
         // Armed in the middle of a frame: the interface waits for its end.
-        if into > 0 && into < ACTIVE_US {
-            Timer::at(Instant::from_micros(n * PERIOD_US + ACTIVE_US)).await;
+        if into > 0 && into < active {
+            Timer::at(Instant::from_micros(n * period + active)).await;
             frame_clock::frame_edge();
         }
-        let start = if into == 0 { n } else { n + 1 } * PERIOD_US;
+        let start = if into == 0 { n } else { n + 1 } * period;
         Timer::at(Instant::from_micros(start)).await;
         draw(frame, roller::belt_px(roller::steps()));
-        Timer::at(Instant::from_micros(start + ACTIVE_US)).await;
+        Timer::at(Instant::from_micros(start + active)).await;
         frame_clock::frame_edge();
         true
     }
