@@ -663,6 +663,16 @@ pub fn check_writable(path: &Path) -> anyhow::Result<()> {
     probe.map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
 }
 
+/// Removes files an output no longer has (a replaced strip's extra segments, another
+/// output's side files), naming the first that cannot be removed.
+pub fn remove_stale(paths: Vec<PathBuf>) -> anyhow::Result<()> {
+    for p in paths {
+        std::fs::remove_file(&p)
+            .with_context(|| format!("cannot remove the stale {}", p.display()))?;
+    }
+    Ok(())
+}
+
 /// The folder `path` is in (`.` for a bare name).
 fn folder_of(path: &Path) -> &Path {
     path.parent()

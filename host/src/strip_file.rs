@@ -205,18 +205,20 @@ impl StripWriter {
     /// Removes what an older strip of the same name left that this one did not write:
     /// segments numbered past this one's, and the lone `out` when this one has segments.
     fn remove_stale(&self) -> anyhow::Result<()> {
-        let mut stale: Vec<PathBuf> = (self.written.len()..)
-            .map(|n| self.numbered(n))
-            .take_while(|p| p.exists())
-            .collect();
+        let mut stale = Self::segments_on_disk(&self.out, self.written.len());
         if self.written.len() > 1 && self.out.exists() {
             stale.push(self.out.clone());
         }
-        for p in stale {
-            std::fs::remove_file(&p)
-                .with_context(|| format!("cannot remove the stale {}", p.display()))?;
-        }
-        Ok(())
+        crate::files::remove_stale(stale)
+    }
+
+    /// The segments of a strip written to `out` that are on disk, numbered from `first` on
+    /// without a gap.
+    pub fn segments_on_disk(out: &Path, first: usize) -> Vec<PathBuf> {
+        (first..)
+            .map(|n| Self::segment_path(out, n))
+            .take_while(|p| p.exists())
+            .collect()
     }
 
     /// The index's path, `STEM.json`.

@@ -7,7 +7,6 @@
 //! bytes): a user's own `STEM.json` of other content is left alone.
 
 use crate::strip_file::StripWriter;
-use anyhow::Context;
 use std::path::{Path, PathBuf};
 
 /// A kind of file written beside `OUT`.
@@ -63,16 +62,9 @@ pub fn remove_others(out: &Path, written: &[Side]) -> anyhow::Result<()> {
         }
         let mut stale = vec![path];
         if side == Side::Strip {
-            stale.extend(
-                (0..)
-                    .map(|n| StripWriter::segment_path(out, n))
-                    .take_while(|p| p.exists()),
-            );
+            stale.extend(StripWriter::segments_on_disk(out, 0));
         }
-        for p in stale {
-            std::fs::remove_file(&p)
-                .with_context(|| format!("cannot remove the stale {}", p.display()))?;
-        }
+        crate::files::remove_stale(stale)?;
     }
     Ok(())
 }
