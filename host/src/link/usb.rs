@@ -118,6 +118,27 @@ impl BulkIn for rusb::DeviceHandle<rusb::Context> {
     }
 }
 
+/// How long the IN endpoint must stay quiet for the stale bytes to be over.
+const STALE_QUIET: Duration = Duration::from_millis(20);
+/// At most this many transfers are drained: a device still streaming for a session whose
+/// host is gone is not waited out.
+const STALE_TRANSFERS: usize = 64;
+
+/// Reads and drops what the IN endpoint holds from an earlier session, until it is quiet
+/// for [`STALE_QUIET`] (at most [`STALE_TRANSFERS`] transfers); returns the bytes dropped.
+pub fn drain_stale(io: &mut impl BulkIn) -> usize {
+    let mut scratch = vec![0u8; 16 * 1024];
+    let mut dropped = 0;
+    for _ in 0..STALE_TRANSFERS {
+        match io.transfer(&mut scratch, STALE_QUIET) {
+            Transfer::Done(n) | Transfer::TimedOut(n) if n > 0 => dropped += n,
+            Transfer::Overflow => dropped += scratch.len(),
+            _ => break,
+        }
+    }
+    dropped
+}
+
 /// A message whose transfer a timeout interrupted, completed by the next transfers.
 #[derive(Debug, Default)]
 pub struct Reassembly {
@@ -173,13 +194,19 @@ impl Usb {
             );
         }
         let ctx = context()?;
-        let handle = ctx.open_device_with_vid_pid(VID, PID).context(
+        let mut handle = ctx.open_device_with_vid_pid(VID, PID).context(
             "the rollfuse device could not be opened: permissions? (see firmware/README.md)",
         )?;
         let _ = handle.set_auto_detach_kernel_driver(true);
         handle
             .claim_interface(INTERFACE)
             .map_err(|e| anyhow::anyhow!("cannot claim the device's interface: {e}"))?;
+        // A host that died mid-message leaves the device's IN endpoint holding the rest of
+        // it: clearing both endpoints resets their data toggles, and what is still queued
+        // is read and dropped, so this session's first reply arrives alone.
+        let _ = handle.clear_halt(EP_IN);
+        let _ = handle.clear_halt(EP_OUT);
+        drain_stale(&mut handle);
         Ok(Self {
             handle,
             reassembly: Reassembly::default(),
@@ -225,6 +252,38 @@ mod tests {
             self.data.drain(..n);
             step
         }
+    }
+
+    #[test]
+    fn what_an_earlier_session_left_is_dropped_before_this_one() {
+        // The tail of a message a dead host stopped reading, then a quiet endpoint.
+        let mut io = Script {
+            data: vec![7; 100],
+            steps: vec![
+                Transfer::Done(64),
+                Transfer::TimedOut(36),
+                Transfer::TimedOut(0),
+            ]
+            .into_iter(),
+        };
+        assert_eq!(drain_stale(&mut io), 100);
+        // This session's first reply then arrives alone.
+        io.data = vec![1, 2, 3];
+        io.steps = vec![Transfer::Done(3)].into_iter();
+        let mut buf = vec![0u8; 64];
+        match Reassembly::default()
+            .receive(&mut io, &mut buf, Duration::from_millis(10))
+            .unwrap()
+        {
+            Received::Message(n) => assert_eq!(&buf[..n], &[1, 2, 3]),
+            other => panic!("{other:?}"),
+        }
+        // A device that never goes quiet is not waited out.
+        let mut io = Script {
+            data: vec![0; 64 * STALE_TRANSFERS + 64],
+            steps: vec![Transfer::Done(64); STALE_TRANSFERS + 1].into_iter(),
+        };
+        assert_eq!(drain_stale(&mut io), 64 * STALE_TRANSFERS);
     }
 
     #[test]
