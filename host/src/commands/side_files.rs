@@ -41,8 +41,12 @@ impl Side {
         }
     }
 
-    /// Whether the file at `path` is one the tool wrote as this kind.
+    /// Whether the file at `path` is one the tool wrote as this kind (a regular file: a FIFO
+    /// of that name is never opened, which could wait forever).
     fn written_by_us(self, path: &Path) -> bool {
+        if !std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
+            return false;
+        }
         let want = self.begins_with();
         let mut head = vec![0; want.len()];
         std::fs::File::open(path)
@@ -89,5 +93,12 @@ mod tests {
         assert!(left("strip.png") && left("strip.frames.csv"));
         assert!(!left("strip.json") && !left("strip.0000.png") && !left("strip.0001.png"));
         assert!(left("strip.offsets.json"), "not ours: kept");
+        // A FIFO in a side file's place is neither opened (which would wait for a writer)
+        // nor removed.
+        let fifo = dir.path().join("other.offsets.json");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        assert!(made.unwrap().success());
+        remove_others(&dir.path().join("other.png"), &[]).unwrap();
+        assert!(left("other.offsets.json"));
     }
 }
