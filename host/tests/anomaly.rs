@@ -77,10 +77,10 @@ struct Figures {
 /// with none; a defect is found when a region overlaps its box, a region is right when
 /// it overlaps a defect in contact (one overlapping only a defect out of contact counts
 /// neither way).
-fn measure(fabric: &str) -> Figures {
+fn measure(fabric: &str, seed: u64) -> Figures {
     // One roll: the simulator presses the gel relative to the roll's tallest point, so
     // the contact of a roll with defects differs from that of one without.
-    let all = frames(&scene(fabric, 2, 6, 120));
+    let all = frames(&scene(fabric, seed, 6, 120));
     let (clean, rest): (Vec<_>, Vec<_>) = all
         .into_iter()
         .enumerate()
@@ -121,8 +121,8 @@ fn measure(fabric: &str) -> Figures {
         precision: right as f64 / reported.max(1) as f64,
     };
     eprintln!(
-        "{fabric}: AUROC {:.3} over {} defective and {} clean frames; recall {:.2}, precision \
-         {:.2}",
+        "{fabric}, roll {seed}: AUROC {:.3} over {} defective and {} clean frames; recall \
+         {:.2}, precision {:.2}",
         f.auroc,
         pos.len(),
         neg.len(),
@@ -132,14 +132,30 @@ fn measure(fabric: &str) -> Figures {
     f
 }
 
-/// The figures docs/detect.md states, with a little room: a twill, a plain weave, a knit.
+/// The figures docs/detect.md states, with a little room: a twill, a plain weave and a knit,
+/// each on two rolls.
 #[test]
 fn a_twill_a_plain_weave_and_a_knit_are_learned_from_clean_frames() {
-    for fabric in ["twill_2_2", "plain", "jersey"] {
-        let f = measure(fabric);
-        assert!(f.auroc >= 0.85, "{fabric}: AUROC {:.3}", f.auroc);
-        assert!(f.recall >= 0.6, "{fabric}: recall {:.2}", f.recall);
-        assert!(f.precision >= 0.5, "{fabric}: precision {:.2}", f.precision);
+    for (fabric, seed) in ["twill_2_2", "plain", "jersey"]
+        .into_iter()
+        .flat_map(|f| [(f, 2), (f, 3)])
+    {
+        let f = measure(fabric, seed);
+        assert!(
+            f.auroc >= 0.9,
+            "{fabric}, roll {seed}: AUROC {:.3}",
+            f.auroc
+        );
+        assert!(
+            f.recall >= 0.75,
+            "{fabric}, roll {seed}: recall {:.2}",
+            f.recall
+        );
+        assert!(
+            f.precision >= 0.7,
+            "{fabric}, roll {seed}: precision {:.2}",
+            f.precision
+        );
     }
 }
 
@@ -219,6 +235,23 @@ fn fit_normal_and_detect_normal_from_the_command_line() {
         assert_eq!(d["kind"], "anomaly");
     }
     assert!(stdout.contains("anomaly score"), "{stdout}");
+    // The live page checks the strip in windows of any height: a model of each row of
+    // camera frames is refused before the stream starts, with what to do instead.
+    let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/textile.toml");
+    let run = Command::new(env!("CARGO_BIN_EXE_rollfuse"))
+        .args(["stream", "--device", "sim", "--scene"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(tmp.path().join("live"))
+        .args(["--serve", "127.0.0.1:0", "--detect", "--normal"])
+        .arg(&model)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        !run.status.success() && err.contains("--every-row-alike"),
+        "{err}"
+    );
     // The normal model is not the defect detector's: the two are not mixed.
     let run = Command::new(env!("CARGO_BIN_EXE_rollfuse"))
         .args(["detect".as_ref(), image.as_os_str(), "--normal".as_ref()])

@@ -467,7 +467,8 @@ fn the_detector_boxes_the_strips_defects_before_the_stream_ends() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/textile.toml");
     let scene = Scene::load(&path).unwrap();
     let detector = Detector::built_in().unwrap();
-    let server = Server::start_detecting(&serve_options(false), Some(detector)).unwrap();
+    let live = rollfuse::serve::detect::LiveModel::Defects(Box::new(detector));
+    let server = Server::start_detecting(&serve_options(false), Some(live)).unwrap();
     let reader = follow(&server);
     stream_served(&scene, tmp.path(), &server);
     let Events {

@@ -261,6 +261,7 @@ pub fn stream(
         allow_host: Vec::new(),
         detect: false,
         model: None,
+        normal: None,
         keep_serving: false,
     };
     let Opened { mut link, opts, .. } = py.detach(|| open(&args)).or_py()?;

@@ -290,6 +290,11 @@ pub struct FitNormalArgs {
     /// Where to write the normal model (JSON).
     #[arg(long)]
     pub out: PathBuf,
+    /// Learn every row of cells alike even when the images share one height, so the model
+    /// scores images of any height (the live strip's windows: `stream --normal`). By
+    /// default images of one height, camera frames, have each row learned apart.
+    #[arg(long)]
+    pub every_row_alike: bool,
 }
 
 /// Runs `rollfuse fit-normal`.
@@ -308,17 +313,21 @@ pub fn fit_normal_run(args: FitNormalArgs) -> anyhow::Result<()> {
         .iter()
         .map(|p| Planes::load(p))
         .collect::<anyhow::Result<_>>()?;
-    let model = NormalModel::fit(&images)?;
+    let model = if args.every_row_alike {
+        NormalModel::fit_every_row_alike(&images)?
+    } else {
+        NormalModel::fit(&images)?
+    };
     model.save(&args.out)?;
     println!(
         "learned {} images of {} × {} ({}) in {:.1} s; a cell is anomalous above {:.2} → {}",
         model.images,
         model.width,
         model.height,
-        if model.rows.len() > 1 {
-            "each row of cells apart"
-        } else {
+        if model.any_height() {
             "every row alike"
+        } else {
+            "each row of cells apart"
         },
         started.elapsed().as_secs_f64(),
         model.threshold,

@@ -106,6 +106,16 @@ pub struct Args {
     /// With --detect: the detector's model (default: the one built into the tool).
     #[arg(long, requires = "detect")]
     pub model: Option<PathBuf>,
+    /// With --detect: anomaly mode instead of the detector, with this model of one fabric
+    /// (`rollfuse fit-normal --every-row-alike` on strips or fused tiles of the camera's
+    /// scale); regions are drawn as kind `anomaly`.
+    #[arg(
+        long,
+        value_name = "MODEL",
+        requires = "detect",
+        conflicts_with = "model"
+    )]
+    pub normal: Option<PathBuf>,
     /// With --serve: once the stream has ended and its files are written, keep the page
     /// up (the strip, the status, the detector's boxes) until interrupted (Ctrl-C).
     #[arg(long, requires = "serve")]
@@ -262,6 +272,25 @@ fn print_defects(d: &serve::detect::DetectorStatus) {
     );
 }
 
+/// The live page's detector: the defect detector, or anomaly mode with `--normal`, whose
+/// model must score windows of any height.
+fn live_model(args: &Args) -> anyhow::Result<serve::detect::LiveModel> {
+    use serve::detect::LiveModel;
+    let Some(path) = args.normal.as_deref() else {
+        return crate::detect::Detector::load_or_built_in(args.model.as_deref())
+            .map(|d| LiveModel::Defects(Box::new(d)));
+    };
+    let model = crate::detect::anomaly::NormalModel::load(path)?;
+    anyhow::ensure!(
+        model.any_height(),
+        "{} learned each row of {}-row images apart; the live strip is checked in windows \
+         of other heights: fit it with `rollfuse fit-normal --every-row-alike`",
+        path.display(),
+        model.height
+    );
+    Ok(LiveModel::Normal(model))
+}
+
 fn start_server(
     args: &Args,
     addr: std::net::SocketAddr,
@@ -288,10 +317,7 @@ fn start_server(
         "usb" | "sim" => args.device.clone(),
         _ => "replay".to_string(),
     };
-    let detector = args
-        .detect
-        .then(|| crate::detect::Detector::load_or_built_in(args.model.as_deref()))
-        .transpose()?;
+    let detector = args.detect.then(|| live_model(args)).transpose()?;
     let options = serve::ServeOptions {
         addr,
         control: args.control,
@@ -373,6 +399,7 @@ fn refuse_overwriting_inputs(args: &Args, replay: Option<&Path>) -> anyhow::Resu
     inputs.extend(replay.map(|p| ("recording replayed", p)));
     inputs.extend(args.scene.as_deref().map(|p| ("scene", p)));
     inputs.extend(args.model.as_deref().map(|p| ("model", p)));
+    inputs.extend(args.normal.as_deref().map(|p| ("normal model", p)));
     let session = stream::output_files(&args.out);
     let outputs: Vec<&Path> = session.iter().map(PathBuf::as_path).collect();
     crate::files::refuse_overwriting(&outputs, &inputs)?;

@@ -1,12 +1,12 @@
 //! Anomaly mode: what one fabric looks like, learned from defect-free images alone, and
 //! where an image departs from it.
 //!
-//! - **Features.** An image is brought to zero median and unit spread (its median absolute
-//!   deviation), so the light's gain and offset drop out, then split by the orthonormal
-//!   Haar transform into [`LEVELS`] octaves of horizontal, vertical and diagonal detail.
-//!   A cell of [`CELL`] × [`CELL`] pixels, one every [`STRIDE`] pixels, is described by
-//!   the log energy of each detail band over its footprint and by its mean: texture at
-//!   each scale and orientation, the same wherever a cell falls on a weave's repeat.
+//! - **Features** ([`super::cells`], [`ANOMALY`]): a cell of 48 × 48 pixels every 8,
+//!   after the image's median and spread are taken out, described by the log energy of 4
+//!   Haar octaves in 3 orientations, the darkest and brightest of the first 3 octaves'
+//!   smoothed image and the mean; and the same features less the median of its cell
+//!   row's, so that a change common to the row (a contact band narrowed by a tall defect
+//!   elsewhere) is told from a local one.
 //! - **Model.** A Gaussian over those features for each row of cells when every training
 //!   image has one height (a camera frame's rows differ: contact, focus, light), one for
 //!   all rows otherwise (strips and fused tiles); its covariance is shrunk toward its
@@ -14,30 +14,21 @@
 //! - **Score.** A cell's squared Mahalanobis distance from its row's Gaussian, per
 //!   feature. The threshold is calibrated on the training images themselves, each scored
 //!   by a model fitted without it (in folds): the largest cell score any held-out clean
-//!   image reached, times [`MARGIN`]. An image's `anomaly_score` is its largest cell score
-//!   over that threshold: above 1 it holds an anomaly; the anomalous cells, grouped by
-//!   adjacency, are its boxes.
+//!   image reached. An image's `anomaly_score` is its largest cell score over that
+//!   threshold: above 1 it holds an anomaly; the anomalous cells, grouped by adjacency,
+//!   are its boxes.
 
 use crate::image::Planes;
 use anyhow::{Context, bail, ensure};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// Haar octaves of detail described.
-pub const LEVELS: usize = 4;
-/// Side of a cell, pixels: a few repeats of the coarsest weave at 0.04 mm a pixel.
-pub const CELL: usize = 32;
-/// Distance between cells, pixels.
-pub const STRIDE: usize = 8;
-/// Features per cell: three detail bands per octave and the mean.
-pub const DIM: usize = 3 * LEVELS + 1;
+use super::cells::{ANOMALY, Cells, STRIDE};
+
+/// Features a cell: [`ANOMALY`]'s and the same less their cell row's median.
+pub const DIM: usize = 2 * ANOMALY.dim();
 /// The fewest training images: fewer cannot tell a fabric's spread from chance.
 pub const MIN_IMAGES: usize = 4;
-/// The quantile of the held-out clean images' largest cell scores the threshold starts
-/// from: one clean image in ten may reach it (a fabric's own irregularities).
-pub const QUANTILE: f32 = 0.9;
-/// The threshold over that quantile.
-pub const MARGIN: f32 = 1.0;
 /// A region grows from cells above the threshold into adjacent cells above this fraction
 /// of it: one defect, one region.
 pub const GROW: f32 = 0.6;
@@ -46,120 +37,11 @@ const SHRINK: f64 = 0.1;
 /// Folds the threshold is calibrated in.
 const FOLDS: usize = 4;
 /// The model file's format.
-const FORMAT: &str = "rollfuse-normal-1";
+const FORMAT: &str = "rollfuse-normal-2";
 
-/// Every cell's features of one image: `rows × cols` cells of [`DIM`] values.
-#[derive(Debug, Clone)]
-pub struct Cells {
-    /// Cell rows.
-    pub rows: usize,
-    /// Cell columns.
-    pub cols: usize,
-    /// Features, cell by cell, row-major.
-    pub data: Vec<f32>,
-}
-
-impl Cells {
-    /// The features of cell `(r, c)`.
-    pub fn at(&self, r: usize, c: usize) -> &[f32] {
-        let i = (r * self.cols + c) * DIM;
-        &self.data[i..i + DIM]
-    }
-}
-
-/// The gray image normalized to zero median and unit spread.
-fn normalized(image: &Planes) -> Vec<f32> {
-    let gray = image.gray();
-    // Medians by selection, in linear time: sorting every pixel was the costliest step here.
-    let middle = |mut v: Vec<f32>| {
-        let half = v.len() / 2;
-        *v.select_nth_unstable_by(half, f32::total_cmp).1
-    };
-    let median = middle(gray.to_vec());
-    let spread = (1.4826 * middle(gray.iter().map(|v| (v - median).abs()).collect())).max(1e-3);
-    gray.iter().map(|v| (v - median) / spread).collect()
-}
-
-/// One Haar octave of a `w × h` image (even sides used): the approximation and the
-/// squared horizontal, vertical and diagonal details, each `w/2 × h/2`.
-fn octave(x: &[f32], w: usize, h: usize) -> (Vec<f32>, [Vec<f32>; 3]) {
-    let (hw, hh) = (w / 2, h / 2);
-    let mut low = Vec::with_capacity(hw * hh);
-    let mut bands = [
-        Vec::with_capacity(hw * hh),
-        Vec::with_capacity(hw * hh),
-        Vec::with_capacity(hw * hh),
-    ];
-    for y in 0..hh {
-        for i in 0..hw {
-            let at = |dy: usize, dx: usize| x[(2 * y + dy) * w + 2 * i + dx];
-            let (a, b, c, d) = (at(0, 0), at(0, 1), at(1, 0), at(1, 1));
-            low.push(0.5 * (a + b + c + d));
-            bands[0].push((0.5 * (a - b + c - d)).powi(2));
-            bands[1].push((0.5 * (a + b - c - d)).powi(2));
-            bands[2].push((0.5 * (a - b - c + d)).powi(2));
-        }
-    }
-    (low, bands)
-}
-
-/// Integral image of `v` (`w × h`), `(w + 1) × (h + 1)`.
-fn integral(v: &[f32], w: usize, h: usize) -> Vec<f64> {
-    let mut s = vec![0f64; (w + 1) * (h + 1)];
-    for y in 0..h {
-        let mut run = 0f64;
-        for x in 0..w {
-            run += f64::from(v[y * w + x]);
-            s[(y + 1) * (w + 1) + x + 1] = s[y * (w + 1) + x + 1] + run;
-        }
-    }
-    s
-}
-
-/// The mean of `v` over the box `x0..x1 × y0..y1` from its integral `s` (width `w`).
-fn box_mean(s: &[f64], w: usize, [x0, y0, x1, y1]: [usize; 4]) -> f32 {
-    let at = |x: usize, y: usize| s[y * (w + 1) + x];
-    let n = ((x1 - x0) * (y1 - y0)).max(1) as f64;
-    ((at(x1, y1) - at(x0, y1) - at(x1, y0) + at(x0, y0)) / n) as f32
-}
-
-/// The cells of an image, or why it has none.
-pub fn cells(image: &Planes) -> anyhow::Result<Cells> {
-    let (w, h) = (image.width, image.height);
-    ensure!(
-        w >= CELL && h >= CELL,
-        "the image is {w} × {h}: anomaly mode needs at least {CELL} × {CELL} pixels"
-    );
-    let (rows, cols) = ((h - CELL) / STRIDE + 1, (w - CELL) / STRIDE + 1);
-    // Per level: its integral images (the three bands) and its size.
-    let mut levels = Vec::with_capacity(LEVELS);
-    let (mut x, mut lw, mut lh) = (normalized(image), w, h);
-    let mean = integral(&x, w, h);
-    for _ in 0..LEVELS {
-        let (low, bands) = octave(&x, lw, lh);
-        let (nw, nh) = (lw / 2, lh / 2);
-        levels.push((bands.map(|b| integral(&b, nw, nh)), nw, nh));
-        (x, lw, lh) = (low, nw, nh);
-    }
-    let mut data = Vec::with_capacity(rows * cols * DIM);
-    for r in 0..rows {
-        for c in 0..cols {
-            let (x0, y0) = (c * STRIDE, r * STRIDE);
-            for (k, (bands, lw, lh)) in levels.iter().enumerate() {
-                let f = 2usize << k;
-                // The cell's footprint at this octave, at least one coefficient.
-                let bx0 = (x0 / f).min(lw.saturating_sub(1));
-                let by0 = (y0 / f).min(lh.saturating_sub(1));
-                let bx1 = ((x0 + CELL) / f).clamp(bx0 + 1, (*lw).max(bx0 + 1));
-                let by1 = ((y0 + CELL) / f).clamp(by0 + 1, (*lh).max(by0 + 1));
-                for band in bands {
-                    data.push((box_mean(band, *lw, [bx0, by0, bx1, by1]) + 1e-4).ln());
-                }
-            }
-            data.push(box_mean(&mean, w, [x0, y0, x0 + CELL, y0 + CELL]));
-        }
-    }
-    Ok(Cells { rows, cols, data })
+/// Anomaly mode's cells of an image.
+fn cells(image: &Planes) -> anyhow::Result<Cells> {
+    Ok(super::cells::cells(image, ANOMALY)?.with_row_relative())
 }
 
 /// A Gaussian over cell features: its mean and the inverse of its shrunk covariance.
@@ -308,9 +190,21 @@ fn fit_rows(cells: &[&Cells], per_row: bool) -> anyhow::Result<Vec<Gaussian>> {
 }
 
 impl NormalModel {
-    /// Learns `images` (defect-free, of one fabric at one scale). Refuses fewer than
-    /// [`MIN_IMAGES`], and images of different widths.
+    /// Learns `images` (defect-free, of one fabric at one scale): each row of cells apart
+    /// when they share one height (camera frames), every row alike otherwise. Refuses
+    /// fewer than [`MIN_IMAGES`], and images of different widths.
     pub fn fit(images: &[Planes]) -> anyhow::Result<Self> {
+        let one_height = images.windows(2).all(|p| p[0].height == p[1].height);
+        Self::fit_rows_apart(images, one_height)
+    }
+
+    /// Learns `images` with every row of cells alike whatever their heights: a model for
+    /// images of any height, such as the live strip's windows.
+    pub fn fit_every_row_alike(images: &[Planes]) -> anyhow::Result<Self> {
+        Self::fit_rows_apart(images, false)
+    }
+
+    fn fit_rows_apart(images: &[Planes], per_row: bool) -> anyhow::Result<Self> {
         ensure!(
             images.len() >= MIN_IMAGES,
             "anomaly mode needs at least {MIN_IMAGES} defect-free images to learn a fabric \
@@ -325,7 +219,6 @@ impl NormalModel {
                 odd.width
             );
         }
-        let per_row = images.iter().all(|i| i.height == height);
         let cells: Vec<Cells> = images.iter().map(cells).collect::<anyhow::Result<_>>()?;
         let all: Vec<&Cells> = cells.iter().collect();
         let rows = fit_rows(&all, per_row)?;
@@ -339,11 +232,10 @@ impl NormalModel {
             let model = Self::with_rows(fit_rows(&kept, per_row)?, width, height, 1.0);
             held_out.extend(held.into_iter().map(|(_, c)| model.largest(c)));
         }
-        held_out.sort_by(f32::total_cmp);
-        let typical = held_out[(QUANTILE * (held_out.len() - 1) as f32).round() as usize];
+        let largest = held_out.into_iter().fold(0f32, f32::max);
         Ok(Self {
             images: images.len(),
-            ..Self::with_rows(rows, width, height, MARGIN * typical.max(1e-3))
+            ..Self::with_rows(rows, width, height, largest.max(1e-3))
         })
     }
 
@@ -408,6 +300,24 @@ impl NormalModel {
             anomaly_score,
             regions: regions(&scores, c.rows, c.cols),
         })
+    }
+
+    /// Scores `image` taken at `1/d` of the model's scale (a device strip downsampled by
+    /// `d`): upsampled first, its boxes given in its own pixels.
+    pub fn detect_at_scale(&self, image: &Planes, d: usize) -> anyhow::Result<Anomalies> {
+        if d <= 1 || image.planes.len() != 1 {
+            return self.detect(image);
+        }
+        let mut found = self.detect(&image.upsampled(d))?;
+        for r in &mut found.regions {
+            r.box_px = r.box_px.map(|v| v / d as f32);
+        }
+        Ok(found)
+    }
+
+    /// Whether the model scores images of any height (every row of cells alike).
+    pub fn any_height(&self) -> bool {
+        self.rows.len() == 1
     }
 
     /// Reads a model written by [`Self::save`].
@@ -485,8 +395,8 @@ fn regions(scores: &[f32], rows: usize, cols: usize) -> Vec<Region> {
             box_px: [
                 (c0 * STRIDE) as f32,
                 (r0 * STRIDE) as f32,
-                (c1 * STRIDE + CELL) as f32,
-                (r1 * STRIDE + CELL) as f32,
+                (c1 * STRIDE + ANOMALY.cell) as f32,
+                (r1 * STRIDE + ANOMALY.cell) as f32,
             ],
             score: best,
         });

@@ -3,7 +3,7 @@
 //! A classifier's softmax says which known fabric an image is most like, never that it is
 //! like none of them (the shipped classifier gives frames of the letters scene, no fabric
 //! at all, `canvas` at 0.94–0.98). Each
-//! place of the image — anomaly mode's cells ([`super::anomaly::cells`]: 32 × 32 pixels
+//! place of the image — a texture cell ([`super::cells::TEXTURE`]: 32 × 32 pixels
 //! every 8, the log energy of 4 Haar octaves in 3 orientations and the mean, after the
 //! image's median and spread are taken out) — is compared instead with the training
 //! cloth, modelled as a Gaussian per fabric with one covariance shared by all (the
@@ -61,11 +61,12 @@ pub struct Places {
 }
 
 impl Places {
-    /// The places of an image: its anomaly-mode cells.
+    /// The places of an image: its texture cells.
     pub fn of(image: &crate::image::Planes) -> anyhow::Result<Self> {
+        let cells = super::cells::cells(image, super::cells::TEXTURE)?;
         Ok(Self {
-            dim: super::anomaly::DIM,
-            data: super::anomaly::cells(image)?.data,
+            dim: cells.dim,
+            data: cells.data,
         })
     }
 

@@ -11,6 +11,7 @@
 //! - [`train`]: the training loop.
 
 pub mod anomaly;
+pub mod cells;
 pub mod data;
 pub mod draw;
 pub mod familiar;

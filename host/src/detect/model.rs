@@ -86,7 +86,9 @@ impl About {
         );
         let familiarity = meta
             .get("familiarity")
-            .map(|text| Familiarity::from_metadata(text, super::anomaly::DIM, fabrics.len()))
+            .map(|text| {
+                Familiarity::from_metadata(text, super::cells::TEXTURE.dim(), fabrics.len())
+            })
             .transpose()?;
         Ok(Self {
             widths: Widths(widths),

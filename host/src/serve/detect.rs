@@ -1,14 +1,14 @@
 //! The defect detector on the live strip (`stream --serve --detect`): a thread of its own
-//! runs the detector over the strip's kept rows as they grow, window by window, and hands
-//! the boxes to the page. It reads the rows the server keeps anyway, at its own pace:
+//! runs the detector — or, with `--normal`, anomaly mode's model of one fabric — over the
+//! strip's kept rows as they grow, window by window, and hands the boxes to the page. It reads the rows the server keeps anyway, at its own pace:
 //! when the detector is slower than the stream it passes over the rows that have left
 //! the server's memory (counted), and the stream never waits for it.
 
 use super::events;
 use super::state::{Shared, lock};
-use crate::detect::{Detector, TILE_OVERLAP, TILE_ROWS};
+use crate::detect::anomaly::NormalModel;
+use crate::detect::{Detection, Detector, TILE_OVERLAP, TILE_ROWS};
 use crate::image::Planes;
-use crate::sim::textile::DefectKind;
 use serde::Serialize;
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
@@ -24,9 +24,9 @@ const POLL: Duration = Duration::from_millis(100);
 /// A defect on the strip, in strip pixels (belt rows down, columns across).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct LiveBox {
-    /// Its kind.
-    pub kind: DefectKind,
-    /// The heatmap's peak, 0..1.
+    /// Its kind: `hole`, `snag`, `slub`, or `anomaly` from anomaly mode.
+    pub kind: &'static str,
+    /// The detector's heatmap peak (0..1), or anomaly mode's score (above 1).
     pub score: f32,
     /// `[x0, row0, x1, row1]`: columns and belt rows of the strip.
     pub strip_box: [f32; 4],
@@ -74,6 +74,53 @@ pub struct Findings {
     weights: Vec<f64>,
 }
 
+/// What the live detector runs over the strip.
+pub enum LiveModel {
+    /// The defect detector: kinds, scores and the fabric.
+    Defects(Box<Detector>),
+    /// Anomaly mode's model of one fabric (`stream --normal`): regions of kind
+    /// `anomaly`, no fabric.
+    Normal(NormalModel),
+}
+
+/// A box the model found: its kind, score and `[x0, y0, x1, y1]` in the window's pixels.
+type Found = (&'static str, f32, [f32; 4]);
+
+impl LiveModel {
+    /// The model's findings in a window `image` downsampled by `d` from its scale: boxes
+    /// in the window's pixels, and the detector's detection (fabric and all) if it ran.
+    fn find(&self, image: &Planes, d: usize) -> anyhow::Result<(Vec<Found>, Option<Detection>)> {
+        Ok(match self {
+            Self::Defects(detector) => {
+                let found = detector.detect_at_scale(image, d)?;
+                let boxes = found
+                    .defects
+                    .iter()
+                    .map(|f| (f.kind.name(), f.score, f.box_px))
+                    .collect();
+                (boxes, Some(found))
+            }
+            Self::Normal(model) => {
+                let found = model.detect_at_scale(image, d)?;
+                let boxes = found
+                    .regions
+                    .iter()
+                    .map(|r| ("anomaly", r.score, r.box_px))
+                    .collect();
+                (boxes, None)
+            }
+        })
+    }
+
+    /// The fabric names the detector's probabilities are over (none for anomaly mode).
+    fn fabrics(&self) -> &[String] {
+        match self {
+            Self::Defects(detector) => &detector.about().fabrics,
+            Self::Normal(_) => &[],
+        }
+    }
+}
+
 /// The running detector: stops when dropped.
 pub struct LiveDetector {
     ended: Arc<AtomicBool>,
@@ -82,7 +129,7 @@ pub struct LiveDetector {
 
 impl LiveDetector {
     /// Starts the detector's thread on `shared`'s strip.
-    pub fn start(shared: Arc<Shared>, detector: Detector) -> anyhow::Result<Self> {
+    pub fn start(shared: Arc<Shared>, detector: LiveModel) -> anyhow::Result<Self> {
         let ended = Arc::new(AtomicBool::new(false));
         let flag = Arc::clone(&ended);
         let thread = std::thread::Builder::new()
@@ -113,7 +160,7 @@ impl Drop for LiveDetector {
 /// The detector walking down the strip: each window's own rows are those whose defects
 /// it reports, with context rows either side so a defect on the edge is seen whole.
 pub(super) struct Windows {
-    detector: Detector,
+    detector: LiveModel,
     /// The first strip row not yet reported on.
     next: Option<u64>,
 }
@@ -125,7 +172,7 @@ pub(super) struct Window {
 }
 
 impl Windows {
-    pub(super) fn new(detector: Detector) -> Self {
+    pub(super) fn new(detector: LiveModel) -> Self {
         Self {
             detector,
             next: None,
@@ -216,43 +263,35 @@ impl Windows {
         // A window too small for the detector (a short tail) is counted as checked; any
         // other error is a failure, counted and shown.
         let small = width.min(rows) * upsample.max(1) < crate::detect::MIN_SIDE;
-        let found = match self.detector.detect_at_scale(&image, upsample) {
-            Ok(found) => Some(found),
-            Err(_) if small => None,
+        let (found, detection) = match self.detector.find(&image, upsample) {
+            Ok(found) => found,
+            Err(_) if small => (Vec::new(), None),
             Err(e) => {
                 let why = crate::detect::model::first_line(&e);
                 lock(&shared.findings).status.failed(&why);
                 return;
             }
         };
+        let top = start as f32;
         let boxes: Vec<LiveBox> = found
-            .as_ref()
-            .map(|d| {
-                d.defects
-                    .iter()
-                    .map(|f| {
-                        let [x0, y0, x1, y1] = f.box_px;
-                        let top = start as f32;
-                        LiveBox {
-                            kind: f.kind,
-                            score: f.score,
-                            strip_box: [x0, y0 + top, x1, y1 + top],
-                        }
-                    })
-                    .filter(|b| {
-                        w.own
-                            .contains(&(((b.strip_box[1] + b.strip_box[3]) / 2.0) as u64))
-                    })
-                    .collect()
+            .into_iter()
+            .map(|(kind, score, [x0, y0, x1, y1])| LiveBox {
+                kind,
+                score,
+                strip_box: [x0, y0 + top, x1, y1 + top],
             })
-            .unwrap_or_default();
+            .filter(|b| {
+                w.own
+                    .contains(&(((b.strip_box[1] + b.strip_box[3]) / 2.0) as u64))
+            })
+            .collect();
         let status = {
             let mut findings = lock(&shared.findings);
             findings.take(
                 &boxes,
-                found.as_ref(),
+                detection.as_ref(),
                 w.own.end - w.own.start,
-                self.detector.about().fabrics.as_slice(),
+                self.detector.fabrics(),
             );
             findings.status.clone()
         };
@@ -267,17 +306,13 @@ impl Findings {
     fn take(
         &mut self,
         boxes: &[LiveBox],
-        found: Option<&crate::detect::Detection>,
+        found: Option<&Detection>,
         rows: u64,
         fabrics: &[String],
     ) {
         self.status.rows_checked += rows;
         for b in boxes {
-            let name = serde_json::to_value(b.kind)
-                .ok()
-                .and_then(|v| v.as_str().map(str::to_string))
-                .unwrap_or_default();
-            *self.status.defects.entry(name).or_default() += 1;
+            *self.status.defects.entry(b.kind.to_string()).or_default() += 1;
             self.boxes.push_back(*b);
         }
         while self.boxes.len() > KEPT_BOXES {
@@ -323,7 +358,7 @@ fn downsample_of(shared: &Shared) -> Option<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::detect::{Detection, UNKNOWN_FABRIC};
+    use crate::detect::UNKNOWN_FABRIC;
 
     fn window(fabric: &str) -> Detection {
         Detection {

@@ -100,7 +100,7 @@ impl Server {
     /// drawn on the page ([`detect`]).
     pub fn start_detecting(
         opts: &ServeOptions,
-        detector: Option<crate::detect::Detector>,
+        detector: Option<detect::LiveModel>,
     ) -> anyhow::Result<Self> {
         let listener = TcpListener::bind(opts.addr)
             .map_err(|e| anyhow::anyhow!("cannot serve on {}: {e}", opts.addr))?;

@@ -212,7 +212,8 @@ fn the_detector_walks_every_kept_row_once_and_steps_over_a_jump() {
         }
     }
     let detector = crate::detect::Detector::built_in().unwrap();
-    let mut windows = super::detect::Windows::new(detector);
+    let mut windows =
+        super::detect::Windows::new(super::detect::LiveModel::Defects(Box::new(detector)));
     let mut owns = Vec::new();
     for last in [false, true] {
         while let Some(w) = windows.next_window(&shared, 2, last) {
@@ -264,16 +265,8 @@ fn a_server_going_away_lets_the_answers_under_way_write_the_end() {
 /// fails on are counted with the reason, and nothing is reported as checked and clean.
 #[test]
 fn a_failing_detector_is_counted_and_shown_never_clean() {
-    use rollfuse_core::protocol::{DeviceConfig, DeviceInfo, PixelFormat};
     let shared = shared();
-    lock(&shared.status).device = Some(DeviceInfo {
-        firmware: [0, 1, 0],
-        sensor_width: 64,
-        sensor_height: 48,
-        pixel_format: PixelFormat::Gray8,
-        config: DeviceConfig::default(),
-        max_tile_bytes: 1024,
-    });
+    lock(&shared.status).device = Some(device_of_64_columns());
     {
         let mut ring = lock(&shared.ring);
         for index in 0..40 {
@@ -298,7 +291,8 @@ fn a_failing_detector_is_counted_and_shown_never_clean() {
     let bytes = std::fs::read(&path).unwrap();
     std::fs::write(&path, all_nan(&bytes)).unwrap();
     let detector = crate::detect::Detector::load(&path).unwrap();
-    super::detect::Windows::new(detector).run(&shared, &std::sync::atomic::AtomicBool::new(true));
+    super::detect::Windows::new(super::detect::LiveModel::Defects(Box::new(detector)))
+        .run(&shared, &std::sync::atomic::AtomicBool::new(true));
     let status = lock(&shared.findings).status.clone();
     assert!(status.failures > 0, "{status:?}");
     let why = status.last_failure.clone().unwrap_or_default();
@@ -306,6 +300,86 @@ fn a_failing_detector_is_counted_and_shown_never_clean() {
     assert!(
         status.defects.is_empty() && status.fabric.is_none(),
         "{status:?}"
+    );
+}
+
+/// A device that streams gray 64-pixel rows at the camera's scale.
+fn device_of_64_columns() -> rollfuse_core::protocol::DeviceInfo {
+    use rollfuse_core::protocol::{DeviceConfig, DeviceInfo, PixelFormat};
+    DeviceInfo {
+        firmware: [0, 1, 0],
+        sensor_width: 64,
+        sensor_height: 48,
+        pixel_format: PixelFormat::Gray8,
+        config: DeviceConfig::default(),
+        max_tile_bytes: 1024,
+    }
+}
+
+/// Cloth of the belt row `row`: a fine irregular texture.
+fn cloth_row(row: usize) -> impl Iterator<Item = u8> {
+    (0..64usize).map(move |c| (64 + (row * 37 + c * 11 + (row * c) % 23) * 7 % 128) as u8)
+}
+
+/// Anomaly mode on the live strip: a model of the clean cloth boxes the rows where a dark
+/// patch passes, as kind `anomaly`, names no fabric, and checks every row once.
+#[test]
+fn anomaly_mode_boxes_what_departs_from_the_clean_cloth() {
+    use crate::detect::anomaly::NormalModel;
+    let shared = shared();
+    lock(&shared.status).device = Some(device_of_64_columns());
+    // A dark patch over belt rows 400..432, columns 16..40.
+    let patch = |row: usize, col: usize| (400..432).contains(&row) && (16..40).contains(&col);
+    {
+        let mut ring = lock(&shared.ring);
+        for index in 0..50u32 {
+            let pixels: Vec<u8> = (0..16)
+                .flat_map(|r| {
+                    let row = index as usize * 16 + r;
+                    cloth_row(row)
+                        .enumerate()
+                        .map(move |(c, v)| if patch(row, c) { 10 } else { v })
+                })
+                .collect();
+            ring.push(index, (64, 16), &pixels);
+        }
+    }
+    let clean: Vec<crate::image::Planes> = (0..6)
+        .map(|k| crate::image::Planes {
+            width: 64,
+            height: 96,
+            planes: vec![
+                (0..96)
+                    .flat_map(|r| cloth_row(2000 + 96 * k + r))
+                    .map(f32::from)
+                    .collect(),
+            ],
+        })
+        .collect();
+    let model = NormalModel::fit_every_row_alike(&clean).unwrap();
+    super::detect::Windows::new(super::detect::LiveModel::Normal(model))
+        .run(&shared, &std::sync::atomic::AtomicBool::new(true));
+    let findings = lock(&shared.findings);
+    let status = &findings.status;
+    assert_eq!(
+        (status.failures, status.rows_checked),
+        (0, 800),
+        "{status:?}"
+    );
+    assert!(status.fabric.is_none(), "{status:?}");
+    assert!(!findings.boxes.is_empty(), "{status:?}");
+    for b in &findings.boxes {
+        let [x0, y0, x1, y1] = b.strip_box;
+        assert_eq!(b.kind, "anomaly");
+        assert!(b.score > 1.0, "{b:?}");
+        assert!(
+            y0 < 432.0 && 400.0 < y1 && x0 < 40.0 && 16.0 < x1,
+            "{b:?} off the patch"
+        );
+    }
+    assert_eq!(
+        status.defects.get("anomaly"),
+        Some(&(findings.boxes.len() as u64))
     );
 }
 
