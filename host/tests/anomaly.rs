@@ -2,7 +2,8 @@
 //! must tell that fabric's defective frames from its clean ones and box the defects.
 
 use rollfuse::detect::anomaly::NormalModel;
-use rollfuse::detect::data::{RollShape, roll_scene};
+use rollfuse::detect::data::{RollShape, Sample, roll_scene};
+use rollfuse::eval::anomaly::{self, Figures};
 use rollfuse::image::Planes;
 use rollfuse::sim::scene::Object;
 use rollfuse::sim::{Scene, Simulator};
@@ -25,109 +26,22 @@ fn scene(fabric: &str, seed: u64, defects: usize, frames: usize) -> Scene {
     scene
 }
 
-/// A frame, the boxes of the defects it shows in contact and of those it shows out of
-/// contact (blurred: neither to be found nor a false alarm).
-type Labelled = (Planes, Vec<[f32; 4]>, Vec<[f32; 4]>);
-
-fn frames(scene: &Scene) -> Vec<Labelled> {
+/// Every frame of `scene`, labelled.
+fn frames(scene: &Scene) -> Vec<Sample> {
     let sim = Simulator::new(scene).unwrap();
-    (0..sim.frames())
-        .map(|k| {
-            let f = sim.frame(k);
-            let (sharp, blurred): (Vec<_>, Vec<_>) =
-                sim.defects_in(&f).into_iter().partition(|d| d.in_contact);
-            let boxes = |v: Vec<rollfuse::sim::render::FrameDefect>| {
-                v.iter().map(|d| d.box_px.map(|x| x as f32)).collect()
-            };
-            (f.image, boxes(sharp), boxes(blurred))
-        })
-        .collect()
+    rollfuse::detect::data::frames(&sim, 0).0
 }
 
-/// The area under the ROC curve of `scores` for positives against negatives.
-fn auroc(positives: &[f32], negatives: &[f32]) -> f64 {
-    let mut wins = 0f64;
-    for p in positives {
-        for n in negatives {
-            wins += if p > n {
-                1.0
-            } else if p == n {
-                0.5
-            } else {
-                0.0
-            };
-        }
-    }
-    wins / (positives.len() * negatives.len()).max(1) as f64
-}
-
-fn overlaps(a: [f32; 4], b: [f32; 4]) -> bool {
-    a[0] < b[2] && b[0] < a[2] && a[1] < b[3] && b[1] < a[3]
-}
-
-/// Measured figures of anomaly mode on one fabric.
-struct Figures {
-    auroc: f64,
-    recall: f64,
-    precision: f64,
-}
-
-/// Fits anomaly mode on 20 clean frames of a roll of `fabric` and scores the roll's other
-/// frames: AUROC of the anomaly score over frames with a defect in contact against frames
-/// with none; a defect is found when a region overlaps its box, a region is right when
-/// it overlaps a defect in contact (one overlapping only a defect out of contact counts
-/// neither way).
+/// Anomaly mode on a roll of `fabric` from `seed`, as `eval --detect --normal` measures
+/// it: fitted on 20 of the roll's clean frames, scored on the others.
 fn measure(fabric: &str, seed: u64) -> Figures {
     // One roll: the simulator presses the gel relative to the roll's tallest point, so
     // the contact of a roll with defects differs from that of one without.
-    let all = frames(&scene(fabric, seed, 6, 120));
-    let (clean, rest): (Vec<_>, Vec<_>) = all
-        .into_iter()
-        .enumerate()
-        .partition(|(k, (_, b, u))| b.is_empty() && u.is_empty() && k % 2 == 0);
-    let fit: Vec<Planes> = clean
-        .iter()
-        .take(20)
-        .map(|(_, (i, _, _))| i.clone())
-        .collect();
-    assert_eq!(fit.len(), 20, "{fabric}: too few clean frames to fit on");
-    let model = NormalModel::fit(&fit).unwrap();
-    let (mut pos, mut neg) = (Vec::new(), Vec::new());
-    let (mut found, mut defects, mut right, mut reported) = (0, 0, 0, 0);
-    for (_, (image, boxes, blurred)) in clean.into_iter().skip(20).chain(rest) {
-        let a = model.detect(&image).unwrap();
-        if !boxes.is_empty() {
-            pos.push(a.anomaly_score);
-        } else if blurred.is_empty() {
-            neg.push(a.anomaly_score);
-        }
-        defects += boxes.len();
-        found += boxes
-            .iter()
-            .filter(|b| a.regions.iter().any(|r| overlaps(r.box_px, **b)))
-            .count();
-        for r in &a.regions {
-            if boxes.iter().any(|b| overlaps(r.box_px, *b)) {
-                right += 1;
-                reported += 1;
-            } else if !blurred.iter().any(|b| overlaps(r.box_px, *b)) {
-                reported += 1;
-            }
-        }
-    }
-    let f = Figures {
-        auroc: auroc(&pos, &neg),
-        recall: found as f64 / defects.max(1) as f64,
-        precision: right as f64 / reported.max(1) as f64,
-    };
+    let f = anomaly::measure(&frames(&scene(fabric, seed, 6, 120))).unwrap();
     eprintln!(
         "{fabric}, roll {seed}: AUROC {:.3} over {} defective and {} clean frames; recall \
          {:.2}, precision {:.2}",
-        f.auroc,
-        pos.len(),
-        neg.len(),
-        f.recall,
-        f.precision
+        f.auroc, f.defective_frames, f.clean_frames, f.recall, f.precision
     );
     f
 }
@@ -163,7 +77,7 @@ fn a_twill_a_plain_weave_and_a_knit_are_learned_from_clean_frames() {
 fn too_few_images_other_widths_and_other_heights_are_refused_with_the_reason() {
     let frames: Vec<Planes> = frames(&scene("plain", 4, 0, 6))
         .into_iter()
-        .map(|(i, _, _)| i)
+        .map(|s| s.image)
         .collect();
     let few = NormalModel::fit(&frames[..3]).unwrap_err().to_string();
     assert!(few.contains("at least 4"), "{few}");
@@ -199,13 +113,13 @@ fn fit_normal_and_detect_normal_from_the_command_line() {
     let all = frames(&scene("jersey", 2, 6, 120));
     let mut clean = Vec::new();
     let mut defective = None;
-    for (k, (image, boxes, blurred)) in all.iter().enumerate() {
+    for (k, s) in all.iter().enumerate() {
         let path = tmp.path().join(format!("f{k:03}.png"));
-        if boxes.is_empty() && blurred.is_empty() && clean.len() < 20 {
-            image.save_png(&path).unwrap();
+        if s.boxes.is_empty() && s.blurred.is_empty() && clean.len() < 20 {
+            s.image.save_png(&path).unwrap();
             clean.push(path);
-        } else if boxes.len() == 1 && blurred.is_empty() && defective.is_none() {
-            image.save_png(&path).unwrap();
+        } else if s.boxes.len() == 1 && s.blurred.is_empty() && defective.is_none() {
+            s.image.save_png(&path).unwrap();
             defective = Some(path);
         }
     }
@@ -257,6 +171,45 @@ fn fit_normal_and_detect_normal_from_the_command_line() {
         .args(["detect".as_ref(), image.as_os_str(), "--normal".as_ref()])
         .arg(&model)
         .args(["--model", "x.safetensors"])
+        .output()
+        .unwrap();
+    assert!(!run.status.success());
+}
+
+/// `eval --detect --normal` measures anomaly mode on held-out rolls, each fitted on its
+/// own clean frames: one line a roll, its figures in the JSON too.
+#[test]
+fn eval_measures_anomaly_mode_on_held_out_rolls() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("eval");
+    let stdout = rollfuse_ok(&[
+        "eval".as_ref(),
+        "--detect".as_ref(),
+        "--normal".as_ref(),
+        "--rolls".as_ref(),
+        "2".as_ref(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]);
+    assert!(stdout.contains("Median over 2 of 2 rolls"), "{stdout}");
+    let rows: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("anomaly.json")).unwrap()).unwrap();
+    let rows = rows.as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    for r in rows {
+        let f = &r["figures"];
+        let auroc = f["auroc"].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&auroc), "{r}");
+        assert!(f["defective_frames"].as_u64().unwrap() > 0, "{r}");
+    }
+    assert!(
+        std::fs::read_to_string(out.join("anomaly.md"))
+            .unwrap()
+            .contains("| 1 | ")
+    );
+    // Anomaly mode has no model file to evaluate: a detector's is refused with it.
+    let run = Command::new(env!("CARGO_BIN_EXE_rollfuse"))
+        .args(["eval", "--detect", "--normal", "--model", "m.safetensors"])
         .output()
         .unwrap();
     assert!(!run.status.success());

@@ -78,7 +78,8 @@ pub fn start(
     let mut config = embassy_usb::Config::new(wire::VID, wire::PID);
     config.manufacturer = Some(wire::MANUFACTURER);
     config.product = Some(wire::PRODUCT);
-    config.serial_number = Some("0001");
+    // The chip's 96-bit unique ID in hexadecimal: two modules on one host are told apart.
+    config.serial_number = Some(embassy_stm32::uid::uid_hex());
     config.max_power = 100;
     config.max_packet_size_0 = wire::PACKET as u8;
     let mut builder = embassy_usb::Builder::new(

@@ -1,6 +1,6 @@
 //! The camera: an OV7725-class sensor configured over SCCB (I2C1) for QVGA YUYV, its pixel
 //! clock from MCO1, frames captured by DCMI + DMA as single snapshots into a buffer in
-//! AXI SRAM (`FRAME_WORDS` words, under the DMA's 65 535-word limit), with a timeout.
+//! D2 SRAM (`FRAME_WORDS` words, under the DMA's 65 535-word limit), with a timeout.
 //!
 //! The register values (`rollfuse_fw::sensor`, host-tested: byte order, window, 30
 //! frames/s) are the OV7725 datasheet's QVGA settings; they are not yet tried on hardware

@@ -122,7 +122,16 @@ async fn main(_spawner: Spawner) {
     });
     // SAFETY: first thing after the clocks; nothing has taken a placed static yet.
     unsafe { buffers::zero_placed() };
-    info!("rollfuse-fw {}", env!("CARGO_PKG_VERSION"));
+    // The stepper's pins before anything slow (the camera's bus can take a second to time
+    // out): a driver whose ENABLE is pulled down would otherwise power up with STEP floating.
+    let stepper = Stepper::new(p.PF12, p.PF13, p.PF14);
+    info!(
+        "rollfuse-fw {}, serial {}, reset by {}",
+        env!("CARGO_PKG_VERSION"),
+        embassy_stm32::uid::uid_hex(),
+        reset_cause()
+    );
+    freeze_watchdog_on_debug_halt();
     guard_stack_and_cache_code();
     self_test();
     let Some(mut controller) = rollfuse_fw::controller() else {
@@ -162,7 +171,7 @@ async fn main(_spawner: Spawner) {
         pixclk: p.PA6,
     })
     .await;
-    start_roller(Stepper::new(p.PF12, p.PF13, p.PF14));
+    start_roller(stepper);
 
     let tx = TX.take();
     let serve = async {
@@ -176,8 +185,42 @@ async fn main(_spawner: Spawner) {
     join5(device.run(), serve, effects, alive, frames).await;
 }
 
+/// Why the chip last reset (RCC_RSR), the flags then cleared so the next boot reads its
+/// own. A watchdog or software reset also sets the pin flag, a power-on also the
+/// brown-out and pin flags: the most specific flag is named.
+fn reset_cause() -> &'static str {
+    let rcc = embassy_stm32::pac::RCC;
+    let rsr = rcc.rsr().read();
+    let flags = [
+        (
+            rsr.iwdg1rstf(),
+            "the watchdog (a task stopped coming round)",
+        ),
+        (rsr.wwdg1rstf(), "the window watchdog"),
+        (rsr.lpwrrstf(), "a low-power error"),
+        (rsr.sftrstf(), "software"),
+        (rsr.porrstf(), "power-on"),
+        (rsr.borrstf(), "brown-out"),
+        (rsr.pinrstf(), "the reset pin"),
+    ];
+    let cause = flags
+        .iter()
+        .find(|(set, _)| *set)
+        .map_or("an unknown cause", |(_, cause)| cause);
+    rcc.rsr().modify(|w| w.set_rmvf(true));
+    cause
+}
+
+/// The watchdog stops while a debugger halts the core (DBGMCU_APB4FZ1.DBG_IWDG1), so a
+/// breakpoint does not reset the board; without a debugger the bit changes nothing.
+fn freeze_watchdog_on_debug_halt() {
+    embassy_stm32::pac::DBGMCU
+        .apb4fzr1()
+        .modify(|w| w.set_iwdg1(true));
+}
+
 /// The stack guard before anything deep runs; instructions from flash through the
-/// I-cache. The D-cache stays off: the DCMI's DMA writes frames to AXI SRAM that the CPU
+/// I-cache. The D-cache stays off: the DCMI's DMA writes frames to D2 SRAM that the CPU
 /// then reads, and without cache maintenance a cached CPU would see stale lines.
 fn guard_stack_and_cache_code() {
     if let Some(mut core) = cortex_m::Peripherals::take() {

@@ -35,6 +35,10 @@ pub struct Args {
     /// With --detect: a model file (else the built-in model).
     #[arg(long, requires = "detect")]
     pub model: Option<PathBuf>,
+    /// With --detect: anomaly mode instead of the detector, each held-out roll (180
+    /// frames) fitted on 20 of its own defect-free frames and scored on the others.
+    #[arg(long, requires = "detect", conflicts_with = "model")]
+    pub normal: bool,
     /// With --detect: held-out rolls to simulate (fabric = seed mod 17).
     #[arg(long, default_value_t = 34, requires = "detect")]
     pub rolls: usize,
@@ -98,9 +102,46 @@ fn run_roll(args: &Args, show: Show) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Runs `rollfuse eval --detect --normal`.
+fn run_anomaly(args: &Args, show: Show) -> anyhow::Result<()> {
+    use crate::eval::anomaly::{evaluate_anomaly, markdown};
+    let rows = evaluate_anomaly(args.rolls, &Bars::new(show))?;
+    let _folder = crate::files::NewFolder::create(&args.out)?;
+    let md = format!(
+        "Anomaly mode on held-out rolls: {} (seeds {}..{})\n\n{}",
+        args.rolls,
+        crate::eval::detect::EVAL_SEEDS,
+        crate::eval::detect::EVAL_SEEDS + args.rolls as u64,
+        markdown(&rows)
+    );
+    write_table(&args.out, "anomaly", &rows, &md)
+}
+
+/// Writes `NAME.md` and `NAME.json` (the rows) into `out` whole, and prints the table.
+fn write_table(
+    out: &std::path::Path,
+    name: &str,
+    rows: &impl serde::Serialize,
+    md: &str,
+) -> anyhow::Result<()> {
+    let mut batch = Batch::new();
+    batch.add_bytes(
+        &out.join(format!("{name}.json")),
+        serde_json::to_string_pretty(rows)?.as_bytes(),
+    )?;
+    batch.add_bytes(&out.join(format!("{name}.md")), md.as_bytes())?;
+    batch.commit()?;
+    print!("{md}");
+    println!("\nwritten: {}/{name}.md, {name}.json", out.display());
+    Ok(())
+}
+
 /// Runs `rollfuse eval --detect`.
 fn run_detect(args: &Args, show: Show) -> anyhow::Result<()> {
     use crate::eval::detect::{evaluate_detect, markdown};
+    if args.normal {
+        return run_anomaly(args, show);
+    }
     let detector = match &args.model {
         Some(m) => crate::detect::Detector::load(m)?,
         None => crate::detect::Detector::built_in()?,
@@ -118,16 +159,7 @@ fn run_detect(args: &Args, show: Show) -> anyhow::Result<()> {
             .map_or("built in".to_string(), |m| m.display().to_string()),
         markdown(&rows)
     );
-    let mut batch = Batch::new();
-    batch.add_bytes(
-        &args.out.join("detect.json"),
-        serde_json::to_string_pretty(&rows)?.as_bytes(),
-    )?;
-    batch.add_bytes(&args.out.join("detect.md"), md.as_bytes())?;
-    batch.commit()?;
-    print!("{md}");
-    println!("\nwritten: {}/detect.md, detect.json", args.out.display());
-    Ok(())
+    write_table(&args.out, "detect", &rows, &md)
 }
 
 /// Runs the command, showing progress as `show` says.

@@ -236,7 +236,11 @@ fn print_defects(d: &serve::detect::DetectorStatus) {
     let kinds: Vec<String> = d
         .defects
         .iter()
-        .map(|(k, n)| format!("{n} {k}{}", if *n == 1 { "" } else { "s" }))
+        .map(|(k, n)| match (k.as_str(), *n) {
+            (_, 1) => format!("1 {k}"),
+            ("anomaly", n) => format!("{n} anomalies"),
+            (_, n) => format!("{n} {k}s"),
+        })
         .collect();
     if d.failures > 0 {
         eprintln!(
@@ -262,6 +266,7 @@ fn print_defects(d: &serve::detect::DetectorStatus) {
             String::new()
         },
         match d.fabric.as_deref() {
+            None if d.anomaly_mode => "not named (anomaly mode)".to_string(),
             None => "not known".to_string(),
             Some(crate::detect::UNKNOWN_FABRIC) => format!(
                 "unknown ({} of {} rows unlike every fabric the model knows)",

@@ -70,7 +70,7 @@ impl RollShape {
 /// position jitter of 2 px, with noise, defocus and uneven light.
 pub fn roll_scene(seed: u64, shape: &RollShape) -> Scene {
     let mut rng = Pcg64Mcg::seed_from_u64(seed ^ 0xFAB1_C0DE);
-    let fabric = FABRICS[(seed % FABRICS.len() as u64) as usize];
+    let fabric = FABRICS[class_of(seed)];
     Scene {
         name: format!("{}-{seed}", fabric.name),
         seed,
@@ -117,11 +117,9 @@ pub struct Roll {
     pub strip: Sample,
 }
 
-/// Renders and fuses roll `seed`.
-pub fn roll(seed: u64, shape: &RollShape) -> anyhow::Result<Roll> {
-    let scene = roll_scene(seed, shape);
-    let class = (seed % FABRICS.len() as u64) as usize;
-    let sim = Simulator::new(&scene)?;
+/// Every frame of `sim`'s roll of fabric `class`, labelled, and the strip row each
+/// frame's top was commanded to.
+pub fn frames(sim: &Simulator, class: usize) -> (Vec<Sample>, Vec<f64>) {
     let mut frames = Vec::with_capacity(sim.frames());
     let mut commanded = Vec::with_capacity(sim.frames());
     for k in 0..sim.frames() {
@@ -141,6 +139,20 @@ pub fn roll(seed: u64, shape: &RollShape) -> anyhow::Result<Roll> {
             source: Source::Frame,
         });
     }
+    (frames, commanded)
+}
+
+/// The fabric class of roll `seed`.
+pub fn class_of(seed: u64) -> usize {
+    (seed % FABRICS.len() as u64) as usize
+}
+
+/// Renders and fuses roll `seed`.
+pub fn roll(seed: u64, shape: &RollShape) -> anyhow::Result<Roll> {
+    let scene = roll_scene(seed, shape);
+    let class = class_of(seed);
+    let sim = Simulator::new(&scene)?;
+    let (frames, commanded) = frames(&sim, class);
     let opts = StripOptions::tracked(scene.sensor.roller_geometry(), commanded);
     let (sink, _) = fuse_strip(
         frames.iter().map(|s| Ok(s.image.clone())),

@@ -35,6 +35,9 @@ pub struct LiveBox {
 /// What the detector has said so far, as `/status.json` and the page show it.
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct DetectorStatus {
+    /// Anomaly mode's model runs (`--normal`): every region is of kind `anomaly` and no
+    /// fabric is named.
+    pub anomaly_mode: bool,
     /// The most probable fabric over the rows checked (their probabilities averaged), or
     /// [`crate::detect::UNKNOWN_FABRIC`] when most of those rows were unlike every fabric
     /// the model knows.
@@ -180,6 +183,7 @@ impl Windows {
     }
 
     pub(super) fn run(mut self, shared: &Shared, ended: &AtomicBool) {
+        lock(&shared.findings).status.anomaly_mode = matches!(self.detector, LiveModel::Normal(_));
         loop {
             // Read before looking at the rows, so rows that came before the end are seen.
             let last = ended.load(Ordering::Relaxed);

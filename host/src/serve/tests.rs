@@ -366,7 +366,7 @@ fn anomaly_mode_boxes_what_departs_from_the_clean_cloth() {
         (0, 800),
         "{status:?}"
     );
-    assert!(status.fabric.is_none(), "{status:?}");
+    assert!(status.fabric.is_none() && status.anomaly_mode, "{status:?}");
     assert!(!findings.boxes.is_empty(), "{status:?}");
     for b in &findings.boxes {
         let [x0, y0, x1, y1] = b.strip_box;
