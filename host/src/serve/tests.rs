@@ -383,6 +383,49 @@ fn anomaly_mode_boxes_what_departs_from_the_clean_cloth() {
     );
 }
 
+/// A normal model of images of another width (another camera, another downsampling):
+/// every window fails with both widths named, none is reported clean.
+#[test]
+fn anomaly_mode_on_a_strip_of_another_width_fails_with_the_reason() {
+    use crate::detect::anomaly::NormalModel;
+    let shared = shared();
+    lock(&shared.status).device = Some(device_of_64_columns());
+    {
+        let mut ring = lock(&shared.ring);
+        for index in 0..10u32 {
+            let pixels: Vec<u8> = (0..16)
+                .flat_map(|r| cloth_row(index as usize * 16 + r))
+                .collect();
+            ring.push(index, (64, 16), &pixels);
+        }
+    }
+    let wide: Vec<crate::image::Planes> = (0..4)
+        .map(|k| crate::image::Planes {
+            width: 128,
+            height: 64,
+            planes: vec![
+                (0..64)
+                    .flat_map(|r| cloth_row(500 + 64 * k + r).chain(cloth_row(900 + r)))
+                    .map(f32::from)
+                    .collect(),
+            ],
+        })
+        .collect();
+    let model = NormalModel::fit_every_row_alike(&wide).unwrap();
+    super::detect::Windows::new(super::detect::LiveModel::Normal(model))
+        .run(&shared, &std::sync::atomic::AtomicBool::new(true));
+    let status = lock(&shared.findings).status.clone();
+    assert!(
+        status.failures > 0 && status.defects.is_empty(),
+        "{status:?}"
+    );
+    let why = status.last_failure.unwrap_or_default();
+    assert!(
+        why.contains("64 pixels wide") && why.contains("128 wide"),
+        "{why}"
+    );
+}
+
 /// A safetensors file's bytes with every F32 value NaN.
 fn all_nan(bytes: &[u8]) -> Vec<u8> {
     use safetensors::{SafeTensors, tensor::TensorView};
