@@ -93,6 +93,31 @@ fn too_few_images_other_widths_and_other_heights_are_refused_with_the_reason() {
     assert!(err.contains("240-row images"), "{err}");
 }
 
+#[test]
+fn a_model_of_another_format_or_damaged_is_refused_on_loading() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames: Vec<Planes> = frames(&scene("plain", 4, 0, 4))
+        .into_iter()
+        .map(|s| s.image)
+        .collect();
+    let path = tmp.path().join("plain.json");
+    NormalModel::fit(&frames).unwrap().save(&path).unwrap();
+    assert!(NormalModel::load(&path).is_ok());
+    let text = std::fs::read_to_string(&path).unwrap();
+    let older = tmp.path().join("older.json");
+    std::fs::write(
+        &older,
+        text.replace("rollfuse-normal-2", "rollfuse-normal-1"),
+    )
+    .unwrap();
+    let err = format!("{:#}", NormalModel::load(&older).unwrap_err());
+    assert!(err.contains("format `rollfuse-normal-1`"), "{err}");
+    let cut = tmp.path().join("cut.json");
+    std::fs::write(&cut, &text[..text.len() / 2]).unwrap();
+    let err = format!("{:#}", NormalModel::load(&cut).unwrap_err());
+    assert!(err.contains("is not a normal model"), "{err}");
+}
+
 /// `rollfuse ARGS`, which must succeed: its standard output.
 fn rollfuse_ok(args: &[&std::ffi::OsStr]) -> String {
     let run = Command::new(env!("CARGO_BIN_EXE_rollfuse"))
