@@ -387,7 +387,7 @@ fn anomalies_run(args: &Args, normal: &Path, drawn: &[PathBuf]) -> anyhow::Resul
                 .regions
                 .iter()
                 .map(|r| AnomalyDefect {
-                    kind: "anomaly",
+                    kind: crate::detect::anomaly::KIND,
                     score: r.score,
                     box_px: r.box_px,
                 })

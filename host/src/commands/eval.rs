@@ -108,13 +108,17 @@ fn run_anomaly(args: &Args, show: Show) -> anyhow::Result<()> {
     let rows = evaluate_anomaly(args.rolls, &Bars::new(show))?;
     let _folder = crate::files::NewFolder::create(&args.out)?;
     let md = format!(
-        "Anomaly mode on held-out rolls: {} (seeds {}..{})\n\n{}",
-        args.rolls,
-        crate::eval::detect::EVAL_SEEDS,
-        crate::eval::detect::EVAL_SEEDS + args.rolls as u64,
+        "Anomaly mode on held-out rolls: {}\n\n{}",
+        held_out(args.rolls),
         markdown(&rows)
     );
     write_table(&args.out, "anomaly", &rows, &md)
+}
+
+/// `rolls` held-out rolls and their seeds, as the tables' headers say them.
+fn held_out(rolls: usize) -> String {
+    let first = crate::eval::detect::EVAL_SEEDS;
+    format!("{rolls} (seeds {first}..{})", first + rolls as u64)
 }
 
 /// Writes `NAME.md` and `NAME.json` (the rows) into `out` whole, and prints the table.
@@ -150,10 +154,8 @@ fn run_detect(args: &Args, show: Show) -> anyhow::Result<()> {
     let rows = evaluate_detect(&detector, args.rolls, &shape, &Bars::new(show))?;
     let _folder = crate::files::NewFolder::create(&args.out)?;
     let md = format!(
-        "Held-out rolls: {} (seeds {}..{}), model: {}\n\n{}",
-        args.rolls,
-        crate::eval::detect::EVAL_SEEDS,
-        crate::eval::detect::EVAL_SEEDS + args.rolls as u64,
+        "Held-out rolls: {}, model: {}\n\n{}",
+        held_out(args.rolls),
         args.model
             .as_ref()
             .map_or("built in".to_string(), |m| m.display().to_string()),

@@ -238,7 +238,7 @@ fn print_defects(d: &serve::detect::DetectorStatus) {
         .iter()
         .map(|(k, n)| match (k.as_str(), *n) {
             (_, 1) => format!("1 {k}"),
-            ("anomaly", n) => format!("{n} anomalies"),
+            (crate::detect::anomaly::KIND, n) => format!("{n} anomalies"),
             (_, n) => format!("{n} {k}s"),
         })
         .collect();

@@ -36,6 +36,8 @@ pub const GROW: f32 = 0.6;
 const SHRINK: f64 = 0.1;
 /// Folds the threshold is calibrated in.
 const FOLDS: usize = 4;
+/// The kind anomaly mode gives every region it reports.
+pub const KIND: &str = "anomaly";
 /// The model file's format.
 const FORMAT: &str = "rollfuse-normal-2";
 
@@ -161,6 +163,12 @@ pub struct Region {
     pub box_px: [f32; 4],
     /// Largest cell score in it over the model's threshold (above 1).
     pub score: f32,
+}
+
+impl super::Boxed for Anomalies {
+    fn boxes_mut(&mut self) -> impl Iterator<Item = &mut [f32; 4]> {
+        self.regions.iter_mut().map(|r| &mut r.box_px)
+    }
 }
 
 /// What anomaly mode says of one image.
@@ -305,14 +313,7 @@ impl NormalModel {
     /// Scores `image` taken at `1/d` of the model's scale (a device strip downsampled by
     /// `d`): upsampled first, its boxes given in its own pixels.
     pub fn detect_at_scale(&self, image: &Planes, d: usize) -> anyhow::Result<Anomalies> {
-        if d <= 1 || image.planes.len() != 1 {
-            return self.detect(image);
-        }
-        let mut found = self.detect(&image.upsampled(d))?;
-        for r in &mut found.regions {
-            r.box_px = r.box_px.map(|v| v / d as f32);
-        }
-        Ok(found)
+        super::at_camera_scale(image, d, |i| self.detect(i))
     }
 
     /// Whether the model scores images of any height (every row of cells alike).

@@ -177,14 +177,7 @@ impl Detector {
     /// image's own pixels. Images that are not gray go to the detector as they are, to be
     /// refused.
     pub fn detect_at_scale(&self, image: &Planes, d: usize) -> anyhow::Result<Detection> {
-        if d <= 1 || image.planes.len() != 1 {
-            return self.detect(image);
-        }
-        let mut found = self.detect(&image.upsampled(d))?;
-        for f in &mut found.defects {
-            f.box_px = f.box_px.map(|v| v / d as f32);
-        }
-        Ok(found)
+        at_camera_scale(image, d, |i| self.detect(i))
     }
 
     /// One tile through the network.
@@ -262,6 +255,36 @@ pub fn normalized(pixels: &[f32]) -> Vec<f32> {
         .iter()
         .map(|&p| ((f64::from(p) - mean) * scale) as f32)
         .collect()
+}
+
+/// A finding with boxes in image pixels.
+pub trait Boxed {
+    /// Every box, `[x0, y0, x1, y1]` in pixels.
+    fn boxes_mut(&mut self) -> impl Iterator<Item = &mut [f32; 4]>;
+}
+
+impl Boxed for Detection {
+    fn boxes_mut(&mut self) -> impl Iterator<Item = &mut [f32; 4]> {
+        self.defects.iter_mut().map(|f| &mut f.box_px)
+    }
+}
+
+/// `run` on `image` upsampled `d`× (a strip downsampled on the device, brought back to
+/// the camera's scale a model knows), its boxes scaled back to the image's own pixels.
+/// Images that are not gray go to `run` as they are, to be refused.
+pub fn at_camera_scale<T: Boxed>(
+    image: &Planes,
+    d: usize,
+    run: impl FnOnce(&Planes) -> anyhow::Result<T>,
+) -> anyhow::Result<T> {
+    if d <= 1 || image.planes.len() != 1 {
+        return run(image);
+    }
+    let mut found = run(&image.upsampled(d))?;
+    for b in found.boxes_mut() {
+        *b = b.map(|v| v / d as f32);
+    }
+    Ok(found)
 }
 
 #[cfg(test)]

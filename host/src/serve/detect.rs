@@ -108,7 +108,7 @@ impl LiveModel {
                 let boxes = found
                     .regions
                     .iter()
-                    .map(|r| ("anomaly", r.score, r.box_px))
+                    .map(|r| (crate::detect::anomaly::KIND, r.score, r.box_px))
                     .collect();
                 (boxes, None)
             }

@@ -316,6 +316,15 @@ fn device_of_64_columns() -> rollfuse_core::protocol::DeviceInfo {
     }
 }
 
+/// A gray image of `pixels`, row by row.
+fn gray(width: usize, height: usize, pixels: impl Iterator<Item = u8>) -> crate::image::Planes {
+    crate::image::Planes {
+        width,
+        height,
+        planes: vec![pixels.map(f32::from).collect()],
+    }
+}
+
 /// Cloth of the belt row `row`: a fine irregular texture.
 fn cloth_row(row: usize) -> impl Iterator<Item = u8> {
     (0..64usize).map(move |c| (64 + (row * 37 + c * 11 + (row * c) % 23) * 7 % 128) as u8)
@@ -345,16 +354,7 @@ fn anomaly_mode_boxes_what_departs_from_the_clean_cloth() {
         }
     }
     let clean: Vec<crate::image::Planes> = (0..6)
-        .map(|k| crate::image::Planes {
-            width: 64,
-            height: 96,
-            planes: vec![
-                (0..96)
-                    .flat_map(|r| cloth_row(2000 + 96 * k + r))
-                    .map(f32::from)
-                    .collect(),
-            ],
-        })
+        .map(|k| gray(64, 96, (0..96).flat_map(|r| cloth_row(2000 + 96 * k + r))))
         .collect();
     let model = NormalModel::fit_every_row_alike(&clean).unwrap();
     super::detect::Windows::new(super::detect::LiveModel::Normal(model))
@@ -400,15 +400,9 @@ fn anomaly_mode_on_a_strip_of_another_width_fails_with_the_reason() {
         }
     }
     let wide: Vec<crate::image::Planes> = (0..4)
-        .map(|k| crate::image::Planes {
-            width: 128,
-            height: 64,
-            planes: vec![
-                (0..64)
-                    .flat_map(|r| cloth_row(500 + 64 * k + r).chain(cloth_row(900 + r)))
-                    .map(f32::from)
-                    .collect(),
-            ],
+        .map(|k| {
+            let rows = (0..64).flat_map(|r| cloth_row(500 + 64 * k + r).chain(cloth_row(900 + r)));
+            gray(128, 64, rows)
         })
         .collect();
     let model = NormalModel::fit_every_row_alike(&wide).unwrap();
