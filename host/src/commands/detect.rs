@@ -4,7 +4,10 @@
 use super::bars::{Bars, Show};
 use crate::detect::anomaly::NormalModel;
 use crate::detect::draw::{draw, outline};
+use crate::detect::labels::read_coco;
+use crate::detect::targets::MIN_IOU;
 use crate::detect::train::{TrainOptions, train};
+use crate::detect::tune::{TuneOptions, tune};
 use crate::detect::{Detection, Detector, UNKNOWN_FABRIC, model};
 use crate::files::{Batch, NewFolder, PngLayout, add_png};
 use crate::image::Planes;
@@ -17,25 +20,40 @@ pub struct TrainArgs {
     /// Where to write the model (safetensors).
     #[arg(long)]
     pub out: PathBuf,
-    /// Optimizer steps.
-    #[arg(long, default_value_t = TrainOptions::default().steps)]
-    pub steps: usize,
+    /// Optimizer steps [default: 2500 on simulated rolls, 400 fine-tuning].
+    #[arg(long)]
+    pub steps: Option<usize>,
     /// Simulated training rolls (fabric = seed mod 17, so 17 or a multiple covers every class).
-    #[arg(long, default_value_t = TrainOptions::default().rolls)]
+    #[arg(long, default_value_t = TrainOptions::default().rolls, conflicts_with = "images")]
     pub rolls: usize,
     /// Simulated validation rolls.
-    #[arg(long, default_value_t = TrainOptions::default().validation_rolls)]
+    #[arg(long, default_value_t = TrainOptions::default().validation_rolls, conflicts_with = "images")]
     pub validation_rolls: usize,
-    /// Crops a step.
-    #[arg(long, default_value_t = TrainOptions::default().batch)]
-    pub batch: usize,
-    /// Seed of the initial weights and the crops.
+    /// How the simulated rolls are drawn: `standard` (the simulator's own look) or
+    /// `varied` (lights, gel, defocus and noise drawn for each roll; see docs/detect.md).
+    #[arg(long, default_value = "standard", conflicts_with = "images")]
+    pub style: crate::detect::data::Style,
+    /// Crops a step [default: 16 on simulated rolls, 8 fine-tuning].
+    #[arg(long)]
+    pub batch: Option<usize>,
+    /// Seed of the initial weights and the crops (and, fine-tuning, of the split).
     #[arg(long, default_value_t = TrainOptions::default().seed)]
     pub seed: u64,
-    /// Start from this model's weights instead of new ones; with `--steps 0`, only
-    /// measure it and calibrate its familiarity statistics.
+    /// Start from this model's weights instead of new ones (fine-tuning: instead of the
+    /// built-in model); with `--steps 0`, only measure it and calibrate its familiarity
+    /// statistics.
     #[arg(long)]
     pub from: Option<PathBuf>,
+    /// Fine-tune on your own labelled images in DIR (with `--labels`) instead of training
+    /// on simulated rolls.
+    #[arg(long, requires = "labels")]
+    pub images: Option<PathBuf>,
+    /// The labels of `--images`: a COCO detection file (categories hole, snag, slub).
+    #[arg(long, requires = "images")]
+    pub labels: Option<PathBuf>,
+    /// Fine-tuning: share of the labelled images held out to measure the model on.
+    #[arg(long, default_value_t = TuneOptions::default().validation, requires = "images")]
+    pub validation: f64,
 }
 
 /// Runs `rollfuse train`, showing progress as `show` says.
@@ -46,18 +64,36 @@ pub fn train_run(args: TrainArgs, show: Show) -> anyhow::Result<()> {
         "{}: models are written as safetensors; name the file .safetensors",
         args.out.display()
     );
+    if let Some(path) = &args.from {
+        crate::files::refuse_overwriting(&[args.out.as_path()], &[("model", path)])?;
+    }
     let _folder = NewFolder::for_file(&args.out)?;
+    let started = std::time::Instant::now();
+    let done = match (&args.images, &args.labels) {
+        (Some(images), Some(labels)) => tune_run(&args, images, labels, show)?,
+        _ => train_on_rolls(&args, show)?,
+    };
+    println!(
+        "{done} in {:.0} s → {}",
+        started.elapsed().as_secs_f64(),
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// Trains on simulated rolls and writes the model; what was measured, in words.
+fn train_on_rolls(args: &TrainArgs, show: Show) -> anyhow::Result<String> {
     let opts = TrainOptions {
-        steps: args.steps,
+        steps: args.steps.unwrap_or(TrainOptions::default().steps),
         rolls: args.rolls,
         validation_rolls: args.validation_rolls,
-        batch: args.batch,
+        batch: args.batch.unwrap_or(TrainOptions::default().batch),
         seed: args.seed,
+        style: args.style,
         ..TrainOptions::default()
     };
     let start = match &args.from {
         Some(path) => {
-            crate::files::refuse_overwriting(&[args.out.as_path()], &[("model", path)])?;
             let (net, about) = model::load(path)?;
             anyhow::ensure!(
                 about.widths == opts.widths,
@@ -71,43 +107,92 @@ pub fn train_run(args: TrainArgs, show: Show) -> anyhow::Result<()> {
         None => None,
     };
     let mut made_by = format!(
-        "rollfuse train --steps {} --rolls {} --validation-rolls {} --batch {} --seed {}",
-        args.steps, args.rolls, args.validation_rolls, args.batch, args.seed
+        "rollfuse train --steps {} --rolls {} --validation-rolls {} --batch {} --seed {} --style {}",
+        opts.steps,
+        args.rolls,
+        args.validation_rolls,
+        opts.batch,
+        args.seed,
+        args.style.name()
     );
     if let Some((_, before)) = &start {
         made_by = format!("{before}; then {made_by} --from it");
     }
-    let started = std::time::Instant::now();
     // Kept on the terminal: the loss the training ended at stays readable.
     let (net, about, report) = train(&opts, start.map(|s| s.0), &made_by, &Bars::kept(show))?;
     model::save(&args.out, &net, &about)?;
-    let l = &report.losses;
-    let mean = |s: &[f32]| s.iter().sum::<f32>() / s.len().max(1) as f32;
-    let tail = l.len().min(50);
     let accuracy = |a: Option<f64>| a.map_or("no validation".to_string(), |a| format!("{a:.3}"));
     let familiarity = match (&report.familiarity_missing, report.validation_unfamiliar) {
         (Some(why), _) => format!("no familiarity statistics ({why})"),
         (None, Some(u)) => format!("{:.1} % of validation images called unknown", 100.0 * u),
         (None, None) => "familiarity calibrated".to_string(),
     };
-    let trained = if l.is_empty() {
-        "measured without training".to_string()
-    } else {
-        format!(
-            "trained {} steps: loss {:.3} → {:.3}",
-            l.len(),
-            mean(&l[..tail]),
-            mean(&l[l.len() - tail..])
-        )
-    };
-    println!(
-        "{trained} in {:.0} s; validation fabric accuracy {} on fused tiles, {} on frames; {familiarity} → {}",
-        started.elapsed().as_secs_f64(),
+    Ok(format!(
+        "{}; validation fabric accuracy {} on fused tiles, {} on frames; {familiarity}",
+        trained(&report.losses),
         accuracy(report.validation_fused_accuracy),
         accuracy(report.validation_frame_accuracy),
-        args.out.display()
+    ))
+}
+
+/// Fine-tunes a model on the user's labelled images and writes it; what was measured, in
+/// words.
+fn tune_run(args: &TrainArgs, images: &Path, labels: &Path, show: Show) -> anyhow::Result<String> {
+    let opts = TuneOptions {
+        steps: args.steps.unwrap_or(TuneOptions::default().steps),
+        batch: args.batch.unwrap_or(TuneOptions::default().batch),
+        seed: args.seed,
+        validation: args.validation,
+        ..TuneOptions::default()
+    };
+    let labelled = read_coco(labels, images)?;
+    let start = match &args.from {
+        Some(path) => model::load(path)?,
+        None => model::built_in()?,
+    };
+    let made_by = format!(
+        "{}; then rollfuse train --images {} --labels {} --steps {} --batch {} --seed {} --validation {} from it",
+        start.1.made_by,
+        images.display(),
+        labels.display(),
+        opts.steps,
+        opts.batch,
+        opts.seed,
+        opts.validation
     );
-    Ok(())
+    let (net, about, report) = tune(start, labelled, &opts, &made_by, &Bars::kept(show))?;
+    model::save(&args.out, &net, &about)?;
+    let measured = match (report.before, report.after) {
+        (Some(b), Some(a)) => format!(
+            "on the {} held-out images precision {:.2} → {:.2}, recall {:.2} → {:.2} (kind-aware, IoU ≥ {MIN_IOU})",
+            report.validated_on,
+            b.precision(),
+            a.precision(),
+            b.recall(),
+            a.recall()
+        ),
+        _ => "no images held out to measure it on".to_string(),
+    };
+    Ok(format!(
+        "{} on {} images; {measured}",
+        trained(&report.losses),
+        report.trained_on
+    ))
+}
+
+/// The losses in words: how many steps, and the loss from the first to the last 50.
+fn trained(losses: &[f32]) -> String {
+    if losses.is_empty() {
+        return "measured without training".to_string();
+    }
+    let mean = |s: &[f32]| s.iter().sum::<f32>() / s.len().max(1) as f32;
+    let tail = losses.len().min(50);
+    format!(
+        "trained {} steps: loss {:.3} → {:.3}",
+        losses.len(),
+        mean(&losses[..tail]),
+        mean(&losses[losses.len() - tail..])
+    )
 }
 
 /// Arguments of `rollfuse detect`.

@@ -39,6 +39,16 @@ pub struct Args {
     /// frames) fitted on 20 of its own defect-free frames and scored on the others.
     #[arg(long, requires = "detect", conflicts_with = "model")]
     pub normal: bool,
+    /// With --detect: how the held-out rolls are drawn — `standard` (the simulator's own
+    /// look, which the built-in model was trained on), `oblique` (one low LED, softer gel:
+    /// a look it never saw) or `varied`.
+    #[arg(
+        long,
+        default_value = "standard",
+        requires = "detect",
+        conflicts_with = "normal"
+    )]
+    pub style: crate::detect::data::Style,
     /// With --detect: held-out rolls to simulate (fabric = seed mod 17).
     #[arg(long, default_value_t = 34, requires = "detect")]
     pub rolls: usize,
@@ -151,11 +161,12 @@ fn run_detect(args: &Args, show: Show) -> anyhow::Result<()> {
         None => crate::detect::Detector::built_in()?,
     };
     let shape = crate::detect::data::RollShape::STANDARD;
-    let rows = evaluate_detect(&detector, args.rolls, &shape, &Bars::new(show))?;
+    let rows = evaluate_detect(&detector, args.rolls, &shape, args.style, &Bars::new(show))?;
     let _folder = crate::files::NewFolder::create(&args.out)?;
     let md = format!(
-        "Held-out rolls: {}, model: {}\n\n{}",
+        "Held-out rolls: {}, drawn in the {} style, model: {}\n\n{}",
         held_out(args.rolls),
+        args.style.name(),
         args.model
             .as_ref()
             .map_or("built in".to_string(), |m| m.display().to_string()),

@@ -4,7 +4,7 @@
 
 use super::html::escape;
 use crate::detect::Detector;
-use crate::detect::data::{RollShape, roll};
+use crate::detect::data::{RollShape, Style, roll};
 use crate::detect::draw::draw;
 use crate::eval::detect::{DetectRow, EVAL_SEEDS, evaluate_detect, markdown};
 use crate::files::{Batch, PngLayout, add_png};
@@ -60,7 +60,13 @@ pub fn run(out: &Path) -> anyhow::Result<DetectionDemo> {
         let (w, h, rgb) = draw(image, found);
         add_png(&mut batch, &out.join(name), &rgb, (w, h), PngLayout::Rgb8)?;
     }
-    let rows = evaluate_detect(&detector, TABLE_ROLLS, &RollShape::STANDARD, &Silent)?;
+    let rows = evaluate_detect(
+        &detector,
+        TABLE_ROLLS,
+        &RollShape::STANDARD,
+        Style::Standard,
+        &Silent,
+    )?;
     let table = format!(
         "Held-out rolls: {TABLE_ROLLS} (seeds {EVAL_SEEDS}..{}), the built-in model\n\n{}",
         EVAL_SEEDS + TABLE_ROLLS as u64,

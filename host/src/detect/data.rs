@@ -105,6 +105,93 @@ pub fn roll_scene(seed: u64, shape: &RollShape) -> Scene {
     }
 }
 
+/// How a roll is drawn. The detector is trained on [`Style::Standard`]; [`Style::Oblique`]
+/// is a look it never saw, for measuring how it carries over and for fine-tuning
+/// (`rollfuse train --images`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Style {
+    /// The simulator's own: three LEDs 120° apart, 35° above the gel, seen as a camera's
+    /// luma; gel smoothing a tenth of its thickness.
+    Standard,
+    /// One LED low (20°) from across the belt, a gel half again as soft, half the defocus and
+    /// twice the read noise: shading and blur that differ from the standard look, as
+    /// another sensor or renderer would.
+    Oblique,
+    /// A look drawn from the roll's seed, for training that carries over: two or three
+    /// LEDs anywhere around, 25–50° above the gel; gel smoothing 0.8–1.3 times, defocus
+    /// 0.75–1.5 times and read noise 0.5–1.5 times the standard's. [`Style::Oblique`]
+    /// lies outside it on every count (one LED, at 20°, softer gel, less defocus, more
+    /// noise), so it measures how far such training generalizes.
+    Varied,
+}
+
+impl Style {
+    /// Every style, by the name `--style` takes.
+    pub const NAMED: [(&str, Style); 3] = [
+        ("standard", Style::Standard),
+        ("oblique", Style::Oblique),
+        ("varied", Style::Varied),
+    ];
+
+    /// Redraws `scene` in this style.
+    pub fn apply(self, scene: &mut Scene) {
+        let p = &mut scene.params;
+        match self {
+            Style::Standard => {}
+            Style::Oblique => {
+                // All three LEDs alike: the luma is that one light.
+                let led = Lights::led(0.0, 20.0);
+                scene.lights = Lights {
+                    red: led,
+                    green: led,
+                    blue: led,
+                };
+                p.gel_sigma_per_thickness *= 1.5;
+                p.defocus_sigma_px /= 2.0;
+                p.read_noise *= 2.0;
+            }
+            Style::Varied => {
+                let mut rng = Pcg64Mcg::seed_from_u64(scene.seed ^ 0x57_11E5);
+                let three = rng.random_bool(0.5);
+                let mut draw =
+                    || Lights::led(rng.random_range(0.0..360.0), rng.random_range(25.0..50.0));
+                let (red, green) = (draw(), draw());
+                // Two LEDs: the third shines with the second.
+                let blue = if three { draw() } else { green };
+                scene.lights = Lights { red, green, blue };
+                p.gel_sigma_per_thickness *= rng.random_range(0.8..1.3);
+                p.defocus_sigma_px *= rng.random_range(0.75..1.5);
+                p.read_noise *= rng.random_range(0.5..1.5);
+            }
+        }
+    }
+}
+
+impl std::str::FromStr for Style {
+    type Err = String;
+
+    fn from_str(name: &str) -> Result<Self, String> {
+        Style::NAMED
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|&(_, s)| s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Style::NAMED.iter().map(|(n, _)| *n).collect();
+                format!("{name:?} is not a style ({})", names.join(", "))
+            })
+    }
+}
+
+impl Style {
+    /// The name `--style` takes.
+    pub fn name(self) -> &'static str {
+        Style::NAMED
+            .iter()
+            .find(|(_, s)| *s == self)
+            .map_or("standard", |(n, _)| n)
+    }
+}
+
 /// A simulated roll's labelled images.
 pub struct Roll {
     /// The fabric's label.
@@ -149,7 +236,13 @@ pub fn class_of(seed: u64) -> usize {
 
 /// Renders and fuses roll `seed`.
 pub fn roll(seed: u64, shape: &RollShape) -> anyhow::Result<Roll> {
-    let scene = roll_scene(seed, shape);
+    roll_in_style(seed, shape, Style::Standard)
+}
+
+/// Renders and fuses roll `seed`, drawn in `style`.
+pub fn roll_in_style(seed: u64, shape: &RollShape, style: Style) -> anyhow::Result<Roll> {
+    let mut scene = roll_scene(seed, shape);
+    style.apply(&mut scene);
     let class = class_of(seed);
     let sim = Simulator::new(&scene)?;
     let (frames, commanded) = frames(&sim, class);
@@ -226,4 +319,50 @@ pub fn cut(strip: &Sample, rows: usize) -> anyhow::Result<Vec<Sample>> {
             })
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An LED's elevation above the gel, degrees.
+    fn elevation(led: [f64; 3]) -> f64 {
+        led[2].asin().to_degrees()
+    }
+
+    #[test]
+    fn varied_looks_stay_in_their_ranges_and_the_oblique_lies_outside() {
+        let shape = RollShape::STANDARD;
+        let standard = roll_scene(1, &shape);
+        for seed in 0..50 {
+            let mut scene = roll_scene(seed, &shape);
+            Style::Varied.apply(&mut scene);
+            let l = &scene.lights;
+            for led in [l.red, l.green, l.blue] {
+                assert!((25.0..50.0).contains(&elevation(led)), "{seed}: {l:?}");
+            }
+            let gel =
+                scene.params.gel_sigma_per_thickness / standard.params.gel_sigma_per_thickness;
+            assert!((0.8..1.3).contains(&gel), "{seed}: {gel}");
+            // The same seed, the same look.
+            let mut again = roll_scene(seed, &shape);
+            Style::Varied.apply(&mut again);
+            assert_eq!(scene, again);
+        }
+        let mut oblique = roll_scene(1, &shape);
+        Style::Oblique.apply(&mut oblique);
+        assert!((elevation(oblique.lights.red) - 20.0).abs() < 1e-9);
+        assert_eq!(oblique.lights.red, oblique.lights.blue);
+        let names: Vec<Style> = Style::NAMED
+            .iter()
+            .map(|(n, _)| n.parse().unwrap())
+            .collect();
+        assert_eq!(names, [Style::Standard, Style::Oblique, Style::Varied]);
+        assert!(
+            "glossy"
+                .parse::<Style>()
+                .unwrap_err()
+                .contains("standard, oblique, varied")
+        );
+    }
 }

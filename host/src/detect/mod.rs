@@ -9,16 +9,19 @@
 //! - [`data`]: training and evaluation images from simulated rolls.
 //! - [`draw`]: boxes drawn on the image.
 //! - [`train`]: the training loop.
+//! - [`labels`], [`tune`]: the user's labelled images (COCO), and fine-tuning on them.
 
 pub mod anomaly;
 pub mod cells;
 pub mod data;
 pub mod draw;
 pub mod familiar;
+pub mod labels;
 pub mod model;
 pub mod net;
 pub mod targets;
 pub mod train;
+pub mod tune;
 
 use crate::image::Planes;
 use anyhow::{Context, ensure};
@@ -107,16 +110,8 @@ impl Detector {
     /// longer than [`TILE_ROWS`] are run in overlapping tiles, the fabric's probabilities
     /// averaged over them by rows. Boxes are clipped to the image.
     pub fn detect(&self, image: &Planes) -> anyhow::Result<Detection> {
-        ensure!(
-            image.planes.len() == 1,
-            "the detector takes gray images, this one has {} channels",
-            image.planes.len()
-        );
+        check_input(image)?;
         let (w, h) = (image.width, image.height);
-        ensure!(
-            w >= MIN_SIDE && h >= MIN_SIDE,
-            "the image is {w}×{h}, smaller than the detector's {MIN_SIDE}×{MIN_SIDE}"
-        );
         let classes = self.about.fabrics.len();
         let mut mean = vec![0f32; classes];
         let mut defects = Vec::new();
@@ -208,6 +203,21 @@ struct TileOutput {
     probabilities: Vec<f32>,
     /// Decoded boxes.
     found: Vec<Found>,
+}
+
+/// Whether the detector takes `image`: gray, at least [`MIN_SIDE`] on each side.
+pub fn check_input(image: &Planes) -> anyhow::Result<()> {
+    ensure!(
+        image.planes.len() == 1,
+        "the detector takes gray images, this one has {} channels",
+        image.planes.len()
+    );
+    let (w, h) = (image.width, image.height);
+    ensure!(
+        w >= MIN_SIDE && h >= MIN_SIDE,
+        "the image is {w}×{h}, smaller than the detector's {MIN_SIDE}×{MIN_SIDE}"
+    );
+    Ok(())
 }
 
 /// A tensor's values, row-major.

@@ -7,6 +7,8 @@
 use crate::sim::textile::DefectKind;
 use serde::Serialize;
 
+/// Overlap a detection needs with a true defect of its kind to count as found.
+pub const MIN_IOU: f32 = 0.3;
 /// Image pixels an output cell.
 pub const STRIDE: usize = 8;
 /// Defect kinds (heatmap channels).
@@ -218,12 +220,27 @@ pub struct Tally {
 }
 
 impl Tally {
+    /// Hits over detections (0 with none).
+    pub fn precision(&self) -> f64 {
+        share(self.hits, self.hits + self.false_alarms)
+    }
+
+    /// Hits over true defects (0 with none).
+    pub fn recall(&self) -> f64 {
+        share(self.hits, self.hits + self.misses)
+    }
+
     /// Adds another tally.
     pub fn add(&mut self, o: Tally) {
         self.hits += o.hits;
         self.false_alarms += o.false_alarms;
         self.misses += o.misses;
     }
+}
+
+/// `a / b`, 0 when `b` is 0 (a share of nothing).
+pub fn share(a: usize, b: usize) -> f64 {
+    if b == 0 { 0.0 } else { a as f64 / b as f64 }
 }
 
 /// Matches `found` (best first) greedily to `truth` of the same kind at IoU ≥ `min_iou`.
@@ -260,6 +277,19 @@ pub fn tally_ignoring(
     }
     t.misses = taken.iter().filter(|&&x| !x).count();
     t
+}
+
+/// [`tally_ignoring`] with every kind taken as one: was each defect boxed at all?
+pub fn tally_any_kind(
+    found: &[Found],
+    truth: &[Labelled],
+    ignored: &[Labelled],
+    min_iou: f32,
+) -> Tally {
+    let one = DefectKind::ALL[0];
+    let found: Vec<Found> = found.iter().map(|&f| Found { kind: one, ..f }).collect();
+    let truth: Vec<Labelled> = truth.iter().map(|&b| Labelled { kind: one, ..b }).collect();
+    tally_ignoring(&found, &truth, ignored, min_iou)
 }
 
 #[cfg(test)]
@@ -326,6 +356,10 @@ mod tests {
         }];
         let r = tally(&found, &truth, 0.3);
         assert_eq!((r.hits, r.false_alarms, r.misses), (0, 1, 1));
+        // Taking every kind as one, the box found it.
+        let r = tally_any_kind(&found, &truth, &[], 0.3);
+        assert_eq!((r.hits, r.false_alarms, r.misses), (1, 0, 0));
+        assert_eq!((r.precision(), r.recall()), (1.0, 1.0));
         let r = tally_ignoring(&found, &[], &truth, 0.3);
         assert_eq!((r.hits, r.false_alarms, r.misses), (0, 0, 0));
         assert!((iou([0.0, 0.0, 10.0, 10.0], [5.0, 0.0, 15.0, 10.0]) - 1.0 / 3.0).abs() < 1e-6);

@@ -5,7 +5,7 @@
 //! `rollfuse eval --detect` measures on seeds below [`TRAIN_SEEDS`], which training never
 //! touches.
 
-use super::data::{Roll, RollShape, Sample, Source, roll};
+use super::data::{Roll, RollShape, Sample, Source, Style, roll_in_style};
 use super::familiar::{Familiarity, Kind, Places};
 use super::model::About;
 use super::net::{Net, Widths};
@@ -56,6 +56,8 @@ pub struct TrainOptions {
     pub widths: Widths,
     /// The rolls' shape.
     pub shape: RollShape,
+    /// How the rolls are drawn.
+    pub style: Style,
 }
 
 impl Default for TrainOptions {
@@ -71,6 +73,7 @@ impl Default for TrainOptions {
             seed: 1,
             widths: Widths::SHIPPED,
             shape: RollShape::STANDARD,
+            style: Style::Standard,
         }
     }
 }
@@ -95,6 +98,7 @@ pub fn rolls(
     first_seed: u64,
     count: usize,
     shape: &RollShape,
+    style: Style,
     mut done: impl FnMut(usize),
 ) -> anyhow::Result<Vec<Roll>> {
     let (tx, rx) = std::sync::mpsc::channel();
@@ -103,7 +107,7 @@ pub fn rolls(
             (0..count as u64)
                 .into_par_iter()
                 .map(|k| {
-                    let r = roll(first_seed + k, shape);
+                    let r = roll_in_style(first_seed + k, shape, style);
                     let _ = tx.send(());
                     r
                 })
@@ -155,12 +159,16 @@ pub fn train(
     );
     let total = opts.rolls + opts.validation_rolls;
     progress.start("simulating and fusing", Some(total as u64), "rolls");
-    let train_rolls = rolls(TRAIN_SEEDS, opts.rolls, &opts.shape, |n| {
+    let train_rolls = rolls(TRAIN_SEEDS, opts.rolls, &opts.shape, opts.style, |n| {
         progress.advance_to(n as u64)
     })?;
-    let validation = rolls(VALIDATION_SEEDS, opts.validation_rolls, &opts.shape, |n| {
-        progress.advance_to((opts.rolls + n) as u64)
-    })?;
+    let validation = rolls(
+        VALIDATION_SEEDS,
+        opts.validation_rolls,
+        &opts.shape,
+        opts.style,
+        |n| progress.advance_to((opts.rolls + n) as u64),
+    )?;
     progress.finish();
     let frames: Vec<&Sample> = train_rolls.iter().flat_map(|r| &r.frames).collect();
     let fused: Vec<&Sample> = train_rolls.iter().flat_map(|r| &r.fused).collect();
@@ -168,15 +176,15 @@ pub fn train(
 
     let device = Device::flex().autodiff();
     device.seed(opts.seed);
-    let mut net = match start {
+    let net = match start {
         Some(net) => net.to_device(&device),
         None => Net::new(opts.widths, FABRICS.len(), &device),
     };
-    let mut optim = AdamWConfig::new().init();
-    let mut rng = Pcg64Mcg::seed_from_u64(opts.seed);
-    let mut losses = Vec::with_capacity(opts.steps);
-    progress.start("training", Some(opts.steps as u64), "steps");
-    for step in 0..opts.steps {
+    let schedule = Schedule {
+        steps: opts.steps,
+        rate: opts.rate,
+    };
+    let (net, losses) = optimize(net, &schedule, opts.seed, progress, |rng| {
         let crops: Vec<Crop> = (0..opts.batch)
             .map(|_| {
                 // Half the crops from fused tiles, half from frames.
@@ -185,27 +193,17 @@ pub fn train(
                 } else {
                     &frames
                 };
-                crop(pool[rng.random_range(0..pool.len())], opts.crop, &mut rng)
+                crop(pool[rng.random_range(0..pool.len())], opts.crop, rng)
             })
             .collect();
-        let batch = Batch::new(&crops, &device);
-        let loss = losses_of(&net, &batch);
-        losses.push(floats(loss.clone())?.first().copied().unwrap_or(f32::NAN));
-        let grads = GradientsParams::from_grads(loss.backward(), &net);
-        let t = step as f64 / opts.steps.max(1) as f64;
-        let rate = 1e-5 + (opts.rate - 1e-5) * (1.0 + (std::f64::consts::PI * t).cos()) / 2.0;
-        net = optim.step(rate, net, grads);
-        progress.advance_to(step as u64 + 1);
-        progress.message(&format!("loss {:.3}", losses[step]));
-    }
-    progress.finish();
+        Batch::new(&crops, &device)
+    })?;
     let about = About {
         widths: opts.widths,
         fabrics: FABRICS.iter().map(|f| f.name.to_string()).collect(),
         made_by: made_by.to_string(),
         familiarity: None,
     };
-    let net = net.valid();
     let validation: Vec<&Sample> = validation
         .iter()
         .flat_map(|r| r.frames.iter().chain(&r.fused))
@@ -287,12 +285,69 @@ fn calibrate(
     ))
 }
 
+/// How many optimizer steps, at what peak rate.
+pub struct Schedule {
+    /// Optimizer steps.
+    pub steps: usize,
+    /// Peak learning rate; it decays to 10⁻⁵ by a cosine.
+    pub rate: f64,
+}
+
+/// Trains `net` (on an autodiff device) for the schedule's steps with AdamW, each step on
+/// the batch `draw` makes from the crops' random source (seeded by `seed`). Returns the
+/// network for inference and the loss of every step; `progress` sees the steps.
+pub fn optimize(
+    net: Net,
+    schedule: &Schedule,
+    seed: u64,
+    progress: &dyn Progress,
+    mut draw: impl FnMut(&mut Pcg64Mcg) -> Batch,
+) -> anyhow::Result<(Net, Vec<f32>)> {
+    // A loaded network's parameters are frozen until put back in training.
+    let mut net = net.train();
+    let mut optim = AdamWConfig::new().init();
+    let mut rng = Pcg64Mcg::seed_from_u64(seed);
+    let mut losses = Vec::with_capacity(schedule.steps);
+    progress.start("training", Some(schedule.steps as u64), "steps");
+    for step in 0..schedule.steps {
+        let batch = draw(&mut rng);
+        let loss = losses_of(&net, &batch);
+        let value = floats(loss.clone())?.first().copied().unwrap_or(f32::NAN);
+        ensure!(
+            value.is_finite(),
+            "training diverged at step {}: the loss is {value}",
+            step + 1
+        );
+        losses.push(value);
+        let grads = GradientsParams::from_grads(loss.backward(), &net);
+        let t = step as f64 / schedule.steps.max(1) as f64;
+        let peak = schedule.rate;
+        let rate = 1e-5 + (peak - 1e-5) * (1.0 + (std::f64::consts::PI * t).cos()) / 2.0;
+        net = optim.step(rate, net, grads);
+        progress.advance_to(step as u64 + 1);
+        progress.message(&format!("loss {value:.3}"));
+    }
+    progress.finish();
+    Ok((net.valid(), losses))
+}
+
 /// A training crop: normalized pixels, targets and the fabric's label.
 pub struct Crop {
     pixels: Vec<f32>,
     side: usize,
     targets: Targets,
-    class: usize,
+    /// None where the fabric is not known (the user's labelled images).
+    class: Option<usize>,
+}
+
+impl Crop {
+    /// The crop without its fabric's label: it trains the defect heads only.
+    pub fn without_fabric(self) -> Self {
+        Self {
+            class: None,
+            ..self
+        }
+    }
 }
 
 /// A random `side × side` crop of `s`; half the time placed to hold one of its defects.
@@ -340,23 +395,25 @@ pub fn crop(s: &Sample, side: usize, rng: &mut Pcg64Mcg) -> Crop {
         pixels: normalized(&pixels),
         side,
         targets: encode(&shift(&s.boxes), &shift(&s.blurred), side, side),
-        class: s.class,
+        class: Some(s.class),
     }
 }
 
 /// A batch as tensors.
-struct Batch {
+pub struct Batch {
     images: Tensor<4>,
     heat: Tensor<4>,
     size: Tensor<4>,
     offset: Tensor<4>,
     mask: Tensor<4>,
     counted: Tensor<4>,
-    classes: Tensor<1, Int>,
+    /// The fabrics, where every crop's is known.
+    classes: Option<Tensor<1, Int>>,
 }
 
 impl Batch {
-    fn new(crops: &[Crop], device: &Device) -> Self {
+    /// Stacks `crops` (all of one side) on `device`.
+    pub fn new(crops: &[Crop], device: &Device) -> Self {
         let b = crops.len();
         let side = crops[0].side;
         let (gw, gh) = crops[0].targets.cells;
@@ -372,17 +429,18 @@ impl Batch {
             offset: stack(&|k| &k.targets.offset, 2, cells),
             mask: stack(&|k| &k.targets.mask, 1, cells),
             counted: stack(&|k| &k.targets.counted, 1, cells),
-            classes: Tensor::<1, Int>::from_data(
-                TensorData::new(crops.iter().map(|k| k.class as i64).collect(), [b]),
-                device,
-            ),
+            classes: crops
+                .iter()
+                .map(|k| k.class.map(|c| c as i64))
+                .collect::<Option<Vec<_>>>()
+                .map(|c| Tensor::<1, Int>::from_data(TensorData::new(c, [b]), device)),
         }
     }
 }
 
 /// The training loss of a batch: CenterNet's focal loss on the heatmap (negatives near a
 /// blurred defect not counted), L1 on sizes (weighted 0.1) and offsets at the centres,
-/// and cross-entropy on the fabric.
+/// and cross-entropy on the fabric where the crops' fabrics are known.
 fn losses_of(net: &Net, batch: &Batch) -> Tensor<1> {
     let raw = net.forward(batch.images.clone());
     let positives = batch.mask.clone().sum().clamp_min(1.0);
@@ -406,10 +464,16 @@ fn losses_of(net: &Net, batch: &Batch) -> Tensor<1> {
     };
     let size = l1(raw.size, batch.size.clone()).mul_scalar(0.1);
     let offset = l1(raw.offset, batch.offset.clone());
-    let fabric = CrossEntropyLossConfig::new()
-        .init(&raw.fabric.device())
-        .forward(raw.fabric, batch.classes.clone());
-    heat + size + offset + fabric
+    let loss = heat + size + offset;
+    match &batch.classes {
+        Some(classes) => {
+            let fabric = CrossEntropyLossConfig::new()
+                .init(&raw.fabric.device())
+                .forward(raw.fabric, classes.clone());
+            loss + fabric
+        }
+        None => loss,
+    }
 }
 
 #[cfg(test)]
@@ -433,6 +497,7 @@ mod tests {
                 size: (64, 64),
                 defects: 1,
             },
+            style: Style::Standard,
         };
         let (net, about, report) = train(&opts, None, "test", &crate::progress::Silent).unwrap();
         assert_eq!(about.fabrics.len(), 17);

@@ -332,22 +332,22 @@ pub struct Lights {
     pub blue: [f64; 3],
 }
 
+impl Lights {
+    /// The direction of an LED at `azimuth_deg` around the camera, `elevation_deg` above
+    /// the gel plane.
+    pub fn led(azimuth_deg: f64, elevation_deg: f64) -> [f64; 3] {
+        let (a, e) = (azimuth_deg.to_radians(), elevation_deg.to_radians());
+        [e.cos() * a.cos(), e.cos() * a.sin(), e.sin()]
+    }
+}
+
 impl Default for Lights {
     /// Three LEDs at 120° around the camera, 35° above the gel plane.
     fn default() -> Self {
-        let elevation = 35f64.to_radians();
-        let at = |azimuth_deg: f64| {
-            let a = azimuth_deg.to_radians();
-            [
-                elevation.cos() * a.cos(),
-                elevation.cos() * a.sin(),
-                elevation.sin(),
-            ]
-        };
         Self {
-            red: at(90.0),
-            green: at(210.0),
-            blue: at(330.0),
+            red: Self::led(90.0, 35.0),
+            green: Self::led(210.0, 35.0),
+            blue: Self::led(330.0, 35.0),
         }
     }
 }
