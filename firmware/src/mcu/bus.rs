@@ -7,7 +7,7 @@ use super::Irqs;
 use core::sync::atomic::Ordering;
 use embassy_stm32::peripherals::{PA11, PA12, USB_OTG_FS};
 use embassy_stm32::{Peri, usb};
-use embassy_usb::UsbDevice;
+use embassy_usb::{UsbDevice, msos};
 use rollfuse_core::protocol::usb as wire;
 use rollfuse_fw::roller;
 use rollfuse_fw::signals::{self, BUS_LOST};
@@ -51,6 +51,7 @@ struct Memory {
     ep_out: [u8; 256],
     config_descriptor: [u8; 256],
     bos_descriptor: [u8; 256],
+    msos_descriptor: [u8; 256],
     control: [u8; 64],
     events: BusEvents,
 }
@@ -59,9 +60,17 @@ static MEMORY: ConstStaticCell<Memory> = ConstStaticCell::new(Memory {
     ep_out: [0; 256],
     config_descriptor: [0; 256],
     bos_descriptor: [0; 256],
+    msos_descriptor: [0; 256],
     control: [0; 64],
     events: BusEvents,
 });
+
+/// The vendor request Windows sends to read the MS OS 2.0 descriptor set (the link itself
+/// uses no control requests, so any code is free).
+const MSOS_VENDOR_CODE: u8 = 0x01;
+/// The device interface GUID Windows registers for the module's WinUSB interface (made
+/// once for rollfuse; libusb finds WinUSB devices without it, other WinUSB clients by it).
+const DEVICE_INTERFACE_GUIDS: &[&str] = &["{ABC3F981-75DF-49CA-A97F-20FF5AB2FDA3}"];
 
 /// Builds the device and its two endpoints (call once: it takes the buffers).
 pub fn start(
@@ -87,10 +96,18 @@ pub fn start(
         config,
         &mut m.config_descriptor,
         &mut m.bos_descriptor,
-        &mut [],
+        &mut m.msos_descriptor,
         &mut m.control,
     );
     builder.handler(&mut m.events);
+    // Microsoft OS 2.0 descriptors: Windows (8.1 and later) binds its own WinUSB driver to
+    // the module on first plug-in, so rusb/libusb reach it with no INF file or Zadig.
+    builder.msos_descriptor(msos::windows_version::WIN8_1, MSOS_VENDOR_CODE);
+    builder.msos_feature(msos::CompatibleIdFeatureDescriptor::new("WINUSB", ""));
+    builder.msos_feature(msos::RegistryPropertyFeatureDescriptor::new(
+        "DeviceInterfaceGUIDs",
+        msos::PropertyData::RegMultiSz(DEVICE_INTERFACE_GUIDS),
+    ));
     let mut function = builder.function(wire::VENDOR_CLASS, 0, 0);
     let mut interface = function.interface();
     let mut alt = interface.alt_setting(wire::VENDOR_CLASS, 0, 0, None);
