@@ -171,6 +171,18 @@ fn train_fine_tunes_on_a_coco_file_from_the_command_line() {
         &[&args[..], &["--validation", "0.95"]].concat(),
         "validation share must be in 0..0.9",
     );
+    // The model may not be written over its labels.
+    let odd = tmp.path().join("labels.safetensors");
+    std::fs::copy(&labels, &odd).unwrap();
+    let o = odd.to_str().unwrap();
+    fails(
+        &["train", "--images", dir, "--labels", o, "--out", o],
+        "refusing to overwrite an input",
+    );
+    assert_eq!(
+        std::fs::read(&odd).unwrap(),
+        std::fs::read(&labels).unwrap()
+    );
     fails(
         &["eval", "--detect", "--style", "glossy", "--out", dir],
         "\"glossy\" is not a style (standard, oblique, varied)",

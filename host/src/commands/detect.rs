@@ -64,9 +64,11 @@ pub fn train_run(args: TrainArgs, show: Show) -> anyhow::Result<()> {
         "{}: models are written as safetensors; name the file .safetensors",
         args.out.display()
     );
-    if let Some(path) = &args.from {
-        crate::files::refuse_overwriting(&[args.out.as_path()], &[("model", path)])?;
-    }
+    let inputs: Vec<(&str, &Path)> = [("model", &args.from), ("labels", &args.labels)]
+        .into_iter()
+        .filter_map(|(what, path)| Some((what, path.as_deref()?)))
+        .collect();
+    crate::files::refuse_overwriting(&[args.out.as_path()], &inputs)?;
     let _folder = NewFolder::for_file(&args.out)?;
     let started = std::time::Instant::now();
     let done = match (&args.images, &args.labels) {

@@ -21,6 +21,9 @@ use std::path::{Path, PathBuf};
 pub const MAX_LABELS_BYTES: u64 = 64 << 20;
 /// Most images one labels file lists.
 pub const MAX_IMAGES: usize = 100_000;
+/// Most pixels of all the listed images together (they are held at once, 4 bytes a
+/// pixel: 1 GiB).
+pub const MAX_TOTAL_PIXELS: usize = 1 << 28;
 
 /// One labelled image.
 #[derive(Debug, Clone)]
@@ -115,11 +118,19 @@ pub fn read_coco(labels: &Path, images: &Path) -> anyhow::Result<Vec<LabelledIma
             box_px: [x, y, x + w, y + h].map(|v| v as f32),
         });
     }
+    let mut pixels = 0usize;
     coco.images
         .iter()
         .map(|i| {
             let boxes = boxes.remove(&i.id).unwrap_or_default();
-            load(i, boxes, images)
+            let loaded = load(i, boxes, images)?;
+            pixels += loaded.image.width * loaded.image.height;
+            ensure!(
+                pixels <= MAX_TOTAL_PIXELS,
+                "labels {shown}: its images hold more than the {MAX_TOTAL_PIXELS} pixels \
+                 fine-tuning reads at once; give fewer"
+            );
+            Ok(loaded)
         })
         .collect()
 }
