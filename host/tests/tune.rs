@@ -17,7 +17,6 @@ fn tiles(seeds: std::ops::Range<u64>, shape: &RollShape, style: Style) -> Vec<La
     seeds
         .flat_map(|seed| roll_in_style(seed, shape, style).unwrap().fused)
         .map(|s| LabelledImage {
-            path: "simulated".into(),
             image: s.image,
             boxes: s.boxes,
         })

@@ -133,6 +133,14 @@ impl Style {
         ("varied", Style::Varied),
     ];
 
+    /// The name `--style` takes.
+    pub fn name(self) -> &'static str {
+        Style::NAMED
+            .iter()
+            .find(|(_, s)| *s == self)
+            .map_or("standard", |(n, _)| n)
+    }
+
     /// Redraws `scene` in this style.
     pub fn apply(self, scene: &mut Scene) {
         let p = &mut scene.params;
@@ -179,16 +187,6 @@ impl std::str::FromStr for Style {
                 let names: Vec<&str> = Style::NAMED.iter().map(|(n, _)| *n).collect();
                 format!("{name:?} is not a style ({})", names.join(", "))
             })
-    }
-}
-
-impl Style {
-    /// The name `--style` takes.
-    pub fn name(self) -> &'static str {
-        Style::NAMED
-            .iter()
-            .find(|(_, s)| *s == self)
-            .map_or("standard", |(n, _)| n)
     }
 }
 

@@ -15,7 +15,7 @@ use crate::sim::textile::DefectKind;
 use anyhow::{Context, bail, ensure};
 use serde::Deserialize;
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Largest labels file read, bytes.
 pub const MAX_LABELS_BYTES: u64 = 64 << 20;
@@ -28,8 +28,6 @@ pub const MAX_TOTAL_PIXELS: usize = 1 << 28;
 /// One labelled image.
 #[derive(Debug, Clone)]
 pub struct LabelledImage {
-    /// Where it was read from.
-    pub path: PathBuf,
     /// The gray image.
     pub image: Planes,
     /// Its defects, in pixels.
@@ -186,7 +184,7 @@ fn load(i: &CocoImage, boxes: Vec<Labelled>, dir: &Path) -> anyhow::Result<Label
             Ok(b)
         })
         .collect::<anyhow::Result<_>>()?;
-    Ok(LabelledImage { path, image, boxes })
+    Ok(LabelledImage { image, boxes })
 }
 
 #[cfg(test)]
