@@ -8,6 +8,8 @@
 #     priority), and the same run with the roller in thread mode, as the firmware once
 #     ran it, is later than that (so the measurement can tell);
 #   - a host that stops reading stops the roller within the heartbeat and 0.5 s;
+#   - a Stop reaches the roller within 10 ms while the link's send is stuck on a host
+#     that reads nothing;
 #   - the pipeline keeps up with the sensor: at least 57 of the 60 frames it sends in the
 #     two-second window are fused;
 #   - the tiles' USB load while streaming is under half of full speed's bulk rate
@@ -70,6 +72,7 @@ awk '
     /^as the firmware once ran it, step lateness:/ { thread_late = $9 }
     /^host gone: roller stopped/ { stopped_ms = $5; heartbeat_ms = $12 + 0 }
     /final status received/ { ended = 1 }
+    /^stop while sending: roller told to stop/ { stop_us = $8 }
     /^watchdog:/ { missed = $2 }
     /^stack guard: hard fault/ { guarded = 1 }
     END {
@@ -78,6 +81,7 @@ awk '
         if (late == "" || late > 50) bad = bad "\n  a step came " late " us late (bound 50 us)"
         if (thread_late == "" || thread_late <= 50) bad = bad "\n  thread mode was not later than the bound: the lateness measurement cannot tell"
         if (stopped_ms == "" || stopped_ms > heartbeat_ms + 500) bad = bad "\n  the roller did not stop within the heartbeat and 0.5 s"
+        if (stop_us == "" || stop_us > 10000) bad = bad "\n  a Stop sent during a stuck send reached the roller after " stop_us " us (bound 10 ms)"
         if (fused == "" || fused < 57) bad = bad "\n  " fused " frames fused in the window (at least 57 of the 60 the sensor sends)"
         if (load == "" || load > 615) bad = bad "\n  the tiles took " load " kB/s of USB (bound 615 kB/s)"
         if (!ended) bad = bad "\n  the final status did not arrive"

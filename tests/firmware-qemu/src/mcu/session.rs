@@ -86,10 +86,45 @@ pub async fn run(steps: &AtomicU32) {
         if ended { "received" } else { "MISSING" }
     );
 
+    stop_while_sending(&mut host).await;
     host_goes_silent(&mut host, steps).await;
     hprintln!(
         "watchdog: {} looks found a task late",
         MISSED_BEATS.load(Relaxed)
+    );
+}
+
+/// The roller turning and tiles streaming, the host stops reading and then sends a Stop:
+/// how soon the roller is told, with the link's send stuck on the host.
+async fn stop_while_sending(host: &mut Host) {
+    host.send(Command::StreamStart).await;
+    host.send(Command::Roller(RollerCommand::Start {
+        speed_um_s: SPEED_UM_S,
+    }))
+    .await;
+    Timer::after_millis(500).await;
+    usb::HOST_READS.store(false, Relaxed);
+    // Past a frame's time: a tile is in flight, stuck.
+    Timer::after_millis(100).await;
+    let stops = roller::stops_requested();
+    let sent_at = Instant::now();
+    host.send(Command::Roller(RollerCommand::Stop)).await;
+    // Looked at every 100 us: the bound checked is 10 ms.
+    while roller::stops_requested() == stops && sent_at.elapsed() < Duration::from_millis(500) {
+        Timer::after_micros(100).await;
+    }
+    let (acted, took) = (roller::stops_requested() != stops, sent_at.elapsed());
+    usb::HOST_READS.store(true, Relaxed);
+    host.send(Command::StreamStop).await;
+    Timer::after_millis(500).await;
+    hprintln!(
+        "stop while sending: {} {} us after the Stop was sent, the link's send stuck on a host that reads nothing",
+        if acted {
+            "roller told to stop"
+        } else {
+            "roller NOT TOLD TO STOP"
+        },
+        took.as_micros()
     );
 }
 
