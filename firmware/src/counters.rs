@@ -62,5 +62,6 @@ impl Counters {
         status.frames_rejected = self.frames_rejected.load(Relaxed);
         status.tiles_emitted = self.tiles_emitted.load(Relaxed);
         status.tiles_dropped = self.tiles_dropped.load(Relaxed);
+        crate::cycles::merge_into(status);
     }
 }

@@ -9,7 +9,8 @@
 //! - [`roller`]: the stepper's steps and frame triggers, and the stop path no queue holds;
 //!   [`frame_clock`]: the step count at which a captured frame began.
 //! - [`effects`]: accepted commands' effects to the LEDs, the roller and the pipeline.
-//! - [`liveness`]: what the watchdog is fed on; [`counters`]: what `Status` reports;
+//! - [`liveness`]: what the watchdog is fed on; [`counters`] and [`cycles`]: what `Status`
+//!   reports;
 //!   [`signals`]: the queues and signals between the tasks.
 //! - [`buffers`]: the large statics; `stack_guard` (MCU only): the MPU region below the
 //!   stack.
@@ -19,6 +20,7 @@ pub mod log;
 
 pub mod buffers;
 pub mod counters;
+pub mod cycles;
 pub mod effects;
 pub mod frame_clock;
 pub mod link;

@@ -6,7 +6,7 @@
 use crate::counters::COUNTERS;
 use crate::outbox::{self, Kind};
 use crate::signals::{self, STOP_STREAM, STREAM, StreamOrder, TRIGGERS};
-use crate::{frame_clock, fw_info, fw_warn, liveness, roller};
+use crate::{cycles, frame_clock, fw_info, fw_warn, liveness, roller};
 use embassy_futures::join::join;
 use embassy_futures::select::{Either4, select4};
 use embassy_time::{Duration, Timer, with_timeout};
@@ -183,14 +183,14 @@ async fn on_trigger(
             return;
         }
         if !next_capture_waits() {
-            session.fuse_taken(position_px, &mut Outbox);
+            cycles::timed(|| session.fuse_taken(position_px, &mut Outbox));
             return;
         }
         liveness::beat(liveness::Task::Pipeline);
         armed = frame_clock::arm();
         // The capture is armed when first polled, which `join` does before the fusion.
         let fusion = async {
-            session.fuse_taken(position_px, &mut Outbox);
+            cycles::timed(|| session.fuse_taken(position_px, &mut Outbox));
         };
         (capture, ()) = join(snapshot(camera, frame), fusion).await;
     }

@@ -14,6 +14,17 @@
 //! anyway so the rate does not rest on a reset value); CLKRC 3 gives PCLK 10.67 MHz, 33.3
 //! frames/s bare, and 31 dummy lines (ADVFL) bring a frame to 309 lines: 29.97 frames/s,
 //! a line 108 µs, 69 lines (7.5 ms) of vertical blanking.
+//!
+//! Exposure is fixed, not automatic: the module's LEDs are its only light, and an
+//! automatic exposure free to lengthen up to a frame (33 ms) would smear the moving belt
+//! over many pixels. It is capped so the belt at its design speed moves at most half a
+//! pixel while a row is exposed (AEC off in COM8, the time in lines in AECH:AEC); the gain
+//! stays automatic (AGC).
+//!
+//! ```text
+//! exposure lines = ⌊ blur budget (½ px × 50 µm) / belt speed / line time ⌋
+//!                = ⌊ 25 µm / 26 mm/s / 108 µs ⌋ = 8 lines (0.86 ms)
+//! ```
 
 use rollfuse_core::device::CAMERA;
 
@@ -29,10 +40,16 @@ pub enum Reg {
     Com3 = 0x0C,
     /// Common control 4: PLL multiplier (bits 7..6).
     Com4 = 0x0D,
+    /// Exposure in lines, high byte.
+    Aech = 0x08,
+    /// Exposure in lines, low byte.
+    Aec = 0x10,
     /// Internal clock prescaler.
     Clkrc = 0x11,
     /// Common control 7: reset, resolution, output format.
     Com7 = 0x12,
+    /// Common control 8: automatic exposure (bit 0), white balance (bit 1), gain (bit 2).
+    Com8 = 0x13,
     /// Sensor window: horizontal start (high 8 bits).
     Hstart = 0x17,
     /// Sensor window: width / 4.
@@ -84,6 +101,27 @@ const CLKRC_DIV_8: u8 = CLKRC_RESERVED | 0x03;
 const DUMMY_LINES: u16 = 31;
 /// DSP_Ctrl4: YUV output from the DSP.
 const DSP_CTRL4_YUV: u8 = 0x00;
+/// COM8 at reset: fast AGC/AEC, fine AEC, AGC, AWB and AEC on.
+const COM8_RESET: u8 = 0x8F;
+/// COM8 bit 0: automatic exposure.
+const COM8_AEC: u8 = 1 << 0;
+/// COM8 bit 2: automatic gain.
+const COM8_AGC: u8 = 1 << 2;
+/// COM8: exposure held where AECH:AEC put it, everything else as at reset.
+const COM8_FIXED_EXPOSURE: u8 = COM8_RESET & !COM8_AEC;
+const _: () = assert!(COM8_FIXED_EXPOSURE & COM8_AGC != 0);
+
+/// The belt speed the exposure is capped for: a 16-pixel frame spacing at 30 frames/s
+/// (the QEMU run's 26 mm/s rounds it up).
+pub const DESIGN_SPEED_UM_S: u32 = 26_000;
+/// The most the belt may move while a row is exposed, µm (half a 50 µm pixel).
+pub const BLUR_BUDGET_UM: u32 = 25;
+/// The frame's line time at the programmed rate, ns (2 × 576 PCLK at 10.67 MHz).
+const LINE_NS: u32 = 108_000;
+/// Exposure lines: the blur budget's time at the design speed, in whole lines.
+const EXPOSURE_LINES: u16 =
+    (BLUR_BUDGET_UM as u64 * 1_000_000_000 / DESIGN_SPEED_UM_S as u64 / LINE_NS as u64) as u16;
+const _: () = assert!(EXPOSURE_LINES >= 1);
 
 /// Width / 4 and height / 2 as the window and output-size registers take them.
 const WIDTH_4: u8 = (CAMERA.width / 4) as u8;
@@ -95,7 +133,7 @@ const _: () = assert!(COM3_YUYV & COM3_SWAP_MSB == 0);
 
 /// After the reset, in order: QVGA, YUV output, the clock and frame length for 30
 /// frames/s, byte order, the camera's window (the datasheet's QVGA settings: window start
-/// 0x3F, 0x03).
+/// 0x3F, 0x03), and the fixed exposure.
 pub const SETUP: &[(Reg, u8)] = &[
     (Reg::Com7, COM7_QVGA_YUV),
     (Reg::Com4, COM4_PLL_X4),
@@ -113,6 +151,9 @@ pub const SETUP: &[(Reg, u8)] = &[
     (Reg::VOutSize, HEIGHT_2),
     (Reg::Exhch, 0x00),
     (Reg::Exhcl, 0x00),
+    (Reg::Com8, COM8_FIXED_EXPOSURE),
+    (Reg::Aech, EXPOSURE_LINES.to_be_bytes()[0]),
+    (Reg::Aec, EXPOSURE_LINES.to_be_bytes()[1]),
 ];
 
 /// The sensor's input clock: HSI (64 MHz) / 3 from MCO1.
@@ -135,6 +176,8 @@ pub struct Timing {
     pub frames_per_s: f64,
     /// Vertical blanking (the lines after the window), seconds.
     pub blanking_s: f64,
+    /// A row's exposure, seconds; `None` while automatic exposure sets it.
+    pub exposure_s: Option<f64>,
 }
 
 /// The timing `writes` program from the reset values (COM4 0x41, CLKRC 0x80, no dummy
@@ -167,12 +210,15 @@ pub fn timing(writes: &[(Reg, u8)], xclk_hz: u32) -> Timing {
     // YUV: two pixel clocks a pixel.
     let line_s = f64::from(2 * (QVGA_LINE_PIXELS + dummy_pixels)) / pclk_hz;
     let window_lines = 2 * u32::from(last(Reg::Vsize, HEIGHT_2));
+    let exposure_lines = u16::from_be_bytes([last(Reg::Aech, 0), last(Reg::Aec, 0)]);
+    let automatic = last(Reg::Com8, COM8_RESET) & COM8_AEC != 0;
     Timing {
         pclk_hz,
         line_s,
         lines,
         frames_per_s: 1.0 / (line_s * f64::from(lines)),
         blanking_s: line_s * f64::from(lines.saturating_sub(window_lines)),
+        exposure_s: (!automatic).then(|| line_s * f64::from(exposure_lines)),
     }
 }
 
@@ -208,6 +254,27 @@ mod tests {
                 .iter()
                 .all(|&(r, v)| r != Reg::Com7 || v & COM7_RESET == 0)
         );
+    }
+
+    #[test]
+    fn the_exposure_is_fixed_short_enough_for_the_belt_with_the_gain_automatic() {
+        let t = timing(SETUP, XCLK_HZ);
+        // The constant the exposure is computed from is the programmed line time.
+        assert!((t.line_s - f64::from(LINE_NS) * 1e-9).abs() < 1e-9, "{t:?}");
+        let exposure = t.exposure_s.expect("automatic exposure left on");
+        let blur_um = exposure * f64::from(DESIGN_SPEED_UM_S);
+        assert!(blur_um <= f64::from(BLUR_BUDGET_UM), "{blur_um} µm of blur");
+        // Not needlessly short: one more line would break the budget.
+        let longer = (exposure + t.line_s) * f64::from(DESIGN_SPEED_UM_S);
+        assert!(longer > f64::from(BLUR_BUDGET_UM), "{exposure} s");
+        assert_eq!(
+            written(Reg::Com8),
+            0x8E,
+            "AEC off, AGC, AWB and the rest as at reset"
+        );
+        assert_ne!(written(Reg::Com8) & COM8_AGC, 0);
+        // Without the writes, exposure is the sensor's own choice.
+        assert_eq!(timing(&[], XCLK_HZ).exposure_s, None);
     }
 
     #[test]

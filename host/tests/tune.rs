@@ -1,9 +1,9 @@
 //! Fine-tuning the detector on the user's labelled images (`rollfuse train --images DIR
-//! --labels COCO.json`): from the command line with its bad input, and what it buys on a
-//! rendering style the built-in model never saw.
+//! --labels COCO.json`, or a folder of YOLO labels): from the command line with its bad
+//! input, and what it buys on a rendering style the built-in model never saw.
 
 use rollfuse::detect::data::{RollShape, Style, roll_in_style};
-use rollfuse::detect::labels::{LabelledImage, read_coco};
+use rollfuse::detect::labels::{LabelledImage, read_coco, read_labels};
 use rollfuse::detect::targets::{MIN_IOU, Tally, tally};
 use rollfuse::detect::tune::{TuneOptions, tune};
 use rollfuse::detect::{Detector, model};
@@ -49,6 +49,30 @@ fn write_coco(images: &[LabelledImage], dir: &Path, labels: &Path) {
     let coco = serde_json::json!({"images": list, "annotations": annotations,
         "categories": categories});
     std::fs::write(labels, coco.to_string()).unwrap();
+}
+
+/// Writes the labels of `images` (saved by [`write_coco`]) as YOLO text files into `dir`.
+fn write_yolo(images: &[LabelledImage], dir: &Path) {
+    std::fs::create_dir_all(dir).unwrap();
+    let names: Vec<&str> = rollfuse::sim::textile::DefectKind::ALL
+        .iter()
+        .map(|k| k.name())
+        .collect();
+    std::fs::write(dir.join("classes.txt"), names.join("\n")).unwrap();
+    for (k, i) in images.iter().enumerate() {
+        let (w, h) = (i.image.width as f32, i.image.height as f32);
+        let lines: Vec<String> = i
+            .boxes
+            .iter()
+            .map(|b| {
+                let [x0, y0, x1, y1] = b.box_px;
+                let class = rollfuse::detect::targets::kind_index(b.kind);
+                let (cx, cy) = ((x0 + x1) / 2.0 / w, (y0 + y1) / 2.0 / h);
+                format!("{class} {cx} {cy} {} {}", (x1 - x0) / w, (y1 - y0) / h)
+            })
+            .collect();
+        std::fs::write(dir.join(format!("tile_{k:02}.txt")), lines.join("\n")).unwrap();
+    }
 }
 
 /// Kind-aware hits, false alarms and misses of `detector` on `images`.
@@ -119,6 +143,20 @@ fn train_fine_tunes_on_a_coco_file_from_the_command_line() {
     assert_eq!(read.len(), images.len());
     assert_eq!(read[0].boxes, images[0].boxes);
 
+    // The same labels as YOLO text files read back the same boxes.
+    let yolo = tmp.path().join("yolo");
+    write_yolo(&images, &yolo);
+    let from_yolo = read_labels(&yolo, tmp.path()).unwrap();
+    assert_eq!(from_yolo.len(), images.len());
+    for (a, b) in from_yolo.iter().zip(&images) {
+        assert_eq!(a.boxes.len(), b.boxes.len());
+        for (p, q) in a.boxes.iter().zip(&b.boxes) {
+            assert_eq!(p.kind, q.kind);
+            let off = (0..4).map(|c| (p.box_px[c] - q.box_px[c]).abs());
+            assert!(off.fold(0f32, f32::max) < 1e-3, "{p:?} against {q:?}");
+        }
+    }
+
     let model = tmp.path().join("tuned.safetensors");
     let (dir, l, m) = (
         tmp.path().to_str().unwrap(),
@@ -142,6 +180,16 @@ fn train_fine_tunes_on_a_coco_file_from_the_command_line() {
         tuned.about()
     );
     tuned.detect(&images[0].image).unwrap();
+    // From the YOLO folder.
+    let y = yolo.to_str().unwrap();
+    let from_yolo = ["train", "--images", dir, "--labels", y, "--out", m];
+    let out = rollfuse(&[&from_yolo[..], &["--steps", "1", "--batch", "2"]].concat());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("held-out images precision"));
 
     // Bad input: one line, and no model written.
     std::fs::remove_file(&model).unwrap();

@@ -14,7 +14,8 @@
 #     two-second window are fused;
 #   - the tiles' USB load while streaming is under half of full speed's bulk rate
 #     (1.23 MB/s in this model: a 64-byte packet every 52 µs);
-#   - the final status of the session arrived and every task kept beating;
+#   - the final status of the session arrived, with the fusions' cycles measured, and
+#     every task kept beating;
 #   - reading the stack guard faults (a run built with --features touch-guard).
 #
 #   bash tests/firmware-qemu/run.sh
@@ -73,6 +74,7 @@ awk '
     /^host gone: roller stopped/ { stopped_ms = $5; heartbeat_ms = $12 + 0 }
     /final status received/ { ended = 1 }
     /^stop while sending: roller told to stop/ { stop_us = $8 }
+    /^fusion cycles in the status:/ { cycles_mean = $7 }
     /^watchdog:/ { missed = $2 }
     /^stack guard: hard fault/ { guarded = 1 }
     END {
@@ -85,6 +87,7 @@ awk '
         if (fused == "" || fused < 57) bad = bad "\n  " fused " frames fused in the window (at least 57 of the 60 the sensor sends)"
         if (load == "" || load > 615) bad = bad "\n  the tiles took " load " kB/s of USB (bound 615 kB/s)"
         if (!ended) bad = bad "\n  the final status did not arrive"
+        if (cycles_mean == "" || cycles_mean == 0) bad = bad "\n  the status reported no fusion cycles"
         if (!guarded) bad = bad "\n  reading the stack guard did not fault"
         if (missed != "0") bad = bad "\n  a task stopped beating (the watchdog would restart the board)"
         if (bad != "") { print "firmware-qemu: FAIL" bad; exit 1 }

@@ -17,7 +17,7 @@ use rollfuse_core::protocol::DeviceConfig;
 use rollfuse_fw::buffers::{self, FRAME, TX};
 use rollfuse_fw::pipeline;
 use rollfuse_fw::roller::{self, StepPins};
-use rollfuse_fw::{effects, link, liveness, outbox, stack_guard};
+use rollfuse_fw::{cycles, effects, link, liveness, outbox, stack_guard};
 use {defmt_rtt as _, panic_probe as _};
 
 bind_interrupts!(struct Irqs {
@@ -132,7 +132,7 @@ async fn main(_spawner: Spawner) {
         reset_cause()
     );
     freeze_watchdog_on_debug_halt();
-    guard_stack_and_cache_code();
+    set_up_core();
     self_test();
     let Some(mut controller) = rollfuse_fw::controller() else {
         // The default configuration fits the sensor (a host test checks it); if not,
@@ -220,12 +220,19 @@ fn freeze_watchdog_on_debug_halt() {
 }
 
 /// The stack guard before anything deep runs; instructions from flash through the
-/// I-cache. The D-cache stays off: the DCMI's DMA writes frames to D2 SRAM that the CPU
-/// then reads, and without cache maintenance a cached CPU would see stale lines.
-fn guard_stack_and_cache_code() {
+/// I-cache; the DWT's cycle counter timing each fusion for `Status`. The D-cache stays
+/// off: the DCMI's DMA writes frames to D2 SRAM that the CPU then reads, and without cache
+/// maintenance a cached CPU would see stale lines.
+fn set_up_core() {
+    use cortex_m::peripheral::DWT;
     if let Some(mut core) = cortex_m::Peripherals::take() {
         stack_guard::install(&mut core.MPU);
         core.SCB.enable_icache();
+        core.DCB.enable_trace();
+        // The Cortex-M7's DWT ignores writes until its software lock is removed.
+        DWT::unlock();
+        core.DWT.enable_cycle_counter();
+        cycles::count_with(DWT::cycle_count);
     }
 }
 

@@ -4,7 +4,7 @@
 use super::bars::{Bars, Show};
 use crate::detect::anomaly::NormalModel;
 use crate::detect::draw::{draw, outline};
-use crate::detect::labels::read_coco;
+use crate::detect::labels::read_labels;
 use crate::detect::targets::MIN_IOU;
 use crate::detect::train::{TrainOptions, train};
 use crate::detect::tune::{TuneOptions, tune};
@@ -48,7 +48,8 @@ pub struct TrainArgs {
     /// on simulated rolls.
     #[arg(long, requires = "labels")]
     pub images: Option<PathBuf>,
-    /// The labels of `--images`: a COCO detection file (categories hole, snag, slub).
+    /// The labels of `--images`: a COCO detection file (categories hole, snag, slub), or a
+    /// folder of YOLO labels (a STEM.txt for each image; class names in classes.txt).
     #[arg(long, requires = "images")]
     pub labels: Option<PathBuf>,
     /// Fine-tuning: share of the labelled images held out to measure the model on.
@@ -147,7 +148,7 @@ fn tune_run(args: &TrainArgs, images: &Path, labels: &Path, show: Show) -> anyho
         validation: args.validation,
         ..TuneOptions::default()
     };
-    let labelled = read_coco(labels, images)?;
+    let labelled = read_labels(labels, images)?;
     let start = match &args.from {
         Some(path) => model::load(path)?,
         None => model::built_in()?,

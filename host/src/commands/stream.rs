@@ -515,6 +515,12 @@ fn print_summary(out: &std::path::Path, outcome: &stream::Outcome) {
             c.tiles_emitted,
             c.tiles_dropped
         );
+        if c.fusion_cycles_worst > 0 {
+            println!(
+                "device: fusion took {} cycles a frame on average, {} at worst",
+                c.fusion_cycles_mean, c.fusion_cycles_worst
+            );
+        }
         if !c.camera_ready {
             println!("device: the camera did not answer or refused its set-up at start-up");
         }

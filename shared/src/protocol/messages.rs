@@ -230,6 +230,11 @@ pub struct StatusCounters {
     pub streaming: bool,
     /// Whether the roller is turning.
     pub roller_running: bool,
+    /// The most processor cycles one frame's fusion took; 0 where fusions are not timed
+    /// (the virtual device).
+    pub fusion_cycles_worst: u32,
+    /// The mean processor cycles a frame's fusion took; 0 where fusions are not timed.
+    pub fusion_cycles_mean: u32,
 }
 
 /// One fused tile: a band of the belt, across its whole width.

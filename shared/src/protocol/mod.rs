@@ -29,7 +29,7 @@ pub use seq::{MAX_GAP, SeqEvent, SeqTracker};
 use serde::{Deserialize, Serialize};
 
 /// The protocol version this build speaks. A message with another version is refused.
-pub const PROTOCOL_VERSION: u8 = 2;
+pub const PROTOCOL_VERSION: u8 = 3;
 
 /// The largest tile payload, in bytes (e.g. 640 columns × 25 rows).
 pub const MAX_TILE_BYTES: usize = 16_000;

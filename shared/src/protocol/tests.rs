@@ -31,6 +31,8 @@ fn sample_messages(pixels: &[u8], chunk: &[u8]) -> Vec<DeviceMessage<'static>> {
             frames_captured: 1 << 20,
             tiles_dropped: 3,
             streaming: true,
+            fusion_cycles_worst: u32::MAX,
+            fusion_cycles_mean: 1_560_000,
             ..Default::default()
         }),
         DeviceMessage::Tile(Tile {

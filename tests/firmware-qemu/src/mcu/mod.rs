@@ -129,6 +129,7 @@ async fn main(spawner: Spawner) {
         stack::touch_guard();
     }
     time::start();
+    rollfuse_fw::cycles::count_with(time::cycles);
     // SAFETY: priorities set before the interrupts are first raised; the alarm's above the
     // roller's executor, as the board's timer is.
     unsafe {

@@ -85,6 +85,17 @@ pub async fn run(steps: &AtomicU32) {
         seen.bad,
         if ended { "received" } else { "MISSING" }
     );
+    // What the device reports of its fusions' cost (here instructions, one a cycle).
+    let (mean, worst) = seen
+        .status
+        .map_or((0, 0), |s| (s.fusion_cycles_mean, s.fusion_cycles_worst));
+    hprintln!(
+        "fusion cycles in the status: mean {} worst {} ({} us and {} us at 400 MHz)",
+        mean,
+        worst,
+        mean / 400,
+        worst / 400
+    );
 
     stop_while_sending(&mut host).await;
     host_goes_silent(&mut host, steps).await;
