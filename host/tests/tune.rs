@@ -234,5 +234,37 @@ fn train_fine_tunes_on_a_coco_file_from_the_command_line() {
         &["eval", "--detect", "--style", "glossy", "--out", dir],
         "\"glossy\" is not a style (standard, oblique, varied)",
     );
+    fails(
+        &["eval", "--detect", "--threshold", "1.5", "--out", dir],
+        "--threshold must be in 0..=1, got 1.5",
+    );
+    // `eval --detect --threshold` reaches the detector: at 1 nothing is detected (at
+    // the default this roll's defects are found).
+    let ev = tmp.path().join("eval");
+    let e = ev.to_str().unwrap();
+    let out = rollfuse(&[
+        "eval",
+        "--detect",
+        "--rolls",
+        "1",
+        "--threshold",
+        "1",
+        "--out",
+        e,
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(ev.join("detect.json")).unwrap()).unwrap();
+    for row in rows.as_array().unwrap() {
+        assert!(row["count"].as_u64().unwrap() > 0, "{row}");
+        assert_eq!(row["tally"]["hits"], 0, "{row}");
+        assert_eq!(row["tally"]["false_alarms"], 0, "{row}");
+    }
+    let md = std::fs::read_to_string(ev.join("detect.md")).unwrap();
+    assert!(md.contains("threshold 1"), "{md}");
     assert!(!model.exists());
 }

@@ -238,11 +238,7 @@ struct ImageResult<'a> {
 
 /// Runs `rollfuse detect`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        (0.0..=1.0).contains(&args.threshold),
-        "--threshold must be in 0..=1, got {}",
-        args.threshold
-    );
+    crate::detect::check_threshold(args.threshold)?;
     let drawn: Vec<PathBuf> = match &args.draw {
         Some(dir) => args
             .images

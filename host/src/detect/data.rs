@@ -117,11 +117,12 @@ pub enum Style {
     /// twice the read noise: shading and blur that differ from the standard look, as
     /// another sensor or renderer would.
     Oblique,
-    /// A look drawn from the roll's seed, for training that carries over: two or three
-    /// LEDs anywhere around, 25–50° above the gel; gel smoothing 0.8–1.3 times, defocus
-    /// 0.75–1.5 times and read noise 0.5–1.5 times the standard's. [`Style::Oblique`]
-    /// lies outside it on every count (one LED, at 20°, softer gel, less defocus, more
-    /// noise), so it measures how far such training generalizes.
+    /// A look drawn from the roll's seed, for training that carries over: a quarter of
+    /// the rolls in the standard look, the others lit by one to three LEDs anywhere
+    /// around, 15–55° above the gel, with gel smoothing 0.8–1.3 times, defocus 0.75–1.5
+    /// times and read noise 0.5–1.5 times the standard's. [`Style::Oblique`]'s gel,
+    /// defocus and noise lie outside it (softer, less, more), so it measures how far such
+    /// training generalizes; its single low LED lies inside the lights' range.
     Varied,
 }
 
@@ -160,12 +161,16 @@ impl Style {
             }
             Style::Varied => {
                 let mut rng = Pcg64Mcg::seed_from_u64(scene.seed ^ 0x57_11E5);
-                let three = rng.random_bool(0.5);
+                if rng.random_bool(0.25) {
+                    return;
+                }
+                let leds = rng.random_range(1..=3);
                 let mut draw =
-                    || Lights::led(rng.random_range(0.0..360.0), rng.random_range(25.0..50.0));
-                let (red, green) = (draw(), draw());
-                // Two LEDs: the third shines with the second.
-                let blue = if three { draw() } else { green };
+                    || Lights::led(rng.random_range(0.0..360.0), rng.random_range(15.0..55.0));
+                let red = draw();
+                // Fewer LEDs: the others shine with the last one drawn.
+                let green = if leds >= 2 { draw() } else { red };
+                let blue = if leds == 3 { draw() } else { green };
                 scene.lights = Lights { red, green, blue };
                 p.gel_sigma_per_thickness *= rng.random_range(0.8..1.3);
                 p.defocus_sigma_px *= rng.random_range(0.75..1.5);
@@ -332,13 +337,19 @@ mod tests {
     fn varied_looks_stay_in_their_ranges_and_the_oblique_lies_outside() {
         let shape = RollShape::STANDARD;
         let standard = roll_scene(1, &shape);
-        for seed in 0..50 {
+        let (mut as_standard, mut one_led) = (0, 0);
+        for seed in 0..100 {
             let mut scene = roll_scene(seed, &shape);
             Style::Varied.apply(&mut scene);
+            if scene == roll_scene(seed, &shape) {
+                as_standard += 1;
+                continue;
+            }
             let l = &scene.lights;
             for led in [l.red, l.green, l.blue] {
-                assert!((25.0..50.0).contains(&elevation(led)), "{seed}: {l:?}");
+                assert!((15.0..55.0).contains(&elevation(led)), "{seed}: {l:?}");
             }
+            one_led += usize::from(l.red == l.blue);
             let gel =
                 scene.params.gel_sigma_per_thickness / standard.params.gel_sigma_per_thickness;
             assert!((0.8..1.3).contains(&gel), "{seed}: {gel}");
@@ -347,10 +358,15 @@ mod tests {
             Style::Varied.apply(&mut again);
             assert_eq!(scene, again);
         }
+        // About a quarter in the standard look, about a third of the rest lit by one LED.
+        assert!((15..=35).contains(&as_standard), "{as_standard} of 100");
+        assert!((15..=35).contains(&one_led), "{one_led} of 100");
         let mut oblique = roll_scene(1, &shape);
         Style::Oblique.apply(&mut oblique);
         assert!((elevation(oblique.lights.red) - 20.0).abs() < 1e-9);
         assert_eq!(oblique.lights.red, oblique.lights.blue);
+        let gel = oblique.params.gel_sigma_per_thickness / standard.params.gel_sigma_per_thickness;
+        assert!(!(0.8..1.3).contains(&gel));
         let names: Vec<Style> = Style::NAMED
             .iter()
             .map(|(n, _)| n.parse().unwrap())

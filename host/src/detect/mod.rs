@@ -38,6 +38,15 @@ pub const TILE_ROWS: usize = 480;
 pub const TILE_OVERLAP: usize = 64;
 /// Heatmap score a detection needs.
 pub const DEFAULT_THRESHOLD: f32 = 0.3;
+
+/// Refuses a detection threshold outside 0..=1 (what `--threshold` takes).
+pub fn check_threshold(threshold: f32) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        (0.0..=1.0).contains(&threshold),
+        "--threshold must be in 0..=1, got {threshold}"
+    );
+    Ok(())
+}
 /// The fabric reported for an image unlike every fabric the model knows.
 pub const UNKNOWN_FABRIC: &str = "unknown";
 /// Most detections reported per tile.
