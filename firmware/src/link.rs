@@ -38,6 +38,15 @@ fn host_gone(controller: &mut Controller) {
     }
 }
 
+/// An IN endpoint that can discard a packet it holds loaded for a host that never took
+/// it. On the OTG core a write returns once its packet is in the FIFO with the endpoint
+/// enabled; a send abandoned because the host stopped reading leaves that packet there,
+/// and the next host's first read would get it glued before its own first reply.
+pub trait DiscardLoaded {
+    /// Drops a packet loaded but not taken, if there is one; the next write starts clean.
+    fn discard_loaded(&mut self);
+}
+
 /// Sends one message as one transfer.
 async fn send(ep: &mut impl EndpointIn, message: &[u8]) -> Result<(), EndpointError> {
     for packet in message.chunks(PACKET) {
@@ -129,7 +138,7 @@ fn carry_out(controller: &mut Controller, bytes: &[u8]) -> DeviceMessage<'static
 /// (static: a message is as large as a tile).
 pub async fn serve(
     read: &mut impl EndpointOut,
-    write: &mut impl EndpointIn,
+    write: &mut (impl EndpointIn + DiscardLoaded),
     controller: &mut Controller,
     tx: &mut [u8; MAX_MESSAGE],
 ) {
@@ -168,7 +177,7 @@ struct Endpoints<'a, R, W> {
     tx: &'a mut [u8; MAX_MESSAGE],
 }
 
-impl<R: EndpointOut, W: EndpointIn> Endpoints<'_, R, W> {
+impl<R: EndpointOut, W: EndpointIn + DiscardLoaded> Endpoints<'_, R, W> {
     /// Waits for a packet from the host, a message to send, or the next beat, and acts on it.
     async fn next_event(
         &mut self,
@@ -231,26 +240,32 @@ impl<R: EndpointOut, W: EndpointIn> Endpoints<'_, R, W> {
             .saturating_duration_since(Instant::now());
         // The link beats while it waits.
         let sending = liveness::within(liveness::Task::Link, left, send(self.write, &self.tx[..n]));
-        let mut sending = pin!(sending);
-        loop {
-            let mut packet = [0u8; PACKET];
-            let event = if host.answers.is_full() {
-                Either::First(sending.as_mut().await)
-            } else {
-                select(sending.as_mut(), self.read.read(&mut packet)).await
-            };
-            match event {
-                Either::First(Ok(sent)) => return sent,
-                Either::First(Err(_)) => return Err(EndpointError::Disabled),
-                Either::Second(Ok(n)) => {
-                    if let Some(answer) = host.take(&packet[..n], controller) {
-                        // Not full: checked above.
-                        let _ = host.answers.push_back(answer);
+        let outcome = {
+            let mut sending = pin!(sending);
+            loop {
+                let mut packet = [0u8; PACKET];
+                let event = if host.answers.is_full() {
+                    Either::First(sending.as_mut().await)
+                } else {
+                    select(sending.as_mut(), self.read.read(&mut packet)).await
+                };
+                match event {
+                    Either::First(outcome) => break outcome,
+                    Either::Second(Ok(n)) => {
+                        if let Some(answer) = host.take(&packet[..n], controller) {
+                            // Not full: checked above.
+                            let _ = host.answers.push_back(answer);
+                        }
                     }
+                    Either::Second(Err(e)) => return Err(e),
                 }
-                Either::Second(Err(e)) => return Err(e),
             }
-        }
+        };
+        outcome.unwrap_or_else(|_abandoned| {
+            // The host stopped reading: what it never took must not reach the next host.
+            self.write.discard_loaded();
+            Err(EndpointError::Disabled)
+        })
     }
 }
 

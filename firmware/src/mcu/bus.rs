@@ -5,10 +5,13 @@
 
 use super::Irqs;
 use core::sync::atomic::Ordering;
+use defmt::warn;
 use embassy_stm32::peripherals::{PA11, PA12, USB_OTG_FS};
 use embassy_stm32::{Peri, usb};
+use embassy_usb::driver::{Endpoint, EndpointError, EndpointIn, EndpointInfo};
 use embassy_usb::{UsbDevice, msos};
 use rollfuse_core::protocol::usb as wire;
+use rollfuse_fw::link::DiscardLoaded;
 use rollfuse_fw::roller;
 use rollfuse_fw::signals::{self, BUS_LOST};
 use static_cell::ConstStaticCell;
@@ -17,8 +20,71 @@ use static_cell::ConstStaticCell;
 pub type Bus = usb::Driver<'static, USB_OTG_FS>;
 /// The bulk OUT endpoint (commands).
 pub type CommandEndpoint = <Bus as embassy_usb::driver::Driver<'static>>::EndpointOut;
-/// The bulk IN endpoint (messages to the host).
-pub type MessageEndpoint = <Bus as embassy_usb::driver::Driver<'static>>::EndpointIn;
+/// The driver's bulk IN endpoint.
+type DriverIn = <Bus as embassy_usb::driver::Driver<'static>>::EndpointIn;
+
+/// The bulk IN endpoint (messages to the host): the driver's, able to discard a packet a
+/// host never took.
+pub struct MessageEndpoint(DriverIn);
+
+impl Endpoint for MessageEndpoint {
+    fn info(&self) -> &EndpointInfo {
+        self.0.info()
+    }
+
+    async fn wait_enabled(&mut self) {
+        self.0.wait_enabled().await
+    }
+}
+
+impl EndpointIn for MessageEndpoint {
+    async fn write(&mut self, buf: &[u8]) -> Result<(), EndpointError> {
+        self.0.write(buf).await
+    }
+}
+
+/// Polls of a register the endpoint's discard waits on at most (a few µs each way at
+/// 400 MHz; the core answers within a USB frame, so a miss means something else is wrong).
+const DISCARD_POLLS: u32 = 100_000;
+
+/// Waits for `done`, at most [`DISCARD_POLLS`] reads; whether it came.
+fn poll_until(done: impl Fn() -> bool) -> bool {
+    (0..DISCARD_POLLS).any(|_| done())
+}
+
+impl DiscardLoaded for MessageEndpoint {
+    /// RM0433's IN endpoint disable on OTG_FS: NAK the endpoint, disable it, then flush
+    /// its transmit FIFO. The next write enables it again (CNAK, EPENA).
+    fn discard_loaded(&mut self) {
+        let otg = embassy_stm32::pac::USB_OTG_FS;
+        let n = self.info().addr.index();
+        if !otg.diepctl(n).read().epena() {
+            return;
+        }
+        otg.diepctl(n).modify(|w| w.set_snak(true));
+        let nak = poll_until(|| otg.diepint(n).read().inepne());
+        otg.diepctl(n).modify(|w| {
+            w.set_snak(true);
+            w.set_epdis(true);
+        });
+        let disabled = poll_until(|| otg.diepint(n).read().epdisd());
+        otg.diepint(n).write(|w| {
+            w.set_inepne(true);
+            w.set_epdisd(true);
+        });
+        otg.grstctl().modify(|w| {
+            w.set_txfnum(n as u8);
+            w.set_txfflsh(true);
+        });
+        let flushed = poll_until(|| !otg.grstctl().read().txfflsh());
+        if !(nak && disabled && flushed) {
+            warn!(
+                "IN endpoint discard: NAK {}, disabled {}, flushed {}",
+                nak, disabled, flushed
+            );
+        }
+    }
+}
 
 /// Bus events: a suspended or unconfigured bus means the host is gone.
 struct BusEvents;
@@ -117,5 +183,5 @@ pub fn start(
     let read = alt.endpoint_bulk_out(Some(wire::EP_OUT.into()), packet);
     let write = alt.endpoint_bulk_in(Some(wire::EP_IN.into()), packet);
     drop(function);
-    (builder.build(), read, write)
+    (builder.build(), read, MessageEndpoint(write))
 }

@@ -121,11 +121,23 @@ impl EndpointOut for Out {
 
 /// Whether the host reads what the device writes.
 pub static HOST_READS: AtomicBool = AtomicBool::new(true);
-/// What the device wrote, packet by packet.
+/// What the host took, packet by packet.
 pub static WRITTEN: Mutex<Vec<Vec<u8>>> = Mutex::new(Vec::new());
+/// The packet loaded in the IN endpoint and not yet taken (the OTG core's FIFO).
+pub static LOADED: Mutex<Option<Vec<u8>>> = Mutex::new(None);
 
-/// The bulk IN endpoint: records packets while [`HOST_READS`]; otherwise a write never
-/// completes, as when the host stopped reading.
+/// The host takes the loaded packet, if it reads.
+fn host_takes() {
+    if HOST_READS.load(Relaxed)
+        && let Some(packet) = LOADED.lock().unwrap().take()
+    {
+        WRITTEN.lock().unwrap().push(packet);
+    }
+}
+
+/// The bulk IN endpoint as the OTG core behaves: a write waits until the host has taken
+/// the packet before (which it does only while [`HOST_READS`]), then loads its own and
+/// returns. A write abandoned leaves the packet before it loaded.
 pub struct In(EndpointInfo);
 
 impl In {
@@ -145,11 +157,21 @@ impl Endpoint for In {
 
 impl EndpointIn for In {
     async fn write(&mut self, buf: &[u8]) -> Result<(), EndpointError> {
-        while !HOST_READS.load(Relaxed) {
+        loop {
+            host_takes();
+            if LOADED.lock().unwrap().is_none() {
+                break;
+            }
             yield_now().await;
         }
-        WRITTEN.lock().unwrap().push(buf.to_vec());
+        *LOADED.lock().unwrap() = Some(buf.to_vec());
         Ok(())
+    }
+}
+
+impl link::DiscardLoaded for In {
+    fn discard_loaded(&mut self) {
+        LOADED.lock().unwrap().take();
     }
 }
 
@@ -168,6 +190,7 @@ pub fn host_sends(seq: u32, command: &Command) {
 
 /// The messages the device wrote, reassembled from packets (a short packet ends one).
 pub fn device_messages() -> Vec<Vec<u8>> {
+    host_takes();
     let mut out = Vec::new();
     let mut cur = Vec::new();
     for p in WRITTEN.lock().unwrap().iter() {
