@@ -110,8 +110,24 @@ fn clocks() -> Config {
     config
 }
 
+/// ES0392's AXI SRAM erratum on revision Y chips (REV_ID below 0x2000): a read that
+/// follows an interrupted write may return corrupt data. The workaround, as ST's own
+/// start-up code applies it: the AXI switch's read issuing capability for the AXI SRAM
+/// (target 7) down to 1, READ_ISS_OVERRIDE in AXI_TARG7_FN_MOD.
+fn axi_sram_read_erratum() {
+    /// AXI_TARG7_FN_MOD in the AXI interconnect's GPV (RM0433).
+    const AXI_TARG7_FN_MOD: *mut u32 = 0x5100_8108 as *mut u32;
+    const READ_ISS_OVERRIDE: u32 = 1;
+    if embassy_stm32::pac::DBGMCU.idc().read().rev_id() < 0x2000 {
+        // SAFETY: a documented register of the AXI interconnect, written once at start-up
+        // before anything else touches the bus matrix's configuration.
+        unsafe { AXI_TARG7_FN_MOD.write_volatile(READ_ISS_OVERRIDE) };
+    }
+}
+
 #[embassy_executor::main]
 async fn main(_spawner: Spawner) {
+    axi_sram_read_erratum();
     let p = embassy_stm32::init(clocks());
     // D2 SRAM1–3 (the camera's frame) clocked for the CPU, then the DTCM and D2 sections
     // given the zeros their statics were built with (firmware/src/buffers.rs).
