@@ -7,7 +7,9 @@
 #   - no step came more than 50 µs late while frames were fused (the roller at interrupt
 #     priority), and the same run with the roller in thread mode, as the firmware once
 #     ran it, is later than that (so the measurement can tell);
-#   - a host that stops reading stops the roller within the heartbeat and 0.5 s;
+#   - a host that stops reading stops the roller within the heartbeat and 0.5 s, and a
+#     new host that then opens the device (no bus reset) has its first Hello answered
+#     alone (the mock IN endpoint holds a loaded packet as the OTG core does);
 #   - a Stop reaches the roller within 10 ms while the link's send is stuck on a host
 #     that reads nothing;
 #   - the pipeline keeps up with the sensor: at least 57 of the 60 frames it sends in the
@@ -75,6 +77,7 @@ awk '
     /final status received/ { ended = 1 }
     /^stop while sending: roller told to stop/ { stop_us = $8 }
     /^fusion cycles in the status:/ { cycles_mean = $7 }
+    /^reconnect: a new host.s first Hello answered on the first try/ { reconnected = 1 }
     /^watchdog:/ { missed = $2 }
     /^stack guard: hard fault/ { guarded = 1 }
     END {
@@ -87,6 +90,7 @@ awk '
         if (fused == "" || fused < 57) bad = bad "\n  " fused " frames fused in the window (at least 57 of the 60 the sensor sends)"
         if (load == "" || load > 615) bad = bad "\n  the tiles took " load " kB/s of USB (bound 615 kB/s)"
         if (!ended) bad = bad "\n  the final status did not arrive"
+        if (!reconnected) bad = bad "\n  a new host after a dead one did not get its first Hello answered alone"
         if (cycles_mean == "" || cycles_mean == 0) bad = bad "\n  the status reported no fusion cycles"
         if (!guarded) bad = bad "\n  reading the stack guard did not fault"
         if (missed != "0") bad = bad "\n  a task stopped beating (the watchdog would restart the board)"

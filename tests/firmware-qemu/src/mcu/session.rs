@@ -99,6 +99,7 @@ pub async fn run(steps: &AtomicU32) {
 
     stop_while_sending(&mut host).await;
     host_goes_silent(&mut host, steps).await;
+    new_host_says_hello(&mut host).await;
     hprintln!(
         "watchdog: {} looks found a task late",
         MISSED_BEATS.load(Relaxed)
@@ -173,6 +174,30 @@ async fn host_goes_silent(host: &mut Host, steps: &AtomicU32) {
         },
         last_step.duration_since(last_command).as_millis(),
         link::HEARTBEAT.as_millis()
+    );
+}
+
+/// The silent host was killed mid-message; a new host process opens the device without a
+/// bus reset and says Hello: whether the answer comes alone, on the first try.
+async fn new_host_says_hello(host: &mut Host) {
+    usb::new_host();
+    let before = usb::seen();
+    host.send(Command::Hello).await;
+    let answered = until(Duration::from_millis(500), || {
+        let now = usb::seen();
+        now.infos > before.infos || now.bad > before.bad
+    })
+    .await;
+    let now = usb::seen();
+    hprintln!(
+        "reconnect: a new host's first Hello {}",
+        if now.infos > before.infos && now.bad == before.bad {
+            "answered on the first try (an Info alone)"
+        } else if answered {
+            "FAILED: its first message did not decode"
+        } else {
+            "FAILED: not answered"
+        }
     );
 }
 

@@ -40,6 +40,8 @@ pub struct Seen {
     pub naks: u32,
     /// Messages that did not decode.
     pub bad: u32,
+    /// Answers to Hello.
+    pub infos: u32,
     /// Status reports, and the last.
     pub statuses: u32,
     /// The last status.
@@ -63,6 +65,7 @@ static HOST: Mutex<ThreadModeRawMutex, RefCell<Host>> = Mutex::new(RefCell::new(
         acks: 0,
         naks: 0,
         bad: 0,
+        infos: 0,
         statuses: 0,
         status: None,
     },
@@ -73,6 +76,18 @@ static HOST: Mutex<ThreadModeRawMutex, RefCell<Host>> = Mutex::new(RefCell::new(
 /// What the host has seen so far.
 pub fn seen() -> Seen {
     HOST.lock(|h| h.borrow().seen)
+}
+
+/// The packet loaded in the IN endpoint and not yet taken, as the OTG core holds it: a
+/// write loads its packet first and the host takes it when it reads, so a write
+/// abandoned while the host does not read leaves it there.
+static LOADED: Mutex<ThreadModeRawMutex, RefCell<Option<Packet>>> = Mutex::new(RefCell::new(None));
+
+/// Another host process opens the device (no bus reset): it reads, and holds no part of
+/// the last one's message.
+pub fn new_host() {
+    HOST.lock(|h| h.borrow_mut().len = 0);
+    HOST_READS.store(true, Relaxed);
 }
 
 /// Sends a command as the host tool does: one transfer of 64-byte packets ending short.
@@ -144,21 +159,35 @@ impl Endpoint for In {
 
 impl EndpointIn for In {
     async fn write(&mut self, buf: &[u8]) -> Result<(), EndpointError> {
-        // A host that stopped reading never takes the packet.
-        while !HOST_READS.load(Relaxed) {
-            Timer::after_millis(1).await;
+        // A packet an abandoned write left loaded goes out first, as the core's FIFO
+        // would send it.
+        if LOADED.lock(|l| l.borrow().is_some()) {
+            deliver_loaded().await;
         }
-        Timer::after(PACKET_TIME).await;
-        HOST.lock(|h| h.borrow_mut().take(buf));
+        let mut packet = [0u8; PACKET];
+        packet[..buf.len()].copy_from_slice(buf);
+        LOADED.lock(|l| *l.borrow_mut() = Some((packet, buf.len())));
+        deliver_loaded().await;
         Ok(())
     }
 }
 
-/// Every packet is taken here as it is written (the host model's pace stands for the
-/// bus): there is never a packet loaded and not taken to discard. The firmware's host tests
-/// model the OTG core's loaded packet (`firmware/tests/host_reconnects.rs`).
+/// Waits until the host reads, then hands it the loaded packet at the bus's pace.
+async fn deliver_loaded() {
+    // A host that stopped reading never takes the packet.
+    while !HOST_READS.load(Relaxed) {
+        Timer::after_millis(1).await;
+    }
+    Timer::after(PACKET_TIME).await;
+    if let Some((packet, n)) = LOADED.lock(|l| l.borrow_mut().take()) {
+        HOST.lock(|h| h.borrow_mut().take(&packet[..n]));
+    }
+}
+
 impl rollfuse_fw::link::DiscardLoaded for In {
-    fn discard_loaded(&mut self) {}
+    fn discard_loaded(&mut self) {
+        LOADED.lock(|l| l.borrow_mut().take());
+    }
 }
 
 impl Host {
@@ -184,6 +213,7 @@ impl Host {
             }
             Ok((_, DeviceMessage::Ack { .. })) => seen.acks += 1,
             Ok((_, DeviceMessage::Nak { .. })) => seen.naks += 1,
+            Ok((_, DeviceMessage::Info(_))) => seen.infos += 1,
             Ok((_, DeviceMessage::Status(s))) => {
                 seen.statuses += 1;
                 seen.status = Some(s);
