@@ -1,7 +1,7 @@
 //! What the host does, and what the run measures: a streaming session at 26 mm/s (a
 //! frame trigger about every camera frame), then a host that goes silent.
 
-use super::usb;
+use super::{camera, usb};
 use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
 use cortex_m_semihosting::hprintln;
 use embassy_time::{Duration, Instant, Timer};
@@ -84,6 +84,12 @@ pub async fn run(steps: &AtomicU32) {
         seen.naks,
         seen.bad,
         if ended { "received" } else { "MISSING" }
+    );
+    hprintln!(
+        "capture re-arming: at most {} us after the last capture's frame ended (VSYNC {} us after it); {} re-armed after VSYNC",
+        camera::LATEST_REARM_US.load(Relaxed),
+        camera::vsync_after_frame_us(),
+        camera::REARMED_LATE.load(Relaxed)
     );
     // What the device reports of its fusions' cost (here instructions, one a cycle).
     let (mean, worst) = seen
