@@ -73,10 +73,11 @@ pub async fn run(steps: &AtomicU32) {
     let ended = until(Duration::from_secs(2), || usb::seen().statuses > statuses).await;
     let seen = usb::seen();
     hprintln!(
-        "session: {} frames captured, {} fused, {} triggers overrun; {} tiles emitted, {} received, {} dropped; {} commands acknowledged, {} refused, {} bad messages; final status {}",
+        "session: {} frames captured, {} fused, {} triggers overrun, {} captures timed out; {} tiles emitted, {} received, {} dropped; {} commands acknowledged, {} refused, {} bad messages; final status {}",
         COUNTERS.frames_captured.load(Relaxed),
         COUNTERS.frames_fused.load(Relaxed),
         COUNTERS.camera_overruns.load(Relaxed),
+        COUNTERS.camera_timeouts.load(Relaxed),
         COUNTERS.tiles_emitted.load(Relaxed),
         seen.tiles,
         COUNTERS.tiles_dropped.load(Relaxed),
