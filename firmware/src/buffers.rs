@@ -3,8 +3,9 @@
 //! taken once, by whatever wires the tasks together (the board's `main`, or the QEMU run).
 //!
 //! Where each lives on the STM32H743 (`memory.x`; docs/device.md, "Memory map"):
-//! - the camera's frame in D2 SRAM1–3 (`.sram_d2`): the DCMI's DMA (DMA1) writes it, and
-//!   DMA1 cannot reach the DTCM;
+//! - the camera's two frames, one in D2 SRAM1–3 (`.sram_d2`) and one in the AXI SRAM
+//!   (`.bss`; both frames do not fit in the D2 SRAM): the DCMI's DMA (DMA1) writes them
+//!   and reaches both, but not the DTCM;
 //! - the fusion's tiles, work area and row profiles in the DTCM (`.dtcm`): zero wait
 //!   states, no cache needed, and every fused tile goes over them many times;
 //! - the downsampled window, the link's encoding buffer and the outbox in the AXI SRAM
@@ -17,14 +18,22 @@
 //! and `ConstStaticCell`'s flag, which is false as a zero byte), and [`zero_placed`] writes
 //! those zeros at boot, before anything takes them.
 
-use crate::pipeline::FRAME_WORDS;
+use crate::pipeline::{FRAME_WORDS, Frames};
 use rollfuse_core::device::{MCU_CAPACITY, ModuleFrame, ModuleWork, PipelineBuffers};
 use rollfuse_core::protocol::MAX_MESSAGE;
 use static_cell::ConstStaticCell;
 
-/// The camera's frame buffer, where the DCMI's DMA writes (D2 SRAM).
+/// One of the camera's frame buffers, where the DCMI's DMA writes (D2 SRAM).
 #[cfg_attr(target_os = "none", unsafe(link_section = ".sram_d2"))]
-pub static FRAME: ConstStaticCell<[u32; FRAME_WORDS]> = ConstStaticCell::new([0; FRAME_WORDS]);
+pub static FRAME_D2: ConstStaticCell<[u32; FRAME_WORDS]> = ConstStaticCell::new([0; FRAME_WORDS]);
+
+/// The camera's other frame buffer (AXI SRAM, which DMA1 reaches through the bus matrix).
+pub static FRAME_AXI: ConstStaticCell<[u32; FRAME_WORDS]> = ConstStaticCell::new([0; FRAME_WORDS]);
+
+/// The camera's two frame buffers, each taken once.
+pub fn frames() -> Frames {
+    Frames::new(FRAME_D2.take(), FRAME_AXI.take())
+}
 
 /// The downsampled observation window (AXI SRAM: 75 KiB at 1×, which the DTCM's other
 /// tenants leave no room for; each pixel is written once and read a few times a frame).
@@ -58,7 +67,7 @@ unsafe extern "C" {
 ///
 /// # Safety
 /// Call once at boot, before anything reads or takes a static of those sections
-/// ([`FRAME`], [`FUSION`]).
+/// ([`FRAME_D2`], [`FUSION`]).
 #[cfg(target_os = "none")]
 pub unsafe fn zero_placed() {
     // SAFETY: the linker script bounds each section with these symbols, word-aligned; no

@@ -44,6 +44,31 @@ async fn snapshot(camera: &mut impl Camera, frame: &mut [u32; FRAME_WORDS]) -> C
     }
 }
 
+/// The camera's two frame buffers: the next capture fills one while the window of the
+/// last is taken out of the other, so the next capture can be armed as soon as a frame
+/// ends — before the take, which need not fit before the sensor's next VSYNC.
+pub struct Frames {
+    /// Where the next capture writes.
+    filling: &'static mut [u32; FRAME_WORDS],
+    /// The last capture's frame.
+    filled: &'static mut [u32; FRAME_WORDS],
+}
+
+impl Frames {
+    /// Two buffers, each of one frame.
+    pub fn new(a: &'static mut [u32; FRAME_WORDS], b: &'static mut [u32; FRAME_WORDS]) -> Self {
+        Self {
+            filling: a,
+            filled: b,
+        }
+    }
+
+    /// The buffer just filled becomes the last capture's.
+    fn swap(&mut self) {
+        core::mem::swap(&mut self.filling, &mut self.filled);
+    }
+}
+
 /// The frame's bytes (YUYV) as the pipeline reads them: the DMA wrote them in memory
 /// order, and the little-endian words hold them as they came.
 fn frame_bytes(frame: &[u32; FRAME_WORDS]) -> &[u8] {
@@ -162,38 +187,45 @@ async fn wake(streaming: bool) -> Option<Wake> {
 }
 
 /// On a frame trigger while streaming: one snapshot, fused at the belt position of its
-/// first row. The frame's window is taken out of the camera's buffer before it is fused,
-/// so when the next trigger is already waiting (and no order is), its capture is armed
-/// first and fills the buffer while this frame is fused: a fusion longer than the
-/// sensor's vertical blanking then does not miss the next frame.
-async fn on_trigger(
-    session: &mut Session<'_>,
-    camera: &mut impl Camera,
-    frame: &mut [u32; FRAME_WORDS],
-) {
+/// first row. When the next trigger is already waiting (and no order is), its capture is
+/// armed into the other buffer as soon as this frame ends, before this frame's window is
+/// taken and fused: neither has to fit in the sensor's time to its next VSYNC.
+async fn on_trigger(session: &mut Session<'_>, camera: &mut impl Camera, frames: &mut Frames) {
     roller::trigger_taken();
     if !session.streaming() {
         return;
     }
     let mut armed = frame_clock::arm();
-    let mut capture = snapshot(camera, frame).await;
+    let mut capture = snapshot(camera, frames.filling).await;
     while capture.delivered(&mut Outbox) {
+        frames.swap();
         let position_px = roller::belt_px(armed.frame_start());
-        if !session.take(frame_bytes(frame), &mut Outbox) {
-            return;
-        }
         if !next_capture_waits() {
-            cycles::timed(|| session.fuse_taken(position_px, &mut Outbox));
+            take_and_fuse(session, frames.filled, position_px);
             return;
         }
         liveness::beat(liveness::Task::Pipeline);
         armed = frame_clock::arm();
-        // The capture is armed when first polled, which `join` does before the fusion.
-        let fusion = async {
-            cycles::timed(|| session.fuse_taken(position_px, &mut Outbox));
-        };
-        (capture, ()) = join(snapshot(camera, frame), fusion).await;
+        // The capture is armed when first polled, which `join` does before the take.
+        let Frames { filling, filled } = frames;
+        let work = async { take_and_fuse(session, filled, position_px) };
+        let fused;
+        (capture, fused) = join(snapshot(camera, filling), work).await;
+        if !fused {
+            // The frame was refused; the capture armed beside it is counted, not fused.
+            let _ = capture.delivered(&mut Outbox);
+            return;
+        }
     }
+}
+
+/// Takes a frame's window and fuses it at `position_px`; false if the frame was refused.
+fn take_and_fuse(session: &mut Session<'_>, frame: &[u32; FRAME_WORDS], position_px: u64) -> bool {
+    if !session.take(frame_bytes(frame), &mut Outbox) {
+        return false;
+    }
+    cycles::timed(|| session.fuse_taken(position_px, &mut Outbox));
+    true
 }
 
 /// Whether a frame trigger is waiting and no order is; if so, the trigger is taken.
@@ -208,7 +240,7 @@ fn next_capture_waits() -> bool {
 /// Runs the stream forever on the camera's frames, starting with `initial`.
 pub async fn run(
     camera: &mut impl Camera,
-    frame: &'static mut [u32; FRAME_WORDS],
+    mut frames: Frames,
     buffers: PipelineBuffers<'static>,
     initial: PipelineConfig,
 ) {
@@ -226,7 +258,7 @@ pub async fn run(
         };
         let order = match woken {
             Wake::Trigger => {
-                on_trigger(&mut session, camera, frame).await;
+                on_trigger(&mut session, camera, &mut frames).await;
                 continue;
             }
             Wake::Order(StreamOrder { order, stops }) => {
@@ -243,7 +275,7 @@ pub async fn run(
         match session.order(order, &mut Outbox) {
             Ok(Next::Nothing) => {}
             Ok(Next::SendStatus) => send_status().await,
-            Ok(Next::CaptureRaw(n)) => send_raw(camera, frame, n).await,
+            Ok(Next::CaptureRaw(n)) => send_raw(camera, frames.filling, n).await,
             // The controller checked the configuration against this memory.
             Err(_) => fw_warn!("configuration refused: pipeline buffers too small"),
         }

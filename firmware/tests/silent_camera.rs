@@ -47,7 +47,10 @@ fn a_silent_camera_blocks_no_order_and_is_reported() {
     outbox::init();
     let config = PipelineConfig::from_wire(&DeviceConfig::default(), CAMERA).unwrap();
     assert!(config.memory().fits(&MCU_CAPACITY));
-    let frame: &'static mut _ = Box::leak(Box::new([0u32; FRAME_WORDS]));
+    let frames = pipeline::Frames::new(
+        Box::leak(Box::new([0u32; FRAME_WORDS])),
+        Box::leak(Box::new([0u32; FRAME_WORDS])),
+    );
     let buffers = Box::leak(Box::new(ModuleBuffers::new())).buffers();
     let (mut camera, mut leds, mut pins) = (Silent, MockLeds, Pins);
     let test = async {
@@ -110,7 +113,7 @@ fn a_silent_camera_blocks_no_order_and_is_reported() {
         join(test, async {}),
         clock(),
         select(
-            pipeline::run(&mut camera, frame, buffers, config),
+            pipeline::run(&mut camera, frames, buffers, config),
             roller::run(&mut pins, 16),
         ),
         select(effects::run(&mut leds), link_beats),

@@ -45,7 +45,10 @@ fn start() -> StreamOrder {
 fn a_stream_stop_ends_only_the_stream_it_was_meant_for() {
     outbox::init();
     let config = PipelineConfig::from_wire(&DeviceConfig::default(), CAMERA).unwrap();
-    let frame: &'static mut _ = Box::leak(Box::new([0u32; FRAME_WORDS]));
+    let frames = pipeline::Frames::new(
+        Box::leak(Box::new([0u32; FRAME_WORDS])),
+        Box::leak(Box::new([0u32; FRAME_WORDS])),
+    );
     let buffers = Box::leak(Box::new(ModuleBuffers::new())).buffers();
     let (mut camera, mut pins) = (Silent, Pins);
     let test = async {
@@ -91,7 +94,7 @@ fn a_stream_stop_ends_only_the_stream_it_was_meant_for() {
         clock(),
         select(
             select(
-                pipeline::run(&mut camera, frame, buffers, config),
+                pipeline::run(&mut camera, frames, buffers, config),
                 roller::run(&mut pins, 16),
             ),
             beats,

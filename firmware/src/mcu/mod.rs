@@ -14,7 +14,7 @@ use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{Config, Peri, bind_interrupts, dcmi, dma, i2c, interrupt, peripherals, usb};
 use embassy_time::{Instant, Timer};
 use rollfuse_core::protocol::DeviceConfig;
-use rollfuse_fw::buffers::{self, FRAME, TX};
+use rollfuse_fw::buffers::{self, TX};
 use rollfuse_fw::pipeline;
 use rollfuse_fw::roller::{self, StepPins};
 use rollfuse_fw::{cycles, effects, link, liveness, outbox, stack_guard};
@@ -195,7 +195,7 @@ async fn main(_spawner: Spawner) {
             link::serve(&mut read_ep, &mut write_ep, &mut controller, tx).await;
         }
     };
-    let frames = pipeline::run(&mut camera, FRAME.take(), buffers::pipeline(), initial);
+    let frames = pipeline::run(&mut camera, buffers::frames(), buffers::pipeline(), initial);
     let effects = effects::run(&mut leds);
     let alive = feed_watchdog(p.IWDG1, p.PB0);
     join5(device.run(), serve, effects, alive, frames).await;

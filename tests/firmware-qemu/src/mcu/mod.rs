@@ -16,7 +16,7 @@ use embassy_futures::join::join5;
 use embassy_futures::select::select;
 use embassy_time::Timer;
 use rollfuse_core::protocol::{DeviceConfig, LedDuty};
-use rollfuse_fw::buffers::{self, FRAME, TX};
+use rollfuse_fw::buffers::{self, TX};
 use rollfuse_fw::effects::{self, Leds};
 use rollfuse_fw::roller::{self, StepPins};
 use rollfuse_fw::{link, liveness, outbox, pipeline, stack_guard};
@@ -151,7 +151,7 @@ async fn main(spawner: Spawner) {
         }
     };
     let mut camera = camera::Sensor;
-    let frames = pipeline::run(&mut camera, FRAME.take(), buffers::pipeline(), initial);
+    let frames = pipeline::run(&mut camera, buffers::frames(), buffers::pipeline(), initial);
     let mut leds = MockLeds;
     let effects = effects::run(&mut leds);
 
