@@ -310,3 +310,97 @@ fn progress_off_a_terminal_is_plain_lines() {
     let plain = simulate(&["--progress", "plain", "--progress-every", "0"]);
     assert_eq!(plain.lines().count(), 4, "{plain}");
 }
+
+/// The `rollfuse` command lines in the README's and docs' `sh` blocks: each as the words
+/// after `rollfuse` (or `cargo run --release --`), continuation lines joined, comments
+/// dropped; with the file each comes from.
+fn documented_commands() -> Vec<(String, Vec<String>)> {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut files = vec![root.join("README.md")];
+    let mut docs: Vec<_> = std::fs::read_dir(root.join("docs"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "md"))
+        .collect();
+    docs.sort();
+    files.extend(docs);
+    let mut commands = Vec::new();
+    for file in files {
+        let text = std::fs::read_to_string(&file).unwrap();
+        let name = file.file_name().unwrap().to_string_lossy().to_string();
+        let mut in_sh = false;
+        let mut line = String::new();
+        for raw in text.lines() {
+            let fence = raw.trim_start().strip_prefix("```");
+            if let Some(lang) = fence {
+                in_sh = !in_sh && lang.trim() == "sh";
+                continue;
+            }
+            if !in_sh {
+                continue;
+            }
+            let code = raw.split(" #").next().unwrap_or_default().trim_end();
+            line.push_str(code.trim_end_matches('\\'));
+            line.push(' ');
+            if code.ends_with('\\') {
+                continue;
+            }
+            let whole = std::mem::take(&mut line);
+            // The command is the line's first word after any VAR=value.
+            let words: Vec<&str> = whole
+                .split_whitespace()
+                .skip_while(|w| w.contains('='))
+                .collect();
+            let start = match words.as_slice() {
+                [first, ..] if *first == "rollfuse" || first.ends_with("/rollfuse") => Some(1),
+                ["cargo", "run", "--release", "--", ..] => Some(4),
+                _ => None,
+            };
+            if let Some(k) = start.filter(|&k| k < words.len()) {
+                let args = words[k..].iter().map(|w| w.to_string()).collect();
+                commands.push((name.clone(), args));
+            }
+        }
+    }
+    commands
+}
+
+/// Every command the README and docs show names a subcommand the tool has and only options
+/// that subcommand takes (its `--help` lists them), so the docs cannot drift from the
+/// tool's options. What the commands print is checked by the tests of each command.
+#[test]
+fn every_documented_command_names_a_subcommand_and_options_the_tool_has() {
+    let commands = documented_commands();
+    assert!(
+        commands.len() >= 20,
+        "only {} commands found",
+        commands.len()
+    );
+    let mut helps = std::collections::HashMap::new();
+    for (file, args) in &commands {
+        let sub = args[0].as_str();
+        let help = helps.entry(sub.to_string()).or_insert_with(|| {
+            let out = rollfuse(&[sub, "--help"]);
+            assert!(
+                out.status.success(),
+                "{file}: `rollfuse {sub}` is not a command"
+            );
+            String::from_utf8_lossy(&out.stdout).to_string()
+        });
+        for word in &args[1..] {
+            let flag = word.trim_start_matches('[').trim_end_matches(']');
+            let flag = flag.split('=').next().unwrap_or_default();
+            if !flag.starts_with("--") {
+                continue;
+            }
+            let listed = help
+                .split(|c: char| !(c.is_ascii_alphanumeric() || c == '-'))
+                .any(|w| w == flag);
+            assert!(
+                listed,
+                "{file}: `rollfuse {}` — {sub} has no {flag}",
+                args.join(" ")
+            );
+        }
+    }
+}
