@@ -229,8 +229,10 @@ pub fn read_yolo(labels: &Path, images: &Path) -> anyhow::Result<Vec<LabelledIma
         let image = Planes::load(&path)?;
         check_input(&image).with_context(|| shown.to_string())?;
         count_pixels(&mut pixels, &image, labels)?;
-        let stem = path.file_stem().unwrap_or_default();
-        let txt = labels.join(stem).with_extension("txt");
+        // `frame.v2.png` → `frame.v2.txt`: the stem whole, whatever dots it holds.
+        let mut name = path.file_stem().unwrap_or_default().to_os_string();
+        name.push(".txt");
+        let txt = labels.join(name);
         let boxes = match read_small(&txt)? {
             Some(text) => {
                 labelled += 1;
@@ -510,6 +512,21 @@ mod tests {
         assert_eq!(a[1].box_px, [54.4, 0.0, 64.0, 16.8]);
         // b.png has no label file: defect-free.
         assert!(images[1].boxes.is_empty());
+    }
+
+    #[test]
+    fn a_yolo_label_file_is_the_images_whole_stem_with_txt() {
+        let dir = folder("{}");
+        write_gray(&dir.path().join("roll.v2.png"), 64, 48);
+        let labels = dir.path().join("labels");
+        std::fs::create_dir(&labels).unwrap();
+        std::fs::write(labels.join("classes.txt"), "hole\n").unwrap();
+        std::fs::write(labels.join("roll.v2.txt"), "0 0.5 0.5 0.25 0.25\n").unwrap();
+        // Not this image's labels: read, it would be refused.
+        std::fs::write(labels.join("roll.txt"), "not a box\n").unwrap();
+        let images = read_labels(&labels, dir.path()).unwrap();
+        let boxes: Vec<usize> = images.iter().map(|i| i.boxes.len()).collect();
+        assert_eq!(boxes, [0, 0, 1], "a.png, b.png, roll.v2.png");
     }
 
     #[test]
