@@ -9,8 +9,6 @@ use embassy_time::{Duration, Instant};
 use rollfuse_core::protocol::{Command, RollerCommand};
 use rollfuse_fw::link;
 use rollfuse_fw::liveness::Task;
-use rollfuse_fw::outbox::{self, Kind};
-use rollfuse_fw::roller::{self, ORDERS, Order};
 use rollfuse_fw::signals::STOP_STREAM;
 use std::sync::atomic::Ordering::Relaxed;
 
@@ -24,24 +22,10 @@ fn a_host_that_stops_reading_stops_the_roller_within_the_heartbeat() {
         );
         assert!(until(Duration::from_millis(100), || acked(1) && acked(2)).await);
         // The effects task is not running here: the roller gets its order directly.
-        ORDERS
-            .send(Order::Roller {
-                command: RollerCommand::Start { speed_um_s: 20_000 },
-                stops: roller::stops_requested(),
-            })
-            .await;
-        assert!(until(Duration::from_secs(1), || STEPS.load(Relaxed) > 100).await);
+        roller_turning().await;
         // The host stops reading and says nothing more; a tile is waiting to go.
         HOST_READS.store(false, Relaxed);
-        let mut claim = outbox::try_claim().unwrap();
-        claim.message().kind = Kind::Tile {
-            index: 0,
-            width: 8,
-            height: 8,
-            observations: 1,
-        };
-        claim.message().len = 64;
-        claim.send();
+        queue_tile(0, 8, 8);
         let gone_at = Instant::now();
         // While its write waits on the silent host, the link keeps beating: the watchdog
         // (1 s) must not restart the board before the heartbeat (3 s) has acted.

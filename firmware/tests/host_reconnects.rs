@@ -10,7 +10,6 @@ use common::*;
 use embassy_time::Duration;
 use rollfuse_core::protocol::{self, Command, DeviceMessage};
 use rollfuse_fw::link;
-use rollfuse_fw::outbox::{self, Kind};
 use std::sync::atomic::Ordering::Relaxed;
 
 #[test]
@@ -21,15 +20,7 @@ fn a_new_host_gets_a_clean_answer_to_its_first_hello_after_one_died_mid_message(
         // The host dies: it stops reading and talking while a tile goes out. The tile's
         // first packet loads; the rest wait.
         HOST_READS.store(false, Relaxed);
-        let mut claim = outbox::try_claim().unwrap();
-        claim.message().kind = Kind::Tile {
-            index: 3,
-            width: 100,
-            height: 10,
-            observations: 4,
-        };
-        claim.message().len = 1000;
-        claim.send();
+        queue_tile(3, 100, 10);
         wait(link::HEARTBEAT + Duration::from_millis(500)).await;
         // A new host opens the device: it reads, and sends Hello first.
         WRITTEN.lock().unwrap().clear();

@@ -7,7 +7,7 @@ use embassy_futures::select::select;
 use embassy_time::Duration;
 use rollfuse_core::device::Effect;
 use rollfuse_core::protocol::{Command, RollerCommand};
-use rollfuse_fw::roller::{self, ORDERS, Order};
+use rollfuse_fw::roller::{ORDERS, Order};
 use rollfuse_fw::signals::{Accepted, EFFECTS};
 use std::sync::atomic::Ordering::Relaxed;
 
@@ -15,13 +15,7 @@ use std::sync::atomic::Ordering::Relaxed;
 fn stop_reaches_the_step_generator_with_every_queue_full() {
     let test = async {
         // The roller turns.
-        ORDERS
-            .send(Order::Roller {
-                command: RollerCommand::Start { speed_um_s: 20_000 },
-                stops: roller::stops_requested(),
-            })
-            .await;
-        assert!(until(Duration::from_secs(1), || STEPS.load(Relaxed) > 100).await);
+        roller_turning().await;
         // Every queue full: nothing drains the effects here, and the roller's orders are
         // topped up as it takes them.
         while EFFECTS.try_send(Accepted::now(Effect::StreamStart)).is_ok() {}

@@ -7,8 +7,7 @@ mod common;
 use common::*;
 use embassy_time::{Duration, Instant};
 use rollfuse_core::protocol::{self, Command, DeviceMessage, MAX_TILE_BYTES, RollerCommand};
-use rollfuse_fw::outbox::{self, Kind};
-use rollfuse_fw::roller::{self, ORDERS, Order};
+use rollfuse_fw::roller;
 use std::sync::atomic::Ordering::Relaxed;
 
 /// How soon a Stop must reach the roller, whatever the link is sending.
@@ -19,24 +18,11 @@ fn a_stop_acts_within_10_ms_while_a_tile_waits_on_a_host_that_reads_nothing() {
     let test = async {
         host_sends(1, &Command::Status);
         assert!(until(Duration::from_millis(100), || device_messages().len() == 1).await);
-        ORDERS
-            .send(Order::Roller {
-                command: RollerCommand::Start { speed_um_s: 20_000 },
-                stops: roller::stops_requested(),
-            })
-            .await;
-        assert!(until(Duration::from_secs(1), || STEPS.load(Relaxed) > 100).await);
+        roller_turning().await;
         // The host stops reading; a tile of the largest size goes out and waits on it.
         HOST_READS.store(false, Relaxed);
-        let mut claim = outbox::try_claim().unwrap();
-        claim.message().kind = Kind::Tile {
-            index: 7,
-            width: 160,
-            height: 100,
-            observations: 4,
-        };
-        claim.message().len = MAX_TILE_BYTES;
-        claim.send();
+        queue_tile(7, 160, 100);
+        assert_eq!(160 * 100, MAX_TILE_BYTES);
         wait(Duration::from_millis(50)).await;
         // A status request and then a Stop, both while the tile is stuck.
         let stops = roller::stops_requested();

@@ -212,6 +212,31 @@ pub fn acked(seq: u32) -> bool {
     })
 }
 
+/// Starts the roller at 20 mm/s with an order straight to it (no effects task needed)
+/// and waits until it has taken 100 steps.
+pub async fn roller_turning() {
+    roller::ORDERS
+        .send(roller::Order::Roller {
+            command: rollfuse_core::protocol::RollerCommand::Start { speed_um_s: 20_000 },
+            stops: roller::stops_requested(),
+        })
+        .await;
+    assert!(until(Duration::from_secs(1), || STEPS.load(Relaxed) > 100).await);
+}
+
+/// Queues a tile of `width` × `height` pixels for the link, as the pipeline would.
+pub fn queue_tile(index: u32, width: u16, height: u16) {
+    let mut claim = outbox::try_claim().expect("a free outbox slot");
+    claim.message().kind = outbox::Kind::Tile {
+        index,
+        width,
+        height,
+        observations: 1,
+    };
+    claim.message().len = usize::from(width) * usize::from(height);
+    claim.send();
+}
+
 /// LEDs that do nothing.
 pub struct NoLeds;
 
