@@ -1,7 +1,7 @@
 //! What the host does, and what the run measures: a streaming session at 26 mm/s (a
 //! frame trigger about every camera frame), then a host that goes silent.
 
-use super::{camera, usb};
+use super::{camera, time, usb};
 use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
 use cortex_m_semihosting::hprintln;
 use embassy_time::{Duration, Instant, Timer};
@@ -100,8 +100,8 @@ pub async fn run(steps: &AtomicU32) {
         "fusion cycles in the status: mean {} worst {} ({} us and {} us at 400 MHz)",
         mean,
         worst,
-        mean / 400,
-        worst / 400
+        u64::from(mean) / time::CYCLES_PER_US,
+        u64::from(worst) / time::CYCLES_PER_US
     );
 
     stop_while_sending(&mut host).await;

@@ -18,6 +18,8 @@ use embassy_time_queue_utils::Queue;
 
 /// Timer ticks (25 MHz) per board microsecond (400 instructions at 40 a tick).
 const TICKS_PER_US: u64 = 10;
+/// Instructions (board cycles) a board microsecond.
+pub const CYCLES_PER_US: u64 = 400;
 
 /// The CMSDK APB timers: 0 for alarms, 1 for the clock, and their interrupts.
 const TIMER0: usize = 0x4000_0000;
@@ -116,5 +118,5 @@ impl embassy_time_driver::Driver for Driver {
 /// wrapping: the cycle counter the firmware times its fusions with here, as the board's
 /// DWT counter does on silicon.
 pub fn cycles() -> u32 {
-    (u32::MAX - timer1_value()).wrapping_mul(40)
+    (u32::MAX - timer1_value()).wrapping_mul((CYCLES_PER_US / TICKS_PER_US) as u32)
 }
