@@ -7,7 +7,7 @@
 
 use crate::counters::COUNTERS;
 use crate::liveness;
-use crate::signals::TRIGGERS;
+use crate::signals::{self, TRIGGERS, roller_stops_requested};
 use crate::{fw_info, fw_warn};
 use core::cell::Cell;
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
@@ -40,13 +40,13 @@ pub fn belt_px(steps: u64) -> u64 {
 #[derive(Debug, Clone, Copy)]
 pub enum Order {
     /// A roller command from the host, accepted after `stops` stops had been requested
-    /// ([`stops_requested`]). A Start or Speed that a later stop overtook is dropped: a
+    /// ([`roller_stops_requested`]). A Start or Speed that a later stop overtook is dropped: a
     /// stop is never queued, so it can reach the step generator before orders accepted
     /// ahead of it.
     Roller {
         /// The command.
         command: RollerCommand,
-        /// [`stops_requested`] when the command was accepted.
+        /// [`roller_stops_requested`] when the command was accepted.
         stops: u32,
     },
     /// A new frame spacing, camera pixels.
@@ -63,20 +63,12 @@ static STOP: AtomicBool = AtomicBool::new(false);
 /// Wakes the motion task when it waits for orders while stopped is requested.
 static STOP_SIGNAL: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 
-/// Stops requested since start-up (wrapping).
-static STOPS: AtomicU32 = AtomicU32::new(0);
-
 /// Stops the roller (ramping down): the step generator sees it at once, and drops the
 /// roller orders accepted before it that are still queued.
 pub fn stop() {
-    STOPS.fetch_add(1, Ordering::AcqRel);
+    signals::count_roller_stop();
     STOP.store(true, Ordering::Release);
     STOP_SIGNAL.signal(());
-}
-
-/// Stops requested since start-up (wrapping): what an order accepted now is tagged with.
-pub fn stops_requested() -> u32 {
-    STOPS.load(Ordering::Acquire)
 }
 
 /// Steps taken since start-up (a 64-bit count: no atomic of that width on the M7).
@@ -197,7 +189,7 @@ fn apply(ramp: &mut Ramp, order: Order, steps_per_frame: &impl Fn(u16) -> u32) {
             command: RollerCommand::Start { speed_um_s } | RollerCommand::Speed { speed_um_s },
             stops,
         } => {
-            if stops != stops_requested() {
+            if stops != roller_stops_requested() {
                 fw_info!("a roller order from before a stop dropped");
             } else if ramp.set_speed(speed_um_s).is_err() {
                 fw_warn!("roller speed {} um/s refused", speed_um_s);

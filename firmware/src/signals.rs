@@ -26,6 +26,20 @@ pub static STOP_STREAM: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 /// Stream stops requested since start-up (wrapping).
 static STREAM_STOPS: AtomicU32 = AtomicU32::new(0);
 
+/// Roller stops requested since start-up (wrapping).
+static ROLLER_STOPS: AtomicU32 = AtomicU32::new(0);
+
+/// Counts a roller stop ([`crate::roller::stop`] requests it).
+pub fn count_roller_stop() {
+    ROLLER_STOPS.fetch_add(1, Ordering::AcqRel);
+}
+
+/// Roller stops requested since start-up (wrapping): what an order accepted now is tagged
+/// with.
+pub fn roller_stops_requested() -> u32 {
+    ROLLER_STOPS.load(Ordering::Acquire)
+}
+
 /// The host is gone: streaming ends. Counted and signalled, never queued, so no full queue
 /// can lose it. The counts keep it to the stream it was meant for: a stream started by a
 /// command accepted before it is not started when its order comes, and one started by a
@@ -51,7 +65,7 @@ pub static BUS_LOST: AtomicBool = AtomicBool::new(false);
 pub static EFFECTS: Channel<CriticalSectionRawMutex, Accepted, 8> = Channel::new();
 
 /// An accepted command's effect, with the roller and stream stops requested when it was
-/// accepted ([`crate::roller::stops_requested`], [`stream_stops_requested`]): an order that
+/// accepted ([`roller_stops_requested`], [`stream_stops_requested`]): an order that
 /// a later stop overtook in the queues is dropped, not carried out after it.
 #[derive(Debug, Clone, Copy)]
 pub struct Accepted {
@@ -68,7 +82,7 @@ impl Accepted {
     pub fn now(effect: Effect) -> Self {
         Self {
             effect,
-            stops: crate::roller::stops_requested(),
+            stops: roller_stops_requested(),
             stream_stops: stream_stops_requested(),
         }
     }

@@ -8,6 +8,7 @@ use embassy_time::{Duration, Instant};
 use rollfuse_core::protocol::RollerCommand;
 use rollfuse_fw::liveness::Task;
 use rollfuse_fw::roller::{self, ORDERS, Order};
+use rollfuse_fw::signals;
 use std::sync::atomic::Ordering::Relaxed;
 
 #[test]
@@ -15,7 +16,7 @@ fn one_step_a_second_beats_between_steps_and_stops_within_one() {
     let test = async {
         // 30 µm/s at 23.562 µm a step: one step a second.
         let command = RollerCommand::Start { speed_um_s: 30 };
-        let stops = roller::stops_requested();
+        let stops = signals::roller_stops_requested();
         ORDERS.send(Order::Roller { command, stops }).await;
         beats_throughout(Task::Motion, 8, "it waited between steps").await;
         assert!(STEPS.load(Relaxed) >= 2, "the roller did not step");

@@ -7,7 +7,7 @@ mod common;
 use common::*;
 use embassy_time::{Duration, Instant};
 use rollfuse_core::protocol::{self, Command, DeviceMessage, MAX_TILE_BYTES, RollerCommand};
-use rollfuse_fw::roller;
+use rollfuse_fw::signals::roller_stops_requested;
 use std::sync::atomic::Ordering::Relaxed;
 
 /// How soon a Stop must reach the roller, whatever the link is sending.
@@ -25,11 +25,11 @@ fn a_stop_acts_within_10_ms_while_a_tile_waits_on_a_host_that_reads_nothing() {
         assert_eq!(160 * 100, MAX_TILE_BYTES);
         wait(Duration::from_millis(50)).await;
         // A status request and then a Stop, both while the tile is stuck.
-        let stops = roller::stops_requested();
+        let stops = roller_stops_requested();
         host_sends(2, &Command::Status);
         host_sends(3, &Command::Roller(RollerCommand::Stop));
         let sent_at = Instant::now();
-        let acted = until(STOP_BOUND, || roller::stops_requested() != stops).await;
+        let acted = until(STOP_BOUND, || roller_stops_requested() != stops).await;
         assert!(
             acted,
             "the Stop waited behind the tile for {:?}",

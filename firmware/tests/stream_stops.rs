@@ -53,7 +53,7 @@ fn a_stream_stop_ends_only_the_stream_it_was_meant_for() {
     let (mut camera, mut pins) = (Silent, Pins);
     let test = async {
         let command = RollerCommand::Start { speed_um_s: 20_000 };
-        let stops = roller::stops_requested();
+        let stops = rollfuse_fw::signals::roller_stops_requested();
         ORDERS.send(roller::Order::Roller { command, stops }).await;
         // A start accepted, then the host gone (its stop seen by a pipeline with no stream
         // to end) before the pipeline took the start: not started.

@@ -7,6 +7,7 @@
 //!
 //! - [`files`]: outputs written whole or not at all.
 //! - [`image`]: images as `f32` planes, PNG in and out.
+//! - [`frames`]: a sequence of frames on disk, and where its motion record places them.
 //! - [`sim`]: the tactile simulator (scenes, effects on demand, ground truth).
 //! - [`fullres`]: full-resolution fusion of aligned frames into one mosaic.
 //! - [`depth`]: photometric stereo, Poisson integration, light calibration.
@@ -31,6 +32,7 @@ pub mod depth;
 pub mod detect;
 pub mod eval;
 pub mod files;
+pub mod frames;
 pub mod fullres;
 pub mod image;
 pub mod link;

@@ -29,13 +29,7 @@
 //! 1280×960 `f32` image made the column pass twice as slow as the row pass.
 
 use crate::Error;
-
-/// The largest width or height the core accepts. It keeps every index and every
-/// `width × height` product far inside `u32`, which the bounds proofs rely on.
-pub const MAX_DIMENSION: usize = 1 << 14;
-
-/// The deepest decomposition the core offers.
-pub const MAX_LEVELS: u8 = 4;
+use crate::limits::{MAX_DIMENSION, MAX_LEVELS};
 
 /// A validated 2-D region of a row-major buffer: `width × height` elements, rows `stride`
 /// elements apart.

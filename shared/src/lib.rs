@@ -43,6 +43,7 @@ pub mod fusion;
 pub mod geometry;
 pub mod lanes;
 pub mod lifting;
+mod limits;
 pub mod motion;
 mod packed;
 pub mod protocol;
@@ -53,8 +54,9 @@ pub use error::Error;
 /// The float fusion paths, where the host has always found them.
 pub use fusion::float;
 pub use fusion::{Ablation, CyclicFuser, FuseConfig, LlWeighting};
-pub use geometry::{Dims, MAX_DIMENSION, MAX_LEVELS};
+pub use geometry::Dims;
 pub use lifting::Wavelet;
+pub use limits::{MAX_DIMENSION, MAX_LEVELS};
 pub use saliency::SaliencyNorm;
 
 /// A deterministic byte generator for tests: a linear congruential generator seeded with

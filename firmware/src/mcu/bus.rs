@@ -3,7 +3,7 @@
 //! IN endpoint at the addresses the host opens); a suspended or unconfigured bus stops the
 //! roller and streaming.
 
-use super::Irqs;
+use super::irqs::Irqs;
 use core::sync::atomic::Ordering;
 use defmt::warn;
 use embassy_stm32::peripherals::{PA11, PA12, USB_OTG_FS};

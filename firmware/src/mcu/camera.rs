@@ -6,19 +6,17 @@
 //! frames/s) are the OV7725 datasheet's QVGA settings; they are not yet tried on hardware
 //! (firmware/README.md).
 
-use super::Irqs;
+use super::irqs::Irqs;
 use core::sync::atomic::Ordering::Relaxed;
 use defmt::error;
 use embassy_stm32::dcmi::{self, Dcmi};
 use embassy_stm32::i2c::{I2c, Master};
-use embassy_stm32::interrupt::typelevel::{self, Handler};
 use embassy_stm32::mode::Async;
 use embassy_stm32::peripherals::DCMI;
 use embassy_stm32::rcc::{Mco, Mco1Source, McoConfig, McoPrescaler};
 use embassy_stm32::{Peri, peripherals};
 use embassy_time::Timer;
 use rollfuse_fw::counters::COUNTERS;
-use rollfuse_fw::frame_clock;
 use rollfuse_fw::pipeline::{Camera, FRAME_WORDS};
 use rollfuse_fw::sensor::{COM7_RESET, PID_OV77XX, Reg, SETUP};
 
@@ -184,20 +182,5 @@ impl Camera for DcmiCamera {
             r.set_capture(false);
             r.set_enable(false);
         });
-    }
-}
-
-/// The DCMI's frame-sync interrupt, bound before the HAL's handler: at each VSYNC edge
-/// into blanking (a frame's end) the roller's step count is latched for
-/// `frame_clock`, before the HAL wakes the capture that the same edge completes.
-pub struct FrameSync;
-
-impl Handler<typelevel::DCMI> for FrameSync {
-    unsafe fn on_interrupt() {
-        let dcmi = embassy_stm32::pac::DCMI;
-        if dcmi.ris().read().vsync_ris() {
-            dcmi.icr().write(|r| r.set_vsync_isc(true));
-            frame_clock::frame_edge();
-        }
     }
 }

@@ -2,6 +2,8 @@
 
 mod bus;
 mod camera;
+mod frame_sync;
+mod irqs;
 mod leds;
 mod selftest;
 
@@ -11,7 +13,7 @@ use embassy_futures::join::join5;
 use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::wdg::IndependentWatchdog;
-use embassy_stm32::{Config, Peri, bind_interrupts, dcmi, dma, i2c, interrupt, peripherals, usb};
+use embassy_stm32::{Config, Peri, interrupt, peripherals};
 use embassy_time::{Instant, Timer};
 use rollfuse_core::protocol::DeviceConfig;
 use rollfuse_fw::buffers::{self, TX};
@@ -19,16 +21,6 @@ use rollfuse_fw::pipeline;
 use rollfuse_fw::roller::{self, StepPins};
 use rollfuse_fw::{cycles, effects, link, liveness, outbox, stack_guard};
 use {defmt_rtt as _, panic_probe as _};
-
-bind_interrupts!(struct Irqs {
-    OTG_FS => usb::InterruptHandler<peripherals::USB_OTG_FS>;
-    I2C1_EV => i2c::EventInterruptHandler<peripherals::I2C1>;
-    I2C1_ER => i2c::ErrorInterruptHandler<peripherals::I2C1>;
-    DCMI => camera::FrameSync, dcmi::InterruptHandler<peripherals::DCMI>;
-    DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
-    DMA1_STREAM1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
-    DMA1_STREAM2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
-});
 
 /// The executor of the roller's step generator, at interrupt priority: fusion in thread
 /// mode never delays a step. Its interrupt is one no peripheral here uses.

@@ -218,7 +218,7 @@ pub async fn roller_turning() {
     roller::ORDERS
         .send(roller::Order::Roller {
             command: rollfuse_core::protocol::RollerCommand::Start { speed_um_s: 20_000 },
-            stops: roller::stops_requested(),
+            stops: rollfuse_fw::signals::roller_stops_requested(),
         })
         .await;
     assert!(until(Duration::from_secs(1), || STEPS.load(Relaxed) > 100).await);

@@ -6,7 +6,6 @@ pub mod depth;
 pub mod detect;
 pub mod eval;
 pub mod fuse;
-pub mod fuse_roll;
 pub mod metrics;
 pub mod side_files;
 pub mod simulate;

@@ -2,7 +2,7 @@
 //! seams blended).
 
 use super::check_writable;
-use super::fuse::{load_frames, manifest_path, motion_offsets, refuse_overwriting_inputs};
+use crate::frames::{self, manifest_path, motion_offsets, refuse_overwriting_inputs};
 use crate::fullres::{Placed, splice};
 use anyhow::bail;
 use std::path::PathBuf;
@@ -36,7 +36,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     check_writable(&args.out)?;
     refuse_overwriting_inputs(&[&args.out], &args.frames, args.manifest.as_deref())?;
     let _folder = crate::files::NewFolder::for_file(&args.out)?;
-    let frames = load_frames(&args.frames)?;
+    let frames = frames::load(&args.frames)?;
     let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
     let offsets = motion_offsets(&manifest, &args.frames)?;
     let placed: Vec<Placed> = frames

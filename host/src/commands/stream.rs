@@ -232,7 +232,7 @@ pub fn run(args: Args, show: super::bars::Show) -> anyhow::Result<()> {
 }
 
 /// What the detector found on the strip.
-fn print_defects(d: &serve::detect::DetectorStatus) {
+fn print_defects(d: &serve::findings::DetectorStatus) {
     let kinds: Vec<String> = d
         .defects
         .iter()

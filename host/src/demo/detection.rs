@@ -2,7 +2,7 @@
 //! and the fused strip, boxes drawn) and the frames-against-fused table over one held-out
 //! roll of every fabric, as `rollfuse eval --detect --rolls 17` measures it.
 
-use super::html::escape;
+use super::markup::escape;
 use crate::detect::Detector;
 use crate::detect::data::{RollShape, Style, roll};
 use crate::detect::draw::draw;

@@ -2,7 +2,7 @@
 //! every new tile and the status as they come, from its own bounded queue. A client that
 //! falls behind is told how many rows it missed and goes on from the newest.
 
-use super::detect::{DetectorStatus, LiveBox};
+use super::findings::{DetectorStatus, LiveBox};
 use super::state::{ClientFeed, Event, Shared, Status, TileRing, client_queue, lock};
 use base64::Engine;
 use std::io::Write;

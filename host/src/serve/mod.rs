@@ -9,6 +9,7 @@
 
 pub mod detect;
 mod events;
+pub mod findings;
 pub mod http;
 mod routes;
 pub mod state;
@@ -16,6 +17,7 @@ pub mod state;
 use crate::stream::{Manifest, Watch};
 use anyhow::Context;
 use rollfuse_core::protocol::{self, Command};
+pub use state::MAX_REQUESTS;
 use state::{Rate, Shared, Status, lock};
 use std::collections::VecDeque;
 use std::net::{SocketAddr, TcpListener, TcpStream};
@@ -26,11 +28,6 @@ use std::time::{Duration, Instant};
 
 /// How often the status is refreshed and pushed to the clients.
 pub const STATUS_EVERY: Duration = Duration::from_millis(250);
-
-/// Connections answered at once; beyond, a connection gets 503 and is closed (each
-/// `/events` client counts, and so does a connection that has not sent its request yet,
-/// for at most [`http::HEAD_TIMEOUT`]).
-pub const MAX_REQUESTS: usize = 128;
 
 /// How long the accept thread waits to hand a refusal to a connection over the limit.
 const REFUSAL_WRITE: Duration = Duration::from_millis(100);
@@ -155,7 +152,7 @@ impl Server {
     }
 
     /// The detector's findings so far, with `--detect`.
-    pub fn detector_status(&self) -> Option<detect::DetectorStatus> {
+    pub fn detector_status(&self) -> Option<findings::DetectorStatus> {
         self.shared.status_now().detector
     }
 

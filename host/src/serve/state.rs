@@ -2,7 +2,7 @@
 //! answering requests: the newest tiles, the status, the event clients and the commands
 //! waiting for the device. Every lock is held only to copy or push, never across I/O.
 
-use super::detect::{DetectorStatus, Findings};
+use super::findings::{DetectorStatus, Findings};
 use crate::stream::{Faults, Manifest};
 use rollfuse_core::protocol::{Command, DeviceInfo, StatusCounters};
 use serde::Serialize;
@@ -11,6 +11,11 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
+
+/// Connections answered at once; beyond, a connection gets 503 and is closed (each
+/// `/events` client counts, and so does a connection that has not sent its request yet,
+/// for at most [`super::http::HEAD_TIMEOUT`]).
+pub const MAX_REQUESTS: usize = 128;
 
 /// Rows of the strip the server keeps in memory (the page shows as many; the strip's
 /// files on disk hold the rest).
@@ -287,10 +292,10 @@ impl Shared {
     }
 
     /// Counts a request as being answered until the guard is dropped; `None` when
-    /// [`super::MAX_REQUESTS`] are answered already.
+    /// [`MAX_REQUESTS`] are answered already.
     pub fn begin_request(self: &Arc<Self>) -> Option<Answering> {
         let mut n = lock(&self.requests);
-        if *n >= super::MAX_REQUESTS {
+        if *n >= MAX_REQUESTS {
             return None;
         }
         *n += 1;

@@ -2,7 +2,7 @@
 //! frame of the device pipeline for every configuration, from the `pipeline` rows of its
 //! CSV, and the build of the bench binary that measured them.
 
-use super::Setup;
+use super::setup::Setup;
 use anyhow::{Context, bail};
 use std::collections::HashMap;
 use std::path::Path;

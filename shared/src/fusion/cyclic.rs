@@ -2,8 +2,8 @@
 //! running result kept as an 8-bit image between cycles (clamped to 0..=255, as the camera's
 //! own range).
 
+use super::config::{FuseConfig, LlWeight};
 use super::integer::{U8Pair, U8Work, fuse_scratch_len, fuse_u8};
-use super::{FuseConfig, LlWeight};
 use crate::{Dims, Error};
 
 /// The caller-owned memory of a [`CyclicFuser`] for a `w × h` image:

@@ -5,9 +5,9 @@
 //! (the reference the trade-off study measures against). The paths differ only by the
 //! integer path's rounding.
 
-use crate::fusion::{
-    Arith, FuseConfig, ImagePair, Join, LlWeight, Samples, ScratchLayout, Sequential,
-    fuse_pair_checked, rings_len,
+use super::config::{FuseConfig, LlWeight};
+use super::driver::{
+    Arith, ImagePair, Join, Samples, ScratchLayout, Sequential, fuse_pair_checked, rings_len,
 };
 use crate::lifting::{self, LevelBounds, Lift};
 use crate::saliency::ll_gain_q16;
@@ -389,7 +389,7 @@ pub fn fuse_scratch_len(dims: Dims) -> usize {
     } else {
         0
     };
-    crate::fusion::fuse_scratch_len(dims) + lifting::scratch_len(dims) + rings
+    super::integer::fuse_scratch_len(dims) + lifting::scratch_len(dims) + rings
 }
 
 /// Whether each image's saliency is taken in its forward transform's sweep (from a ring of

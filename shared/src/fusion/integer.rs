@@ -1,12 +1,12 @@
 //! The integer fusion path: i32 coefficients, Q15 weights, the lifting of
 //! [`crate::lifting`]. This is what the MCU runs.
 
-use super::{
-    Ablation, Arith, ByteImages, FuseConfig, ImagePair, LlWeight, Samples, ScratchLayout,
-    Sequential, StepStart, TABLE_WORDS, WindowLayout, WindowMap, fuse_generic, fuse_pair_checked,
-    maps_len, split_maps, split_scratch,
+use super::config::{Ablation, FuseConfig, LlWeight};
+use super::driver::{
+    Arith, ByteImages, ImagePair, Samples, ScratchLayout, Sequential, StepStart, TABLE_WORDS,
+    WindowLayout, WindowMap, fuse_generic, fuse_pair_checked, maps_len, split_maps, split_scratch,
 };
-use crate::lifting::{self, LevelBounds, bounds::level_bounds};
+use crate::lifting::{self, GUARD_BITS, LevelBounds, bounds::level_bounds};
 use crate::packed::widen_shifted;
 use crate::saliency::{
     self, ByteSaliency, LaplacianTable, Normalizer, SaliencyNorm, laplacian_max_u8,
@@ -138,14 +138,6 @@ pub fn fuse_pair(
     let how = (layout, Samples::Unchecked);
     fuse_pair_checked(images, cfg, ll_weight, scratch, how, &Sequential)
 }
-
-/// Fraction bits the 8-bit fusion keeps below the pixel's integer part while it works.
-///
-/// The unscaled lifting stores high bands at about half the orthonormal scale and the
-/// inverse amplifies their rounding; three guard bits (samples × 8, at most 2040, well
-/// inside `MAX_SAMPLE`) keep the fused 8-bit result within a gray level of exact
-/// arithmetic, at no cost in bounds.
-pub const GUARD_BITS: u32 = 3;
 
 /// Work buffers of [`fuse_u8`]: `a` and `b` hold at least `w·h` words, `scratch` at least
 /// [`fuse_scratch_len`].

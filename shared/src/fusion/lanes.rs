@@ -14,9 +14,10 @@
 //! the 32-bit path (`R` rounds to nearest, halves up). Haar's lifting is exact in lanes:
 //! with the mean, or more than one level, a Haar step gives the 32-bit path's bytes.
 
-use super::{
-    FuseConfig, ImagePair, LlWeight, Maps, Sequential, StepStart, WindowLayout, Work, fuse_generic,
-    maps_len, maps_too_small,
+use super::config::{FuseConfig, LlWeight};
+use super::driver::{
+    ImagePair, Maps, Sequential, StepStart, WindowLayout, Work, fuse_generic, maps_len,
+    maps_too_small,
 };
 use crate::lanes::I16x2;
 use crate::lifting::lanes as lifting_lanes;
@@ -56,7 +57,7 @@ pub(crate) fn fuse_in_lanes(
     let words = dims.pixels() / 2;
     let (lanes_a, wide_a) = split_work(work_a, words, "work_a")?;
     let (lanes_b, wide_b) = split_work(work_b, words, "work_b")?;
-    const G: u32 = super::GUARD_BITS;
+    const G: u32 = crate::lifting::GUARD_BITS;
     if !(lifting_lanes::forward_from_bytes::<G>(wavelet, (a, a_dims), lanes_a)
         && lifting_lanes::forward_from_bytes::<G>(wavelet, (b, b_dims), lanes_b))
     {
@@ -256,9 +257,11 @@ fn mix_ll(a: &mut [I16x2], b: &[I16x2], ll_weight: LlWeight) {
 mod tests {
     extern crate std;
     use super::*;
+    use crate::fusion::driver::TABLE_WORDS;
+    use crate::fusion::driver::tests::{fuse_from_level, fuse_u8_alone};
     use crate::fusion::integer::first_level_maps;
-    use crate::fusion::tests::{fuse_from_level, fuse_u8_alone};
-    use crate::fusion::{FuseConfig, GUARD_BITS, ImagePair, TABLE_WORDS, U8Pair};
+    use crate::fusion::{FuseConfig, GUARD_BITS, ImagePair, U8Pair};
+    use crate::lifting::q16;
     use crate::lifting::{
         Coefficients, Lift, Saturation, forward_level_from_bytes, inverse_level, level_bounds,
     };
@@ -312,14 +315,14 @@ mod tests {
         fn half(self) -> Self {
             Self(self.0 >> 1)
         }
-        type Constants = lifting_lanes::Constants;
-        fn constants() -> lifting_lanes::Constants {
-            lifting_lanes::CONSTANTS
+        type Constants = q16::Constants;
+        fn constants() -> q16::Constants {
+            q16::CONSTANTS
         }
-        fn sqrt3(self, k: lifting_lanes::Constants) -> Self {
+        fn sqrt3(self, k: q16::Constants) -> Self {
             Self::seen(Self::q16(k.sqrt3, self.0))
         }
-        fn predict(s: Self, s_prev: Self, k: lifting_lanes::Constants) -> Self {
+        fn predict(s: Self, s_prev: Self, k: q16::Constants) -> Self {
             Self::seen(Self::q16(k.a, s.0) + Self::q16(k.b, s_prev.0))
         }
         fn saturate(self, _bound: i32) -> Self {

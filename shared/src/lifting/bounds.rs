@@ -168,7 +168,7 @@ mod tests {
     /// `i32`, and the bytes are clamped after.
     #[test]
     fn level_one_to_bytes_needs_no_column_saturation() {
-        let bytes = 255 << crate::fusion::GUARD_BITS;
+        let bytes = 255 << crate::lifting::GUARD_BITS;
         for wavelet in [Wavelet::Haar, Wavelet::Db2] {
             let b = level_bounds_for(wavelet, 1, bytes)[0];
             let deeper = level_bounds(wavelet, 2)[1].input;
@@ -259,7 +259,7 @@ mod tests {
     #[ignore = "prints the table for docs/numerics.md"]
     fn print_bounds_table() {
         // 8-bit samples with the fusion's guard bits, and the largest accepted input.
-        let guarded = 255 << crate::fusion::GUARD_BITS;
+        let guarded = 255 << crate::lifting::GUARD_BITS;
         println!(
             "| wavelet | level | input | LL | HL, LH, HH | peak ({guarded}) | peak ({MAX_SAMPLE}) |"
         );

@@ -5,7 +5,8 @@
 //! the low and high bands on exit). For an odd length, `low` has one more element than
 //! `high`; the unpaired last sample passes to the low band unchanged.
 
-use super::{ColumnBounds, Lift, RowsPrepared, RowsReady, StoreRule, rows_at, segment};
+use super::lift::Lift;
+use super::rows::{ColumnBounds, RowsPrepared, RowsReady, StoreRule, rows_at, segment};
 use crate::{Dims, simd};
 
 /// Forward S-transform of one line: `src` holds the samples, `dst` (as long) gets the low

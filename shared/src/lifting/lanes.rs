@@ -17,27 +17,11 @@
 //! Same bits as the generic one-sample sweeps run on `I16x2` words holding one sample
 //! (test `lane_rows_are_the_generic_sweep_two_pairs_a_word`).
 
-use super::{ColumnBounds, RowsPrepared, RowsReady, Unsaturated, db2, haar};
+use super::lift::Lift;
+use super::rows::{ColumnBounds, RowsPrepared, RowsReady, Unsaturated};
+use super::{db2, haar};
 use crate::lanes::I16x2;
 use crate::{Dims, Wavelet};
-
-/// The db2 constants in Q16, the 32-bit operand of `SMULWB`/`SMLAWB`.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Constants {
-    /// √3.
-    pub(crate) sqrt3: i32,
-    /// √3/4.
-    pub(crate) a: i32,
-    /// (√3 − 2)/4 (negative).
-    pub(crate) b: i32,
-}
-
-/// [`Constants`]' values: `round(c · 2¹⁶)`.
-pub(crate) const CONSTANTS: Constants = Constants {
-    sqrt3: 113_512,
-    a: 28_378,
-    b: -4_390,
-};
 
 /// db2's forward row pass of `src` (a multiple of 4 bytes, at least 4) into `dst`: the
 /// low band's `len/2` coefficients then the high band's, two a word (`len/2` words). The
@@ -45,7 +29,7 @@ pub(crate) const CONSTANTS: Constants = Constants {
 /// nothing and return `false`.
 #[inline(always)]
 pub(crate) fn db2_forward_row<const GUARD: u32>(src: &[u8], dst: &mut [I16x2]) -> bool {
-    let k = <I16x2 as super::Lift>::constants();
+    let k = <I16x2 as Lift>::constants();
     let Some((words, low, high)) = forward_halves(src, dst) else {
         return false;
     };
@@ -84,7 +68,7 @@ pub(crate) fn db2_forward_row<const GUARD: u32>(src: &[u8], dst: &mut [I16x2]) -
 /// or a short `src`, write nothing and return `false`.
 #[inline(always)]
 pub(crate) fn db2_inverse_row<const GUARD: u32>(src: &[I16x2], dst: &mut [u8]) -> bool {
-    let k = <I16x2 as super::Lift>::constants();
+    let k = <I16x2 as Lift>::constants();
     let Some((low, high, words)) = inverse_halves(src, dst) else {
         return false;
     };
@@ -262,8 +246,8 @@ pub(crate) fn inverse_to_bytes<const GUARD: u32>(
 mod tests {
     extern crate std;
     use super::*;
-    use crate::fusion::GUARD_BITS;
-    use crate::lifting::Lift;
+    use crate::lifting::q16::CONSTANTS;
+    use crate::lifting::{GUARD_BITS, Lift};
     use std::vec::Vec;
 
     /// A deterministic row of bytes with edges, flats and noise.

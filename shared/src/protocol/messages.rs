@@ -1,6 +1,6 @@
 //! The message bodies: commands (host → device) and device messages (device → host).
 
-use super::{Limits, MAX_CHUNK, MAX_LOG, MAX_TILE_BYTES};
+use super::limits::{Limits, MAX_CHUNK, MAX_LOG, MAX_TILE_BYTES};
 use serde::{Deserialize, Serialize};
 
 /// The wavelet, on the wire.

@@ -16,10 +16,12 @@
 //! Every length has a limit ([`MAX_MESSAGE`], [`MAX_TILE_BYTES`], [`MAX_CHUNK`],
 //! [`MAX_LOG`]), so both ends can size their buffers statically.
 
+mod limits;
 mod messages;
 mod seq;
 pub mod usb;
 
+pub use limits::{Limits, MAX_CHUNK, MAX_LOG, MAX_TILE_BYTES};
 pub use messages::{
     Command, DeviceConfig, DeviceInfo, DeviceMessage, LedDuty, NakReason, NormMode, PixelFormat,
     RawChunk, RollerCommand, StatusCounters, Tile, WaveletId,
@@ -30,15 +32,6 @@ use serde::{Deserialize, Serialize};
 
 /// The protocol version this build speaks. A message with another version is refused.
 pub const PROTOCOL_VERSION: u8 = 3;
-
-/// The largest tile payload, in bytes (e.g. 640 columns × 25 rows).
-pub const MAX_TILE_BYTES: usize = 16_000;
-
-/// The largest raw-frame chunk payload, in bytes.
-pub const MAX_CHUNK: usize = 4096;
-
-/// The longest log line, in bytes of UTF-8.
-pub const MAX_LOG: usize = 160;
 
 /// The largest encoded message, in bytes: a largest tile, its fields and the framing.
 pub const MAX_MESSAGE: usize = MAX_TILE_BYTES + 64;
@@ -103,12 +96,6 @@ impl core::fmt::Display for DecodeError {
             Self::Limit(what) => write!(f, "{what} beyond its limit"),
         }
     }
-}
-
-/// Length limits a message body checks before it is sent and after it is received.
-pub trait Limits {
-    /// `Err(which field)` if a length is beyond its limit or inconsistent.
-    fn check_limits(&self) -> Result<(), &'static str>;
 }
 
 /// Encodes `body` with sequence number `seq` into `out`; returns the message length.

@@ -7,7 +7,7 @@ use cortex_m_semihosting::hprintln;
 use embassy_time::{Duration, Instant, Timer};
 use rollfuse_core::protocol::{Command, LedDuty, RollerCommand};
 use rollfuse_fw::counters::COUNTERS;
-use rollfuse_fw::{link, roller};
+use rollfuse_fw::{link, roller, signals};
 
 /// Looks of the watchdog's feeder at which some task had not come round.
 pub static MISSED_BEATS: AtomicU32 = AtomicU32::new(0);
@@ -125,14 +125,19 @@ async fn stop_while_sending(host: &mut Host) {
     usb::HOST_READS.store(false, Relaxed);
     // Past a frame's time: a tile is in flight, stuck.
     Timer::after_millis(100).await;
-    let stops = roller::stops_requested();
+    let stops = signals::roller_stops_requested();
     let sent_at = Instant::now();
     host.send(Command::Roller(RollerCommand::Stop)).await;
     // Looked at every 100 us: the bound checked is 10 ms.
-    while roller::stops_requested() == stops && sent_at.elapsed() < Duration::from_millis(500) {
+    while signals::roller_stops_requested() == stops
+        && sent_at.elapsed() < Duration::from_millis(500)
+    {
         Timer::after_micros(100).await;
     }
-    let (acted, took) = (roller::stops_requested() != stops, sent_at.elapsed());
+    let (acted, took) = (
+        signals::roller_stops_requested() != stops,
+        sent_at.elapsed(),
+    );
     usb::HOST_READS.store(true, Relaxed);
     host.send(Command::StreamStop).await;
     Timer::after_millis(500).await;

@@ -1,14 +1,13 @@
 //! `rollfuse fuse` on a roll: frames decoded on a second thread, aligned, fused over the
 //! contact window and written as strip segments as they are finished.
 
-use super::bars::{Bars, Show};
-use super::check_writable;
-use super::fuse::{
-    AlignArg, Args, OutBits, manifest_path, motion_offsets, refuse_overwriting_inputs,
-};
-use super::side_files::{self, Side};
+use super::args::{AlignArg, Args, OutBits};
+use crate::commands::bars::{Bars, Show};
+use crate::commands::check_writable;
+use crate::commands::side_files::{self, Side};
 use crate::files::PendingFile;
-use crate::fullres::register::{Placement, Summary, TrackParams};
+use crate::frames::{manifest_path, motion_offsets, refuse_overwriting_inputs};
+use crate::fullres::register::{Placement, Summary};
 use crate::fullres::roll::{Bands, StripSink};
 use crate::fullres::strip::{Placing, StripOptions, StripReport, WindowChoice, fuse_strip};
 use crate::fullres::window::{Geometry, WindowSource};
@@ -22,21 +21,6 @@ use std::sync::mpsc::sync_channel;
 
 /// Frames decoded ahead of the fusion.
 const DECODE_AHEAD: usize = 4;
-
-/// The aligner's settings from the command line, for frames `height` rows high.
-pub fn track_params(args: &Args, height: usize) -> TrackParams {
-    let mut p = TrackParams::for_height(height);
-    p.search_rows = args.search_rows;
-    if let Some(m) = args.max_shift {
-        p.first_search_rows = m;
-    }
-    if let Some(m) = args.min_score {
-        p.min_score = m;
-    }
-    p.subpixel = !args.no_subpixel;
-    p.max_drift_cols = args.max_drift_cols;
-    p
-}
 
 /// The roller geometry recorded in a simulator manifest, if the manifest is there and its
 /// frames are `width × height`.
@@ -198,7 +182,7 @@ fn strip_options(args: &Args, cfg: &FuseConfig) -> anyhow::Result<StripOptions> 
         }
         AlignArg::Motion => Placing::Commanded(commanded()?),
         AlignArg::Template => Placing::Track {
-            params: Some(track_params(args, h as usize)),
+            params: Some(args.track_params(h as usize)),
             commanded: args.manifest.is_some().then(commanded).transpose()?,
         },
     };

@@ -1,0 +1,142 @@
+//! `rollfuse fuse`: full-resolution cyclic fusion of frames — a few frames of one object
+//! into one image (the mosaic, paper Tables II–III), or a whole roll into a strip fused
+//! over the contact window (docs/fusion.md, "Whole rolls").
+
+mod args;
+mod mosaic;
+mod roll;
+
+pub use args::{AlignArg, Args, ModeArg, OutBits};
+
+use crate::commands::bars::Show;
+use crate::frames::{self, manifest_path, motion_offsets};
+use crate::fullres::register::Tracker;
+use crate::image::Planes;
+use anyhow::bail;
+use rollfuse_core::{FuseConfig, SaliencyNorm};
+
+/// Frames an automatic choice of mode loads at once to find their span (a mosaic holds
+/// them all anyway; more are always a roll).
+const AUTO_LOAD_FRAMES: usize = 64;
+
+/// What the command will do, with the frames it already loaded to decide.
+enum Plan {
+    Mosaic(Vec<Planes>),
+    Roll(Option<Vec<Planes>>),
+}
+
+/// Runs the command, showing progress as `show` says.
+pub fn run(mut args: Args, show: Show) -> anyhow::Result<()> {
+    args.frames = frames::expand(&args.frames)?;
+    if args.frames.len() < 2 {
+        bail!(
+            "fusion needs at least two frames, got {}",
+            args.frames.len()
+        );
+    }
+    if !(1..=4).contains(&args.levels) {
+        bail!("--levels must be 1..=4, got {}", args.levels);
+    }
+    if let Some(m) = args.min_score.filter(|m| !(0.0..=1.0).contains(m)) {
+        bail!("--min-score must be in 0..=1, got {m}");
+    }
+    crate::files::require_png_name(&args.out)?;
+    match args.template_rows[..] {
+        [t0, t1] if 0.0 <= t0 && t0 < t1 && t1 <= 1.0 => {}
+        _ => bail!(
+            "--template-rows must be two fractions 0 ≤ top < bottom ≤ 1, as A,B; got {:?}",
+            args.template_rows
+        ),
+    }
+    if args.window_rows == Some(0) {
+        bail!("--window-rows must be at least 1");
+    }
+    if args.band_rows < 2 || !args.blend_rows.is_multiple_of(2) || args.blend_rows > args.band_rows
+    {
+        bail!(
+            "bands of {} rows cannot be cross-faded over {} rows: --blend-rows must be even \
+             and at most --band-rows (at least 2)",
+            args.band_rows,
+            args.blend_rows
+        );
+    }
+    if args.segment_rows == 0 {
+        bail!("--segment-rows must be at least 1");
+    }
+    check_reaches(&args)?;
+    let cfg = FuseConfig {
+        wavelet: args.wavelet.into(),
+        levels: args.levels,
+        ablation: args.ablation.into(),
+        norm: SaliencyNorm::Local,
+        ll_weighting: args.ll_weighting.into(),
+    };
+    let (plan, why) = plan(&args)?;
+    if args.mode == ModeArg::Auto {
+        println!("mode: {why}");
+    }
+    match plan {
+        Plan::Mosaic(frames) => mosaic::run(&args, frames, &cfg, show),
+        Plan::Roll(loaded) => roll::run(&args, loaded, &cfg, show),
+    }
+}
+
+/// Refuses an aligner's reach past the frames
+/// ([`crate::fullres::track::TrackParams::check`]); a mosaic's largest shift is bounded as
+/// a roll's first search is.
+fn check_reaches(args: &Args) -> anyhow::Result<()> {
+    let (w, h) = crate::image::dimensions(&args.frames[0])?;
+    let (w, h) = (w as usize, h as usize);
+    args.track_params(h).check(w, h)
+}
+
+/// Chooses roll or mosaic (`--mode auto`: a roll when the frames span more than a frame
+/// height along the belt, so they cannot all see one object), with the reason in words.
+fn plan(args: &Args) -> anyhow::Result<(Plan, &'static str)> {
+    let auto = match (args.mode, args.align) {
+        (ModeArg::Mosaic, _) => return Ok((Plan::Mosaic(frames::load(&args.frames)?), "mosaic")),
+        (ModeArg::Auto, AlignArg::None) => {
+            let frames = frames::load(&args.frames)?;
+            return Ok((
+                Plan::Mosaic(frames),
+                "mosaic (--align none places no frame)",
+            ));
+        }
+        (ModeArg::Roll, _) => return Ok((Plan::Roll(None), "roll")),
+        (ModeArg::Auto, align) => align,
+    };
+    let (_, h) = crate::image::dimensions(&args.frames[0])?;
+    let h = f64::from(h);
+    let span = |rows: &mut dyn Iterator<Item = f64>| {
+        let (lo, hi) = rows.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), r| {
+            (a.min(r), b.max(r))
+        });
+        hi - lo
+    };
+    const ROLL: &str = "roll (the frames span a frame height or more along the belt)";
+    const MOSAIC: &str = "mosaic (the frames span less than a frame height)";
+    if auto == AlignArg::Motion {
+        let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
+        let offsets = motion_offsets(&manifest, &args.frames)?;
+        return Ok(if span(&mut offsets.iter().map(|o| o.dy as f64)) >= h {
+            (Plan::Roll(None), ROLL)
+        } else {
+            (Plan::Mosaic(frames::load(&args.frames)?), MOSAIC)
+        });
+    }
+    if args.frames.len() > AUTO_LOAD_FRAMES {
+        return Ok((Plan::Roll(None), "roll (more than 64 frames)"));
+    }
+    let frames = frames::load(&args.frames)?;
+    let params = args.track_params(frames[0].height);
+    let rows: Vec<f64> = Tracker::place_all(&frames, params)
+        .0
+        .iter()
+        .map(|p| p.row)
+        .collect();
+    Ok(if span(&mut rows.into_iter()) >= h {
+        (Plan::Roll(Some(frames)), ROLL)
+    } else {
+        (Plan::Mosaic(frames), MOSAIC)
+    })
+}
