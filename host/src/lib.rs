@@ -17,10 +17,12 @@
 //! - [`pipeline_memory`]: the memory a device pipeline runs on (virtual device, trade-off
 //!   study).
 //! - [`strip_file`]: a strip written as it grows, in indexed PNG segments.
+//! - [`session`]: a streaming session's options checked and its link opened.
 //! - [`stream`]: a streaming session — tiles received, checked and stitched into a strip.
 //! - [`tradeoff`]: what each device configuration buys in accuracy and costs in time.
 //! - [`demo`]: the whole system end to end, and its HTML report.
 //! - [`commands`]: the `rollfuse` subcommands.
+//! - [`names`]: the names of settings' values, as the command line and Python take them.
 //! - [`npy`]: NumPy array files.
 //! - [`progress`]: how long work reports its progress ([`progress::Progress`]).
 
@@ -36,10 +38,12 @@ pub mod frames;
 pub mod fullres;
 pub mod image;
 pub mod link;
+pub mod names;
 pub mod npy;
 pub mod pipeline_memory;
 pub mod progress;
 pub mod serve;
+pub mod session;
 pub mod sim;
 pub mod stream;
 pub mod strip_file;

@@ -3,30 +3,20 @@
 
 use crate::arrays::{Frames, OutDtype, Samples, Stack, image_array};
 use crate::errors::{OrPy, value_error};
-use clap::ValueEnum;
 use numpy::ndarray::Array2;
 use numpy::{PyArray, PyReadonlyArrayDyn};
 use pyo3::exceptions::PyRuntimeWarning;
 use pyo3::prelude::*;
-use rollfuse::commands::{AblationArg, LlWeightingArg, WaveletArg};
 use rollfuse::fullres::align::{Aligned, Offset, TemplateParams, align_chain};
 use rollfuse::fullres::{FrameSource, Precision, fuse_mosaic_from, fuse_mosaic_mut};
 use rollfuse::image::Planes;
+use rollfuse::names::Named;
 use rollfuse::progress::Silent;
 use rollfuse_core::{FuseConfig, SaliencyNorm};
 
 /// A choice named as on the command line (`--wavelet db2`, …).
-pub fn choice<T: ValueEnum>(name: &str, value: &str) -> PyResult<T> {
-    T::from_str(value, false).map_err(|_| {
-        let names: Vec<String> = T::value_variants()
-            .iter()
-            .filter_map(|v| v.to_possible_value().map(|p| format!("'{}'", p.get_name())))
-            .collect();
-        value_error(format!(
-            "{name} must be one of {}, got '{value}'",
-            names.join(", ")
-        ))
-    })
+pub fn choice<T: Named>(name: &str, value: &str) -> PyResult<T> {
+    rollfuse::names::parse(name, value).map_err(value_error)
 }
 
 /// The fusion settings shared by `fuse` and `fuse_pair`.
@@ -53,11 +43,11 @@ impl Settings {
             return Err(value_error(format!("levels must be 1..=4, got {levels}")));
         }
         let cfg = FuseConfig {
-            wavelet: choice::<WaveletArg>("wavelet", wavelet)?.into(),
+            wavelet: choice("wavelet", wavelet)?,
             levels,
-            ablation: choice::<AblationArg>("ablation", ablation)?.into(),
+            ablation: choice("ablation", ablation)?,
             norm: SaliencyNorm::Local,
-            ll_weighting: choice::<LlWeightingArg>("ll_weighting", ll_weighting)?.into(),
+            ll_weighting: choice("ll_weighting", ll_weighting)?,
         };
         Ok(Self {
             cfg,

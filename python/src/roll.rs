@@ -14,14 +14,26 @@ use rollfuse::fullres::roll::{Bands, StripSink};
 use rollfuse::fullres::strip::{Placing, StripOptions, StripReport, WindowChoice, fuse_strip};
 use rollfuse::fullres::window::{Geometry, WindowSource};
 use rollfuse::image::Planes;
+use rollfuse::names::Named;
 
 /// How frames are placed along the belt, as `--align` names it for a roll.
-#[derive(Clone, Copy, clap::ValueEnum)]
+#[derive(Clone, Copy, PartialEq)]
 enum RollAlign {
     /// Matched frame to frame near a prediction (the rows given, if any).
     Template,
     /// The rows given, as they are.
     Motion,
+}
+
+impl Named for RollAlign {
+    const VALUES: &'static [(&'static str, &'static str, Self)] = &[
+        (
+            "template",
+            "matched frame to frame near a prediction",
+            RollAlign::Template,
+        ),
+        ("motion", "the rows given, as they are", RollAlign::Motion),
+    ];
 }
 
 /// The strip's rows in memory, from its first; a jump in the belt rows (frames that no

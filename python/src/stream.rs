@@ -10,10 +10,10 @@ use numpy::ndarray::Array2;
 use pyo3::exceptions::PyStopIteration;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use rollfuse::commands::stream::{Args, Opened, open};
 use rollfuse::progress::Silent;
+use rollfuse::session::{Fusion, Opened, Request, open};
 use rollfuse::stream::{Manifest, Outcome, StopReason, Watch, run_watched};
-use rollfuse_core::protocol::{Command, DeviceConfig, Tile};
+use rollfuse_core::protocol::{Command, Tile};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
@@ -237,40 +237,36 @@ pub fn stream(
         })?),
     };
     // Unset, each fusion option is the module's own default.
-    let module = DeviceConfig::default();
-    let args = Args {
+    let module = Fusion::default();
+    let request = Request {
         device,
         scene,
         out: folder.path(),
         record,
         tiles,
         seconds,
-        wavelet: wavelet.map_or(Ok(module.wavelet.into()), |w| choice("wavelet", w))?,
-        levels: levels.unwrap_or(module.levels),
-        downsample: downsample.unwrap_or(module.downsample),
-        tile_rows: tile_rows.unwrap_or(module.tile_rows),
-        frames_per_tile: frames_per_tile.unwrap_or(module.frames_per_tile),
-        spacing_px,
-        refine_rows: refine_rows.unwrap_or(module.refine_rows),
-        norm: norm.map_or(Ok(module.norm.into()), |n| choice("norm", n))?,
+        fusion: Fusion {
+            wavelet: wavelet.map_or(Ok(module.wavelet), |w| choice("wavelet", w))?,
+            levels: levels.unwrap_or(module.levels),
+            downsample: downsample.unwrap_or(module.downsample),
+            tile_rows: tile_rows.unwrap_or(module.tile_rows),
+            frames_per_tile: frames_per_tile.unwrap_or(module.frames_per_tile),
+            spacing_px,
+            refine_rows: refine_rows.unwrap_or(module.refine_rows),
+            norm: norm.map_or(Ok(module.norm), |n| choice("norm", n))?,
+        },
         unbounded_memory,
         frame_rate,
         serve: None,
-        control: false,
-        allow_remote_control: false,
-        allow_host: Vec::new(),
-        detect: false,
-        model: None,
-        normal: None,
-        keep_serving: false,
+        other_inputs: Vec::new(),
     };
-    let Opened { mut link, opts, .. } = py.detach(|| open(&args)).or_py()?;
+    let Opened { mut link, opts, .. } = py.detach(|| open(&request)).or_py()?;
     let (tx, rx) = sync_channel(WAITING_TILES);
     let skipped = Arc::new(AtomicU64::new(0));
     let stop = Arc::new(AtomicBool::new(false));
     let mut handoff = Handoff {
         tiles: tx,
-        wait: !link.is_live() || args.device == "sim",
+        wait: !link.is_live() || request.device == "sim",
         skipped: skipped.clone(),
         stop: stop.clone(),
         stop_sent: false,

@@ -11,7 +11,7 @@ use rollfuse_core::lifting::filter_bank::{self, level_scratch_len, subband_dims}
 use rollfuse_core::{Dims, Wavelet};
 
 fn wavelet_named(name: &str) -> PyResult<Wavelet> {
-    Ok(crate::fuse::choice::<rollfuse::commands::WaveletArg>("wavelet", name)?.into())
+    crate::fuse::choice("wavelet", name)
 }
 
 fn core_error(e: rollfuse_core::Error) -> PyErr {

@@ -25,7 +25,7 @@ pub struct Args {
     #[arg(long, default_value_t = 10)]
     pub strips: usize,
     /// Cut the strips as bands of rows (along the belt, default) or of columns.
-    #[arg(long, value_enum, default_value = "rows")]
+    #[arg(long, value_parser = crate::commands::named::<StripAxis>(), default_value = "rows")]
     pub axis: StripAxis,
     /// Print JSON instead of a table.
     #[arg(long)]

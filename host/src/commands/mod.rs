@@ -13,8 +13,7 @@ pub mod splice;
 pub mod stream;
 pub mod tradeoff;
 
-use clap::ValueEnum;
-use rollfuse_core::{Ablation, LlWeighting, Wavelet};
+use crate::names::Named;
 
 /// A command wrote its output, but the output rests on evidence it cannot trust (a
 /// roll's placement with the belt lost, say): the process exits with
@@ -35,73 +34,15 @@ impl std::fmt::Display for Untrusted {
 
 impl std::error::Error for Untrusted {}
 
-/// `--wavelet`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum WaveletArg {
-    /// Haar.
-    Haar,
-    /// Daubechies-4.
-    Db2,
-}
-
-impl From<rollfuse_core::protocol::WaveletId> for WaveletArg {
-    fn from(w: rollfuse_core::protocol::WaveletId) -> Self {
-        match w {
-            rollfuse_core::protocol::WaveletId::Haar => WaveletArg::Haar,
-            rollfuse_core::protocol::WaveletId::Db2 => WaveletArg::Db2,
-        }
-    }
-}
-
-impl From<WaveletArg> for Wavelet {
-    fn from(w: WaveletArg) -> Self {
-        match w {
-            WaveletArg::Haar => Wavelet::Haar,
-            WaveletArg::Db2 => Wavelet::Db2,
-        }
-    }
-}
-
-/// `--ablation` (paper Table II).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum AblationArg {
-    /// The full method.
-    None,
-    /// Pixel average instead of the wavelet transform.
-    NoWavelet,
-    /// Keep one image's LL band instead of the mean.
-    SingleLl,
-    /// Max-|coefficient| instead of saliency weights.
-    MaxHigh,
-}
-
-impl From<AblationArg> for Ablation {
-    fn from(a: AblationArg) -> Self {
-        match a {
-            AblationArg::None => Ablation::None,
-            AblationArg::NoWavelet => Ablation::NoWavelet,
-            AblationArg::SingleLl => Ablation::SingleLl,
-            AblationArg::MaxHigh => Ablation::MaxHigh,
-        }
-    }
-}
-
-/// `--ll-weighting`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum LlWeightingArg {
-    /// The paper's pairwise mean: the newest frame weighs ½.
-    Paper,
-    /// Every frame weighs 1/n: independent of order.
-    Equal,
-}
-
-impl From<LlWeightingArg> for LlWeighting {
-    fn from(l: LlWeightingArg) -> Self {
-        match l {
-            LlWeightingArg::Paper => LlWeighting::Paper,
-            LlWeightingArg::Equal => LlWeighting::Equal,
-        }
-    }
+/// clap's parser of a [`Named`] setting: its names are the possible values, each with its
+/// line of help.
+pub fn named<T: Named>() -> impl clap::builder::TypedValueParser<Value = T> {
+    use clap::builder::TypedValueParser;
+    let values = T::VALUES
+        .iter()
+        .map(|&(name, help, _)| clap::builder::PossibleValue::new(name).help(help));
+    clap::builder::PossibleValuesParser::new(values)
+        .try_map(|name| T::from_name(&name).ok_or("not one of the possible values"))
 }
 
 pub use crate::files::check_writable;

@@ -1,27 +1,15 @@
 //! `rollfuse stream` and `rollfuse devices`: fused tiles from the edge module (or the
 //! virtual device, or a recording) into a strip.
 
-use super::WaveletArg;
-use crate::link::Transport;
-use crate::link::replay::Replay;
-use crate::link::sim::{DeviceMemory, SimDevice};
-use crate::link::usb::{self, Usb};
+use super::named;
+use crate::link::usb;
+use crate::names::Named;
 use crate::serve;
-use crate::sim::Scene;
-use crate::stream::{self, Options, StopReason};
-use anyhow::{Context, bail, ensure};
+use crate::session::{self, Fusion, Opened, Request};
+use crate::stream::{self, StopReason};
+use anyhow::bail;
 use rollfuse_core::protocol::{DeviceConfig, NormMode, WaveletId};
-use std::path::{Path, PathBuf};
-use std::time::Duration;
-
-/// `--norm`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum NormArg {
-    /// Saliency normalized by each tile's own maximum.
-    PerTile,
-    /// By the maximum over the rows of the frame its tiles come from.
-    PerFrame,
-}
+use std::path::PathBuf;
 
 /// Arguments of `rollfuse stream`.
 #[derive(Debug, clap::Args)]
@@ -47,8 +35,8 @@ pub struct Args {
     #[arg(long)]
     pub seconds: Option<f64>,
     /// Wavelet the device fuses with (default: the module's, db2).
-    #[arg(long, value_enum, default_value_t = WaveletArg::from(DeviceConfig::default().wavelet))]
-    pub wavelet: WaveletArg,
+    #[arg(long, value_parser = named::<WaveletId>(), default_value = DeviceConfig::default().wavelet.name())]
+    pub wavelet: WaveletId,
     /// Decomposition levels, 1..=4 (default: the module's).
     #[arg(long, default_value_t = DeviceConfig::default().levels)]
     pub levels: u8,
@@ -70,8 +58,8 @@ pub struct Args {
     #[arg(long, default_value_t = DeviceConfig::default().refine_rows)]
     pub refine_rows: u8,
     /// Saliency normalization.
-    #[arg(long, value_enum, default_value_t = NormArg::from(DeviceConfig::default().norm))]
-    pub norm: NormArg,
+    #[arg(long, value_parser = named::<NormMode>(), default_value = DeviceConfig::default().norm.name())]
+    pub norm: NormMode,
     /// With --device sim: give the virtual device as much pipeline memory as the
     /// configuration needs, for host-only studies (by default it has the module's, and
     /// refuses what the module refuses).
@@ -122,72 +110,36 @@ pub struct Args {
     pub keep_serving: bool,
 }
 
-impl From<NormMode> for NormArg {
-    fn from(n: NormMode) -> Self {
-        match n {
-            NormMode::PerTile => NormArg::PerTile,
-            NormMode::PerFrame => NormArg::PerFrame,
-        }
-    }
-}
-
 impl Args {
-    fn config(&self, spacing_default: u16) -> DeviceConfig {
-        DeviceConfig {
-            wavelet: match self.wavelet {
-                WaveletArg::Haar => WaveletId::Haar,
-                WaveletArg::Db2 => WaveletId::Db2,
+    /// The session the options ask for.
+    fn request(&self) -> Request {
+        let other_inputs = [("model", &self.model), ("normal model", &self.normal)]
+            .into_iter()
+            .filter_map(|(what, p)| Some((what, p.clone()?)))
+            .collect();
+        Request {
+            device: self.device.clone(),
+            scene: self.scene.clone(),
+            out: self.out.clone(),
+            record: self.record.clone(),
+            tiles: self.tiles,
+            seconds: self.seconds,
+            fusion: Fusion {
+                wavelet: self.wavelet,
+                levels: self.levels,
+                downsample: self.downsample,
+                tile_rows: self.tile_rows,
+                frames_per_tile: self.frames_per_tile,
+                spacing_px: self.spacing_px,
+                refine_rows: self.refine_rows,
+                norm: self.norm,
             },
-            levels: self.levels,
-            downsample: self.downsample,
-            tile_rows: self.tile_rows,
-            frames_per_tile: self.frames_per_tile,
-            frame_spacing_px: self.spacing_px.unwrap_or(spacing_default),
-            refine_rows: self.refine_rows,
-            norm: match self.norm {
-                NormArg::PerTile => NormMode::PerTile,
-                NormArg::PerFrame => NormMode::PerFrame,
-            },
+            unbounded_memory: self.unbounded_memory,
+            frame_rate: self.frame_rate,
+            serve: self.serve.clone(),
+            other_inputs,
         }
     }
-}
-
-/// A session ready to run: its link, options and the address to serve on.
-pub struct Opened {
-    /// The device, virtual device or recording.
-    pub link: Box<dyn Transport>,
-    /// The session's options.
-    pub opts: Options,
-    /// `--serve`'s address.
-    pub serve: Option<std::net::SocketAddr>,
-    /// The output folder, removed again if the session writes nothing to it.
-    pub folder: crate::files::NewFolder,
-}
-
-/// Checks every option of `args` (and that no output is an input), makes the output
-/// folder and opens the link: what `rollfuse stream` runs, and the Python package's
-/// `rollfuse.stream`.
-pub fn open(args: &Args) -> anyhow::Result<Opened> {
-    let checked = check(args)?;
-    let folder = crate::files::NewFolder::create(&args.out)?;
-    super::check_writable(&args.out.join("manifest.json"))?;
-    if let Some(r) = &args.record {
-        super::check_writable(r)?;
-    }
-    let (link, config) = open_link(args, &checked)?;
-    let opts = Options {
-        out: args.out.clone(),
-        config,
-        max_tiles: args.tiles,
-        max_duration: checked.max_duration,
-        record: args.record.clone(),
-    };
-    Ok(Opened {
-        link,
-        opts,
-        serve: checked.serve,
-        folder,
-    })
 }
 
 /// Runs `rollfuse stream`, showing progress as `show` says.
@@ -198,7 +150,7 @@ pub fn run(args: Args, show: super::bars::Show) -> anyhow::Result<()> {
         opts,
         serve,
         folder: _folder,
-    } = open(&args)?;
+    } = session::open(&args.request())?;
     let server = serve
         .map(|addr| start_server(&args, addr, link.is_live()))
         .transpose()?;
@@ -339,123 +291,6 @@ fn start_server(
         );
     }
     Ok(server)
-}
-
-/// What the options say, once checked.
-struct Checked {
-    /// `--device replay:FILE`'s file.
-    replay: Option<std::path::PathBuf>,
-    /// `--seconds`.
-    max_duration: Option<Duration>,
-    /// `--serve`.
-    serve: Option<std::net::SocketAddr>,
-    /// `--frame-rate`, as the time between frames.
-    frame_period: Option<Duration>,
-}
-
-/// Checks the options and that the recording written is none of the inputs.
-fn check(args: &Args) -> anyhow::Result<Checked> {
-    if let Some(s) = args.seconds
-        && !(s > 0.0 && s.is_finite())
-    {
-        bail!("--seconds must be a positive number, got {s}");
-    }
-    if args.tiles == Some(0) {
-        bail!("--tiles must be at least 1");
-    }
-    let max_duration = args
-        .seconds
-        .map(Duration::try_from_secs_f64)
-        .transpose()
-        .map_err(|_| anyhow::anyhow!("--seconds is too long: {:?}", args.seconds))?;
-    let replay = match args.device.as_str() {
-        "usb" | "sim" => None,
-        other => match other.strip_prefix("replay:") {
-            Some(file) if !file.is_empty() => Some(std::path::PathBuf::from(file)),
-            _ => bail!("--device must be usb, sim or replay:FILE, got `{other}`"),
-        },
-    };
-    if args.device == "sim" && args.scene.is_none() {
-        bail!("--device sim needs --scene SCENE.toml (e.g. host/scenes/letters.toml)");
-    }
-    if args.unbounded_memory && args.device != "sim" {
-        bail!("--unbounded-memory is for the virtual device (--device sim) only");
-    }
-    let frame_period = args.frame_rate.map(frame_period).transpose()?;
-    if frame_period.is_some() && args.device != "sim" {
-        bail!("--frame-rate is for the virtual device (--device sim) only");
-    }
-    let serve = args.serve.as_deref().map(serve::parse_addr).transpose()?;
-    refuse_overwriting_inputs(args, replay.as_deref())?;
-    Ok(Checked {
-        replay,
-        max_duration,
-        serve,
-        frame_period,
-    })
-}
-
-/// Refuses, before the session, a run that would overwrite what it reads or records: the
-/// recording (`--record`) or an input (the replayed recording, the scene, the model)
-/// where the session writes its strip, its segments, its index or its manifest, or the
-/// recording over an input.
-fn refuse_overwriting_inputs(args: &Args, replay: Option<&Path>) -> anyhow::Result<()> {
-    let mut inputs: Vec<(&str, &Path)> = Vec::new();
-    inputs.extend(replay.map(|p| ("recording replayed", p)));
-    inputs.extend(args.scene.as_deref().map(|p| ("scene", p)));
-    inputs.extend(args.model.as_deref().map(|p| ("model", p)));
-    inputs.extend(args.normal.as_deref().map(|p| ("normal model", p)));
-    let session = stream::output_files(&args.out);
-    let outputs: Vec<&Path> = session.iter().map(PathBuf::as_path).collect();
-    crate::files::refuse_overwriting(&outputs, &inputs)?;
-    let strip = &session[0];
-    crate::strip_file::refuse_segment_names(strip, &inputs)?;
-    if let Some(r) = args.record.as_deref() {
-        crate::files::refuse_overwriting(&[r], &inputs)?;
-        let at = crate::files::resolved(r);
-        let session_writes = outputs.iter().any(|o| crate::files::resolved(o) == at)
-            || crate::strip_file::is_segment_name(strip, r);
-        ensure!(
-            !session_writes,
-            "--record {} is where the session writes its strip, index or manifest: record \
-             to another file",
-            r.display()
-        );
-    }
-    Ok(())
-}
-
-/// `--frame-rate`'s period: a rate from 0.01 to 10 000 frames a second.
-fn frame_period(rate: f64) -> anyhow::Result<Duration> {
-    if !(0.01..=10_000.0).contains(&rate) {
-        bail!("--frame-rate must be from 0.01 to 10000 frames a second, got {rate}");
-    }
-    Ok(Duration::from_secs_f64(1.0 / rate))
-}
-
-/// The link the options name, and the configuration to send (none to a recording).
-fn open_link(
-    args: &Args,
-    checked: &Checked,
-) -> anyhow::Result<(Box<dyn Transport>, Option<DeviceConfig>)> {
-    Ok(match checked.replay.as_deref() {
-        Some(file) => (Box::new(Replay::open(file)?), None),
-        None if args.device == "usb" => (
-            Box::new(Usb::open()?),
-            Some(args.config(DeviceConfig::default().frame_spacing_px)),
-        ),
-        None => {
-            let path = args.scene.as_ref().context("--device sim needs --scene")?;
-            let memory = if args.unbounded_memory {
-                DeviceMemory::Unbounded
-            } else {
-                DeviceMemory::Firmware
-            };
-            let dev = SimDevice::start_paced(&Scene::load(path)?, memory, checked.frame_period)?;
-            let spacing = dev.default_config().frame_spacing_px;
-            (Box::new(dev), Some(args.config(spacing)))
-        }
-    })
 }
 
 /// The session's summary: tiles and rate, the strip's files, why it stopped, the

@@ -227,7 +227,7 @@ pub fn population_std(values: &[f64]) -> f64 {
 }
 
 /// Which way an image is cut into strips for the regional std.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub enum StripAxis {
     /// Bands of rows: along the belt, the direction contact depth varies in rollfuse's
     /// frames (the paper's "width", its motion direction).

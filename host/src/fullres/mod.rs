@@ -24,7 +24,7 @@ use rollfuse_core::fusion::{
 use rollfuse_core::{Dims, FuseConfig, float};
 
 /// Which arithmetic fuses.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub enum Precision {
     /// `f32` (the host's full-resolution path).
     F32,

@@ -1,8 +1,9 @@
 //! The arguments of `rollfuse fuse`.
 
-use crate::commands::{AblationArg, LlWeightingArg, WaveletArg};
+use crate::commands::named;
 use crate::fullres::Precision;
 use crate::fullres::register::TrackParams;
+use rollfuse_core::{Ablation, LlWeighting, Wavelet};
 use std::path::PathBuf;
 
 /// `--align`.
@@ -96,8 +97,8 @@ pub struct Args {
     #[arg(long, value_enum, default_value = "8")]
     pub out_bits: OutBits,
     /// Wavelet.
-    #[arg(long, value_enum, default_value = "db2")]
-    pub wavelet: WaveletArg,
+    #[arg(long, value_parser = named::<Wavelet>(), default_value = "db2")]
+    pub wavelet: Wavelet,
     /// Decomposition levels, 1..=4.
     #[arg(long, default_value_t = 1)]
     pub levels: u8,
@@ -119,14 +120,14 @@ pub struct Args {
     #[arg(long)]
     pub min_score: Option<f32>,
     /// Remove one part of the method (paper Table II).
-    #[arg(long, value_enum, default_value = "none")]
-    pub ablation: AblationArg,
+    #[arg(long, value_parser = named::<Ablation>(), default_value = "none")]
+    pub ablation: Ablation,
     /// f32 (host) or fixed (the MCU's integer path, on 8-bit data).
-    #[arg(long, value_enum, default_value = "f32")]
+    #[arg(long, value_parser = named::<Precision>(), default_value = "f32")]
     pub precision: Precision,
     /// How the LL band weighs each frame.
-    #[arg(long, value_enum, default_value = "paper")]
-    pub ll_weighting: LlWeightingArg,
+    #[arg(long, value_parser = named::<LlWeighting>(), default_value = "paper")]
+    pub ll_weighting: LlWeighting,
 }
 
 impl Args {

@@ -65,11 +65,11 @@ pub fn run(mut args: Args, show: Show) -> anyhow::Result<()> {
     }
     check_reaches(&args)?;
     let cfg = FuseConfig {
-        wavelet: args.wavelet.into(),
+        wavelet: args.wavelet,
         levels: args.levels,
-        ablation: args.ablation.into(),
+        ablation: args.ablation,
         norm: SaliencyNorm::Local,
-        ll_weighting: args.ll_weighting.into(),
+        ll_weighting: args.ll_weighting,
     };
     let (plan, why) = plan(&args)?;
     if args.mode == ModeArg::Auto {

@@ -1,0 +1,256 @@
+//! A streaming session opened: what to stream from and into, every option checked and no
+//! output an input, the output folder made and the link opened — what `rollfuse stream`
+//! and the Python package's `rollfuse.stream` both run before [`crate::stream::run`].
+//! Messages name the options as the command line spells them.
+
+use crate::link::Transport;
+use crate::link::replay::Replay;
+use crate::link::sim::{DeviceMemory, SimDevice};
+use crate::link::usb::Usb;
+use crate::serve;
+use crate::sim::Scene;
+use crate::stream::{self, Options};
+use anyhow::{Context, bail, ensure};
+use rollfuse_core::protocol::{DeviceConfig, NormMode, WaveletId};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// What to stream from and into.
+#[derive(Debug, Clone)]
+pub struct Request {
+    /// `usb`, `sim` (the virtual device, with a scene) or `replay:FILE`.
+    pub device: String,
+    /// With `sim`: the scene the virtual device's camera sees.
+    pub scene: Option<PathBuf>,
+    /// The output folder: the strip and `manifest.json`.
+    pub out: PathBuf,
+    /// Where every received message is recorded, if anywhere.
+    pub record: Option<PathBuf>,
+    /// Stop after this many tiles.
+    pub tiles: Option<u64>,
+    /// Stop after this many seconds.
+    pub seconds: Option<f64>,
+    /// What the device is told to fuse with.
+    pub fusion: Fusion,
+    /// With `sim`: as much pipeline memory as the configuration needs.
+    pub unbounded_memory: bool,
+    /// With `sim`: frames a second in real time (none: virtual time).
+    pub frame_rate: Option<f64>,
+    /// The live page's address, if one is served.
+    pub serve: Option<String>,
+    /// Files the session reads besides its device's (a detector's model), by what they
+    /// are: never written over.
+    pub other_inputs: Vec<(&'static str, PathBuf)>,
+}
+
+/// The device configuration a session asks for.
+#[derive(Debug, Clone, Copy)]
+pub struct Fusion {
+    /// The wavelet.
+    pub wavelet: WaveletId,
+    /// Decomposition levels.
+    pub levels: u8,
+    /// Box downsampling of camera frames.
+    pub downsample: u8,
+    /// Tile height along the belt, downsampled rows.
+    pub tile_rows: u16,
+    /// Frames fused into each tile.
+    pub frames_per_tile: u8,
+    /// Belt travel between frames, camera pixels (none: the scene's, or the module's).
+    pub spacing_px: Option<u16>,
+    /// Offset refinement search, ± downsampled rows.
+    pub refine_rows: u8,
+    /// Saliency normalization.
+    pub norm: NormMode,
+}
+
+impl Default for Fusion {
+    /// The module's own configuration.
+    fn default() -> Self {
+        let m = DeviceConfig::default();
+        Self {
+            wavelet: m.wavelet,
+            levels: m.levels,
+            downsample: m.downsample,
+            tile_rows: m.tile_rows,
+            frames_per_tile: m.frames_per_tile,
+            spacing_px: None,
+            refine_rows: m.refine_rows,
+            norm: m.norm,
+        }
+    }
+}
+
+impl Fusion {
+    /// The configuration sent, with `spacing_default` where no spacing is given.
+    fn config(&self, spacing_default: u16) -> DeviceConfig {
+        DeviceConfig {
+            wavelet: self.wavelet,
+            levels: self.levels,
+            downsample: self.downsample,
+            tile_rows: self.tile_rows,
+            frames_per_tile: self.frames_per_tile,
+            frame_spacing_px: self.spacing_px.unwrap_or(spacing_default),
+            refine_rows: self.refine_rows,
+            norm: self.norm,
+        }
+    }
+}
+
+/// A session ready to run: its link, options and the address to serve on.
+pub struct Opened {
+    /// The device, virtual device or recording.
+    pub link: Box<dyn Transport>,
+    /// The session's options.
+    pub opts: Options,
+    /// `--serve`'s address.
+    pub serve: Option<std::net::SocketAddr>,
+    /// The output folder, removed again if the session writes nothing to it.
+    pub folder: crate::files::NewFolder,
+}
+
+/// Checks every option of `args` (and that no output is an input), makes the output
+/// folder and opens the link: what `rollfuse stream` runs, and the Python package's
+/// `rollfuse.stream`.
+pub fn open(args: &Request) -> anyhow::Result<Opened> {
+    let checked = check(args)?;
+    let folder = crate::files::NewFolder::create(&args.out)?;
+    crate::files::check_writable(&args.out.join("manifest.json"))?;
+    if let Some(r) = &args.record {
+        crate::files::check_writable(r)?;
+    }
+    let (link, config) = open_link(args, &checked)?;
+    let opts = Options {
+        out: args.out.clone(),
+        config,
+        max_tiles: args.tiles,
+        max_duration: checked.max_duration,
+        record: args.record.clone(),
+    };
+    Ok(Opened {
+        link,
+        opts,
+        serve: checked.serve,
+        folder,
+    })
+}
+
+/// What the options say, once checked.
+struct Checked {
+    /// `--device replay:FILE`'s file.
+    replay: Option<std::path::PathBuf>,
+    /// `--seconds`.
+    max_duration: Option<Duration>,
+    /// `--serve`.
+    serve: Option<std::net::SocketAddr>,
+    /// `--frame-rate`, as the time between frames.
+    frame_period: Option<Duration>,
+}
+
+/// Checks the options and that the recording written is none of the inputs.
+fn check(args: &Request) -> anyhow::Result<Checked> {
+    if let Some(s) = args.seconds
+        && !(s > 0.0 && s.is_finite())
+    {
+        bail!("--seconds must be a positive number, got {s}");
+    }
+    if args.tiles == Some(0) {
+        bail!("--tiles must be at least 1");
+    }
+    let max_duration = args
+        .seconds
+        .map(Duration::try_from_secs_f64)
+        .transpose()
+        .map_err(|_| anyhow::anyhow!("--seconds is too long: {:?}", args.seconds))?;
+    let replay = match args.device.as_str() {
+        "usb" | "sim" => None,
+        other => match other.strip_prefix("replay:") {
+            Some(file) if !file.is_empty() => Some(std::path::PathBuf::from(file)),
+            _ => bail!("--device must be usb, sim or replay:FILE, got `{other}`"),
+        },
+    };
+    if args.device == "sim" && args.scene.is_none() {
+        bail!("--device sim needs --scene SCENE.toml (e.g. host/scenes/letters.toml)");
+    }
+    if args.unbounded_memory && args.device != "sim" {
+        bail!("--unbounded-memory is for the virtual device (--device sim) only");
+    }
+    let frame_period = args.frame_rate.map(frame_period).transpose()?;
+    if frame_period.is_some() && args.device != "sim" {
+        bail!("--frame-rate is for the virtual device (--device sim) only");
+    }
+    let serve = args.serve.as_deref().map(serve::parse_addr).transpose()?;
+    refuse_overwriting_inputs(args, replay.as_deref())?;
+    Ok(Checked {
+        replay,
+        max_duration,
+        serve,
+        frame_period,
+    })
+}
+
+/// Refuses, before the session, a run that would overwrite what it reads or records: the
+/// recording (`--record`) or an input (the replayed recording, the scene, the model)
+/// where the session writes its strip, its segments, its index or its manifest, or the
+/// recording over an input.
+fn refuse_overwriting_inputs(args: &Request, replay: Option<&Path>) -> anyhow::Result<()> {
+    let mut inputs: Vec<(&str, &Path)> = Vec::new();
+    inputs.extend(replay.map(|p| ("recording replayed", p)));
+    inputs.extend(args.scene.as_deref().map(|p| ("scene", p)));
+    inputs.extend(
+        args.other_inputs
+            .iter()
+            .map(|(what, p)| (*what, p.as_path())),
+    );
+    let session = stream::output_files(&args.out);
+    let outputs: Vec<&Path> = session.iter().map(PathBuf::as_path).collect();
+    crate::files::refuse_overwriting(&outputs, &inputs)?;
+    let strip = &session[0];
+    crate::strip_file::refuse_segment_names(strip, &inputs)?;
+    if let Some(r) = args.record.as_deref() {
+        crate::files::refuse_overwriting(&[r], &inputs)?;
+        let at = crate::files::resolved(r);
+        let session_writes = outputs.iter().any(|o| crate::files::resolved(o) == at)
+            || crate::strip_file::is_segment_name(strip, r);
+        ensure!(
+            !session_writes,
+            "--record {} is where the session writes its strip, index or manifest: record \
+             to another file",
+            r.display()
+        );
+    }
+    Ok(())
+}
+
+/// `--frame-rate`'s period: a rate from 0.01 to 10 000 frames a second.
+fn frame_period(rate: f64) -> anyhow::Result<Duration> {
+    if !(0.01..=10_000.0).contains(&rate) {
+        bail!("--frame-rate must be from 0.01 to 10000 frames a second, got {rate}");
+    }
+    Ok(Duration::from_secs_f64(1.0 / rate))
+}
+
+/// The link the options name, and the configuration to send (none to a recording).
+fn open_link(
+    args: &Request,
+    checked: &Checked,
+) -> anyhow::Result<(Box<dyn Transport>, Option<DeviceConfig>)> {
+    Ok(match checked.replay.as_deref() {
+        Some(file) => (Box::new(Replay::open(file)?), None),
+        None if args.device == "usb" => (
+            Box::new(Usb::open()?),
+            Some(args.fusion.config(DeviceConfig::default().frame_spacing_px)),
+        ),
+        None => {
+            let path = args.scene.as_ref().context("--device sim needs --scene")?;
+            let memory = if args.unbounded_memory {
+                DeviceMemory::Unbounded
+            } else {
+                DeviceMemory::Firmware
+            };
+            let dev = SimDevice::start_paced(&Scene::load(path)?, memory, checked.frame_period)?;
+            let spacing = dev.default_config().frame_spacing_px;
+            (Box::new(dev), Some(args.fusion.config(spacing)))
+        }
+    })
+}
