@@ -11,7 +11,7 @@
 # clients' threads compete with it for the CPU. Needs curl.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bin="${1:-target/dist/rollfuse}"
+bin="${1:-target/release/rollfuse}"
 frames="${2:-2000}"
 runs="${3:-3}"
 clients=20

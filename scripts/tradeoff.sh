@@ -23,5 +23,5 @@ else
     echo "SKIPPED: the Cortex-M7 bench (needs qemu-system-arm and the thumbv7em-none-eabihf target)" >&2
     rm -f "$csv"
 fi
-cargo build --profile dist -q -p rollfuse
-target/dist/rollfuse tradeoff --out "$out" --bench "$csv"
+cargo build --release -q -p rollfuse
+target/release/rollfuse tradeoff --out "$out" --bench "$csv"

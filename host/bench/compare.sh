@@ -14,8 +14,8 @@ rounds=$(bench_rounds)
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 
-cargo build --profile dist -q -p rollfuse
-bin=target/dist/rollfuse
+cargo build --release -q -p rollfuse
+bin=target/release/rollfuse
 letters_1280 "$bin" "$work"
 frames=("$work"/frames/frame_000{0..5}.png)
 best_rust=""

@@ -11,8 +11,8 @@ cd "$(dirname "$0")/../.."
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 
-cargo build --profile dist -q -p rollfuse
-bin=target/dist/rollfuse
+cargo build --release -q -p rollfuse
+bin=target/release/rollfuse
 python3 host/bench/ref_depth.py --make "$work"
 
 source host/bench/common.sh

@@ -14,8 +14,8 @@ source host/bench/common.sh
 rounds=$(bench_rounds)
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
-cargo build --profile dist -q -p rollfuse
-bin="$PWD/target/dist/rollfuse"
+cargo build --release -q -p rollfuse
+bin="$PWD/target/release/rollfuse"
 pin=()
 command -v taskset > /dev/null && pin=(taskset -c 0)
 

@@ -9,8 +9,8 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
-cargo build --profile dist -q -p rollfuse
-bin="$PWD/target/dist/rollfuse"
+cargo build --release -q -p rollfuse
+bin="$PWD/target/release/rollfuse"
 sed -e 's/^frames = .*/frames = 1000/' host/bench/roll.toml > "$work/roll.toml"
 "$bin" simulate "$work/roll.toml" --out "$work/rendered" > /dev/null
 mkdir "$work/short" "$work/long"

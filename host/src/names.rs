@@ -166,4 +166,33 @@ mod tests {
         round_trips::<Precision>();
         round_trips::<StripAxis>();
     }
+
+    /// The names `Literal` lists for Python's type checkers in the package's stub.
+    fn stub_literal(stub: &str, alias: &str) -> Vec<String> {
+        let line = stub
+            .lines()
+            .find(|l| l.starts_with(&format!("{alias} = Literal[")))
+            .unwrap_or_else(|| panic!("the stub has no `{alias} = Literal[…]`"));
+        line.split('"')
+            .skip(1)
+            .step_by(2)
+            .map(str::to_string)
+            .collect()
+    }
+
+    #[test]
+    fn the_python_stub_names_the_values_the_tables_do() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../python/rollfuse/_rollfuse.pyi"
+        );
+        let stub = std::fs::read_to_string(path).unwrap();
+        fn names<T: Named>() -> Vec<String> {
+            T::VALUES.iter().map(|v| v.0.to_string()).collect()
+        }
+        assert_eq!(stub_literal(&stub, "Wavelet"), names::<Wavelet>());
+        assert_eq!(stub_literal(&stub, "Ablation"), names::<Ablation>());
+        assert_eq!(stub_literal(&stub, "Precision"), names::<Precision>());
+        assert_eq!(stub_literal(&stub, "LlWeighting"), names::<LlWeighting>());
+    }
 }

@@ -109,23 +109,23 @@ pub struct Opened {
     pub folder: crate::files::NewFolder,
 }
 
-/// Checks every option of `args` (and that no output is an input), makes the output
+/// Checks every option of `request` (and that no output is an input), makes the output
 /// folder and opens the link: what `rollfuse stream` runs, and the Python package's
 /// `rollfuse.stream`.
-pub fn open(args: &Request) -> anyhow::Result<Opened> {
-    let checked = check(args)?;
-    let folder = crate::files::NewFolder::create(&args.out)?;
-    crate::files::check_writable(&args.out.join("manifest.json"))?;
-    if let Some(r) = &args.record {
+pub fn open(request: &Request) -> anyhow::Result<Opened> {
+    let checked = check(request)?;
+    let folder = crate::files::NewFolder::create(&request.out)?;
+    crate::files::check_writable(&request.out.join("manifest.json"))?;
+    if let Some(r) = &request.record {
         crate::files::check_writable(r)?;
     }
-    let (link, config) = open_link(args, &checked)?;
+    let (link, config) = open_link(request, &checked)?;
     let opts = Options {
-        out: args.out.clone(),
+        out: request.out.clone(),
         config,
-        max_tiles: args.tiles,
+        max_tiles: request.tiles,
         max_duration: checked.max_duration,
-        record: args.record.clone(),
+        record: request.record.clone(),
     };
     Ok(Opened {
         link,
@@ -148,39 +148,43 @@ struct Checked {
 }
 
 /// Checks the options and that the recording written is none of the inputs.
-fn check(args: &Request) -> anyhow::Result<Checked> {
-    if let Some(s) = args.seconds
+fn check(request: &Request) -> anyhow::Result<Checked> {
+    if let Some(s) = request.seconds
         && !(s > 0.0 && s.is_finite())
     {
         bail!("--seconds must be a positive number, got {s}");
     }
-    if args.tiles == Some(0) {
+    if request.tiles == Some(0) {
         bail!("--tiles must be at least 1");
     }
-    let max_duration = args
+    let max_duration = request
         .seconds
         .map(Duration::try_from_secs_f64)
         .transpose()
-        .map_err(|_| anyhow::anyhow!("--seconds is too long: {:?}", args.seconds))?;
-    let replay = match args.device.as_str() {
+        .map_err(|_| anyhow::anyhow!("--seconds is too long: {:?}", request.seconds))?;
+    let replay = match request.device.as_str() {
         "usb" | "sim" => None,
         other => match other.strip_prefix("replay:") {
             Some(file) if !file.is_empty() => Some(std::path::PathBuf::from(file)),
             _ => bail!("--device must be usb, sim or replay:FILE, got `{other}`"),
         },
     };
-    if args.device == "sim" && args.scene.is_none() {
+    if request.device == "sim" && request.scene.is_none() {
         bail!("--device sim needs --scene SCENE.toml (e.g. host/scenes/letters.toml)");
     }
-    if args.unbounded_memory && args.device != "sim" {
+    if request.unbounded_memory && request.device != "sim" {
         bail!("--unbounded-memory is for the virtual device (--device sim) only");
     }
-    let frame_period = args.frame_rate.map(frame_period).transpose()?;
-    if frame_period.is_some() && args.device != "sim" {
+    let frame_period = request.frame_rate.map(frame_period).transpose()?;
+    if frame_period.is_some() && request.device != "sim" {
         bail!("--frame-rate is for the virtual device (--device sim) only");
     }
-    let serve = args.serve.as_deref().map(serve::parse_addr).transpose()?;
-    refuse_overwriting_inputs(args, replay.as_deref())?;
+    let serve = request
+        .serve
+        .as_deref()
+        .map(serve::parse_addr)
+        .transpose()?;
+    refuse_overwriting_inputs(request, replay.as_deref())?;
     Ok(Checked {
         replay,
         max_duration,
@@ -193,21 +197,22 @@ fn check(args: &Request) -> anyhow::Result<Checked> {
 /// recording (`--record`) or an input (the replayed recording, the scene, the model)
 /// where the session writes its strip, its segments, its index or its manifest, or the
 /// recording over an input.
-fn refuse_overwriting_inputs(args: &Request, replay: Option<&Path>) -> anyhow::Result<()> {
+fn refuse_overwriting_inputs(request: &Request, replay: Option<&Path>) -> anyhow::Result<()> {
     let mut inputs: Vec<(&str, &Path)> = Vec::new();
     inputs.extend(replay.map(|p| ("recording replayed", p)));
-    inputs.extend(args.scene.as_deref().map(|p| ("scene", p)));
+    inputs.extend(request.scene.as_deref().map(|p| ("scene", p)));
     inputs.extend(
-        args.other_inputs
+        request
+            .other_inputs
             .iter()
             .map(|(what, p)| (*what, p.as_path())),
     );
-    let session = stream::output_files(&args.out);
+    let session = stream::output_files(&request.out);
     let outputs: Vec<&Path> = session.iter().map(PathBuf::as_path).collect();
     crate::files::refuse_overwriting(&outputs, &inputs)?;
     let strip = &session[0];
     crate::strip_file::refuse_segment_names(strip, &inputs)?;
-    if let Some(r) = args.record.as_deref() {
+    if let Some(r) = request.record.as_deref() {
         crate::files::refuse_overwriting(&[r], &inputs)?;
         let at = crate::files::resolved(r);
         let session_writes = outputs.iter().any(|o| crate::files::resolved(o) == at)
@@ -232,25 +237,32 @@ fn frame_period(rate: f64) -> anyhow::Result<Duration> {
 
 /// The link the options name, and the configuration to send (none to a recording).
 fn open_link(
-    args: &Request,
+    request: &Request,
     checked: &Checked,
 ) -> anyhow::Result<(Box<dyn Transport>, Option<DeviceConfig>)> {
     Ok(match checked.replay.as_deref() {
         Some(file) => (Box::new(Replay::open(file)?), None),
-        None if args.device == "usb" => (
+        None if request.device == "usb" => (
             Box::new(Usb::open()?),
-            Some(args.fusion.config(DeviceConfig::default().frame_spacing_px)),
+            Some(
+                request
+                    .fusion
+                    .config(DeviceConfig::default().frame_spacing_px),
+            ),
         ),
         None => {
-            let path = args.scene.as_ref().context("--device sim needs --scene")?;
-            let memory = if args.unbounded_memory {
+            let path = request
+                .scene
+                .as_ref()
+                .context("--device sim needs --scene")?;
+            let memory = if request.unbounded_memory {
                 DeviceMemory::Unbounded
             } else {
                 DeviceMemory::Firmware
             };
             let dev = SimDevice::start_paced(&Scene::load(path)?, memory, checked.frame_period)?;
             let spacing = dev.default_config().frame_spacing_px;
-            (Box::new(dev), Some(args.fusion.config(spacing)))
+            (Box::new(dev), Some(request.fusion.config(spacing)))
         }
     })
 }

@@ -13,8 +13,8 @@ rounds=$(bench_rounds)
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 
-cargo build --profile dist -q -p rollfuse
-bin=target/dist/rollfuse
+cargo build --release -q -p rollfuse
+bin=target/release/rollfuse
 python3 -m venv "$work/venv"
 py="$work/venv/bin/python"
 "$work/venv/bin/pip" install -q numpy pillow PyWavelets

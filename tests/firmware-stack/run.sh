@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The firmware's stack, checked statically on its shipped (dist) ELF: each function's frame and
+# The firmware's stack, checked statically on its release ELF: each function's frame and
 # the deepest call path (tests/firmware-stack/stack.py) against the stack the linker
 # leaves (`_stack_start − _stack_end`), with 25 % to spare and no frame over 16 KiB.
 #
@@ -7,8 +7,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 target=thumbv7em-none-eabihf
-cargo build -q -p rollfuse-fw --profile dist --target "$target"
-elf="target/$target/dist/rollfuse-fw"
+cargo build -q -p rollfuse-fw --release --target "$target"
+elf="target/$target/release/rollfuse-fw"
 objdump=$(command -v arm-none-eabi-objdump || command -v llvm-objdump || true)
 nm=$(command -v arm-none-eabi-nm || command -v llvm-nm || true)
 if [[ -z "$objdump" || -z "$nm" ]]; then
