@@ -1,0 +1,111 @@
+//! The records' schema, one list of migrations applied in order; the version reached is
+//! kept in `schema_version`. A database from a newer build is refused before anything is
+//! read or written.
+
+use crate::backend::{Backend, Types};
+use crate::error::{Error, Result};
+
+/// The newest schema this build writes.
+pub const VERSION: i64 = 1;
+
+/// Migration `n` (from version `n` to `n + 1`) in this database's column types.
+fn migration(n: i64, t: &Types) -> Option<String> {
+    let Types {
+        id,
+        int,
+        real,
+        blob,
+    } = t;
+    match n {
+        0 => Some(format!(
+            "CREATE TABLE rolls (
+                id {id},
+                source TEXT NOT NULL UNIQUE,
+                line TEXT NOT NULL,
+                device TEXT NOT NULL,
+                configuration TEXT NOT NULL,
+                out TEXT NOT NULL,
+                mm_per_row {real},
+                started_at TEXT NOT NULL,
+                ended_at TEXT,
+                belt_rows {int} NOT NULL DEFAULT 0,
+                status TEXT NOT NULL,
+                reason TEXT,
+                process TEXT NOT NULL
+            );
+            CREATE INDEX rolls_by_line ON rolls (line, started_at);
+            CREATE TABLE segments (
+                roll_id {int} NOT NULL REFERENCES rolls (id) ON DELETE CASCADE,
+                seq {int} NOT NULL,
+                file TEXT NOT NULL,
+                first_row {int} NOT NULL,
+                rows {int} NOT NULL,
+                bytes {int} NOT NULL,
+                crc32 {int} NOT NULL,
+                PRIMARY KEY (roll_id, seq)
+            );
+            CREATE TABLE defects (
+                id {id},
+                roll_id {int} NOT NULL REFERENCES rolls (id) ON DELETE CASCADE,
+                segment_seq {int},
+                kind TEXT NOT NULL,
+                score {real} NOT NULL,
+                belt_row {real} NOT NULL,
+                across_px {real} NOT NULL,
+                x {int} NOT NULL,
+                y {int} NOT NULL,
+                w {int} NOT NULL,
+                h {int} NOT NULL,
+                crop {blob}
+            );
+            CREATE INDEX defects_by_roll ON defects (roll_id, kind);
+            CREATE TABLE faults (
+                roll_id {int} NOT NULL REFERENCES rolls (id) ON DELETE CASCADE,
+                kind TEXT NOT NULL,
+                count {int} NOT NULL,
+                PRIMARY KEY (roll_id, kind)
+            );"
+        )),
+        _ => None,
+    }
+}
+
+/// Brings the schema to [`VERSION`], or refuses a newer one.
+pub fn migrate(db: &mut Backend) -> Result<()> {
+    let types = db.types();
+    db.batch(&format!(
+        "CREATE TABLE IF NOT EXISTS schema_version (version {} NOT NULL)",
+        types.int
+    ))?;
+    db.transaction(|db| {
+        // Locks the version row's table so two processes opening a new database at once
+        // do not both migrate it (SQLite's IMMEDIATE transaction already does).
+        if let Backend::Postgres(_) = db {
+            db.batch("LOCK TABLE schema_version IN EXCLUSIVE MODE")?;
+        }
+        let found = db
+            .query("SELECT version FROM schema_version", &[])?
+            .first()
+            .map_or(0, |row| row[0].int());
+        if found > VERSION {
+            return Err(Error::NewerSchema {
+                found,
+                supported: VERSION,
+            });
+        }
+        for n in found..VERSION {
+            let sql = migration(n, &types)
+                .ok_or_else(|| Error::Database(format!("no migration from version {n}")))?;
+            db.batch(&sql)?;
+        }
+        if found == 0 {
+            db.exec(
+                "INSERT INTO schema_version (version) VALUES ($1)",
+                &[VERSION.into()],
+            )?;
+        } else if found < VERSION {
+            db.exec("UPDATE schema_version SET version = $1", &[VERSION.into()])?;
+        }
+        Ok(())
+    })
+}

@@ -1,0 +1,341 @@
+//! One suite for both databases: each test runs on a fresh SQLite file and, when
+//! `ROLLFUSE_TEST_POSTGRES` names a server (`.ci/run` starts one on loopback), on a fresh
+//! PostgreSQL database there; without it the PostgreSQL half prints SKIPPED.
+
+use rollfuse_records::{DefectRecord, Error, Filter, Records, RollStart, SegmentRecord, Status};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// A fresh, empty database of one kind; a PostgreSQL one is dropped when done.
+struct Fresh {
+    target: String,
+    _dir: Option<tempfile::TempDir>,
+    drop_db: Option<(String, String)>,
+}
+
+impl Drop for Fresh {
+    fn drop(&mut self) {
+        let Some((admin, name)) = &self.drop_db else {
+            return;
+        };
+        if let Ok(mut c) = postgres::Client::connect(admin, postgres::NoTls) {
+            let _ = c.batch_execute(&format!("DROP DATABASE IF EXISTS {name} WITH (FORCE)"));
+        }
+    }
+}
+
+fn sqlite() -> Fresh {
+    let dir = tempfile::tempdir().unwrap();
+    Fresh {
+        target: dir.path().join("records.db").to_string_lossy().into_owned(),
+        _dir: Some(dir),
+        drop_db: None,
+    }
+}
+
+fn postgres_url() -> Option<String> {
+    std::env::var("ROLLFUSE_TEST_POSTGRES")
+        .ok()
+        .filter(|u| !u.is_empty())
+}
+
+fn postgres(test: &str) -> Option<Fresh> {
+    let Some(admin) = postgres_url() else {
+        eprintln!("SKIPPED: {test} on PostgreSQL — ROLLFUSE_TEST_POSTGRES is not set");
+        return None;
+    };
+    static N: AtomicUsize = AtomicUsize::new(0);
+    let name = format!(
+        "rollfuse_test_{}_{}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::SeqCst)
+    );
+    let mut c = postgres::Client::connect(&admin, postgres::NoTls).expect("the test server");
+    c.batch_execute(&format!("CREATE DATABASE {name}")).unwrap();
+    let base = admin.rsplit_once('/').unwrap().0;
+    Some(Fresh {
+        target: format!("{base}/{name}"),
+        _dir: None,
+        drop_db: Some((admin, name)),
+    })
+}
+
+/// Runs `body` on each database there is.
+fn on_both(test: &str, body: impl Fn(&str)) {
+    let lite = sqlite();
+    body(&lite.target);
+    if let Some(pg) = postgres(test) {
+        body(&pg.target);
+    }
+}
+
+fn start(source: &str, line: &str) -> RollStart {
+    RollStart {
+        source: source.into(),
+        line: line.into(),
+        device: "0001".into(),
+        configuration: r#"{"downsample":1}"#.into(),
+        out: "/lines/strip.png".into(),
+        mm_per_row: Some(0.05),
+    }
+}
+
+fn segment(seq: i64, first_row: i64, rows: i64) -> SegmentRecord {
+    SegmentRecord {
+        seq,
+        file: format!("strip.{seq:04}.png"),
+        first_row,
+        rows,
+        bytes: 1000 + seq,
+        crc32: 0xdead_beef,
+    }
+}
+
+fn defect(kind: &str, belt_row: f64) -> DefectRecord {
+    DefectRecord {
+        segment_seq: None,
+        kind: kind.into(),
+        score: 0.8,
+        belt_row,
+        across_px: 40.0,
+        bbox: [30, 10, 20, 12],
+        crop: Some(vec![1, 2, 3]),
+    }
+}
+
+#[test]
+fn a_roll_reads_back_as_it_was_recorded() {
+    on_both("a_roll_reads_back_as_it_was_recorded", |target| {
+        let mut r = Records::open(target).unwrap();
+        let id = r.begin_roll(&start("device 0001 at t0", "3")).unwrap();
+        r.add_segment(id, &segment(0, 100, 4096), &[defect("hole", 2100.0)])
+            .unwrap();
+        r.add_segment(id, &segment(1, 4196, 1000), &[defect("snag", 4500.0)])
+            .unwrap();
+        r.set_faults(id, &[("crc", 2), ("timeout", 0)]).unwrap();
+        r.finish_roll(id, &Status::Complete).unwrap();
+        let roll = r.roll(id).unwrap();
+        assert_eq!(roll.summary.status, "complete");
+        assert!(roll.summary.ended_at.is_some());
+        assert_eq!(roll.summary.belt_rows, 5096);
+        assert_eq!(roll.summary.belt_mm, Some(5096.0 * 0.05));
+        assert_eq!(
+            roll.segment_list,
+            vec![segment(0, 100, 4096), segment(1, 4196, 1000)]
+        );
+        let kinds: Vec<&str> = roll.defect_list.iter().map(|d| d.kind.as_str()).collect();
+        assert_eq!(kinds, ["hole", "snag"]);
+        assert_eq!(roll.defect_list[0].crop, Some(vec![1, 2, 3]));
+        // Along the belt from the roll's first row: (2100 − 100) × 0.05 mm.
+        assert_eq!(roll.belt_mm(&roll.defect_list[0]), Some(100.0));
+        assert_eq!(roll.faults, vec![("crc".to_owned(), 2)]);
+        assert_eq!(roll.configuration, r#"{"downsample":1}"#);
+    });
+}
+
+#[test]
+fn the_same_source_again_replaces_its_record() {
+    on_both("the_same_source_again_replaces_its_record", |target| {
+        let mut r = Records::open(target).unwrap();
+        let id = r.begin_roll(&start("recording a.rfrec", "3")).unwrap();
+        r.add_segment(id, &segment(0, 0, 10), &[defect("hole", 5.0)])
+            .unwrap();
+        r.add_segment(id, &segment(0, 0, 12), &[defect("slub", 6.0)])
+            .unwrap();
+        let roll = r.roll(id).unwrap();
+        assert_eq!(
+            roll.segment_list.len(),
+            1,
+            "a segment recorded again replaces"
+        );
+        assert_eq!(roll.defect_list.len(), 1);
+        assert_eq!(roll.defect_list[0].kind, "slub");
+        r.finish_roll(id, &Status::Complete).unwrap();
+
+        let again = r.begin_roll(&start("recording a.rfrec", "3")).unwrap();
+        assert_eq!(again, id, "a re-run keeps the roll's id");
+        let roll = r.roll(id).unwrap();
+        assert_eq!(roll.summary.status, "running");
+        assert!(roll.segment_list.is_empty() && roll.defect_list.is_empty());
+        assert_eq!(r.list(&Filter::default()).unwrap().len(), 1);
+
+        r.replace_defects(id, 0, &[defect("hole", 1.0), defect("hole", 2.0)])
+            .unwrap();
+        r.replace_defects(id, 0, &[defect("hole", 1.0)]).unwrap();
+        assert_eq!(r.roll(id).unwrap().defect_list.len(), 1);
+    });
+}
+
+#[test]
+fn a_failed_segment_leaves_nothing_of_itself() {
+    on_both("a_failed_segment_leaves_nothing_of_itself", |target| {
+        let mut r = Records::open(target).unwrap();
+        let id = r.begin_roll(&start("s", "1")).unwrap();
+        let bad = DefectRecord {
+            score: f64::NAN,
+            ..defect("hole", 3.0)
+        };
+        let e = r
+            .add_segment(id, &segment(0, 0, 10), &[defect("hole", 1.0), bad])
+            .unwrap_err();
+        assert!(matches!(e, Error::Invalid(_)), "{e}");
+        let roll = r.roll(id).unwrap();
+        assert!(roll.segment_list.is_empty() && roll.defect_list.is_empty());
+        assert_eq!(roll.summary.belt_rows, 0);
+        assert!(matches!(r.roll(id + 100), Err(Error::NoSuchRoll(_))));
+        assert!(r.add_segment(id + 100, &segment(0, 0, 1), &[]).is_err());
+        let no_scale = RollStart {
+            mm_per_row: Some(-1.0),
+            ..start("t", "1")
+        };
+        assert!(matches!(r.begin_roll(&no_scale), Err(Error::Invalid(_))));
+    });
+}
+
+#[test]
+fn rolls_are_listed_newest_first_by_line_time_and_kind() {
+    on_both(
+        "rolls_are_listed_newest_first_by_line_time_and_kind",
+        |target| {
+            let mut r = Records::open(target).unwrap();
+            let a = r.begin_roll(&start("a", "3")).unwrap();
+            r.add_segment(a, &segment(0, 0, 10), &[defect("hole", 1.0)])
+                .unwrap();
+            let b = r.begin_roll(&start("b", "4")).unwrap();
+            r.add_segment(b, &segment(0, 0, 10), &[defect("snag", 1.0)])
+                .unwrap();
+            let ids = |f: Filter, r: &mut Records| -> Vec<i64> {
+                r.list(&f).unwrap().iter().map(|s| s.id).collect()
+            };
+            assert_eq!(ids(Filter::default(), &mut r), [b, a]);
+            let line = |l: &str| Filter {
+                line: Some(l.into()),
+                ..Filter::default()
+            };
+            assert_eq!(ids(line("3"), &mut r), [a]);
+            let kind = Filter {
+                kind: Some("snag".into()),
+                ..Filter::default()
+            };
+            assert_eq!(ids(kind, &mut r), [b]);
+            let future = Filter {
+                since: Some("2999-01-01T00:00:00Z".into()),
+                ..Filter::default()
+            };
+            assert!(ids(future, &mut r).is_empty());
+            let summary = &r.list(&line("4")).unwrap()[0];
+            assert_eq!((summary.segments, summary.defects), (1, 1));
+        },
+    );
+}
+
+#[test]
+fn a_newer_schema_is_refused_untouched() {
+    on_both("a_newer_schema_is_refused_untouched", |target| {
+        drop(Records::open(target).unwrap());
+        let bump = "UPDATE schema_version SET version = 99";
+        if target.starts_with("postgres") {
+            let mut c = postgres::Client::connect(target, postgres::NoTls).unwrap();
+            c.batch_execute(bump).unwrap();
+        } else {
+            rusqlite::Connection::open(target)
+                .unwrap()
+                .execute_batch(bump)
+                .unwrap();
+        }
+        let e = Records::open(target).err().expect("refused");
+        assert!(
+            matches!(
+                e,
+                Error::NewerSchema {
+                    found: 99,
+                    supported: 1
+                }
+            ),
+            "{e}"
+        );
+        assert!(e.to_string().contains("newer rollfuse"), "{e}");
+    });
+}
+
+/// The writer a crash test kills: it records a roll's first two segments, says so, and
+/// waits to be killed.
+#[test]
+fn crash_child() {
+    let Ok(target) = std::env::var("ROLLFUSE_CRASH_CHILD") else {
+        return;
+    };
+    let mut r = Records::open(&target).unwrap();
+    let id = r.begin_roll(&start("killed", "1")).unwrap();
+    r.add_segment(id, &segment(0, 0, 100), &[defect("hole", 5.0)])
+        .unwrap();
+    r.add_segment(id, &segment(1, 100, 100), &[]).unwrap();
+    println!("ROLL {id}");
+    std::thread::sleep(std::time::Duration::from_secs(60));
+}
+
+#[test]
+fn a_killed_writer_leaves_its_roll_interrupted_with_its_whole_segments() {
+    use std::io::BufRead;
+    on_both(
+        "a_killed_writer_leaves_its_roll_interrupted_with_its_whole_segments",
+        |target| {
+            let mut child = std::process::Command::new(std::env::current_exe().unwrap())
+                .args(["--exact", "crash_child", "--nocapture", "--test-threads=1"])
+                .env("ROLLFUSE_CRASH_CHILD", target)
+                .stdout(std::process::Stdio::piped())
+                .spawn()
+                .unwrap();
+            let out = std::io::BufReader::new(child.stdout.take().unwrap());
+            let id: i64 = out
+                .lines()
+                .map_while(Result::ok)
+                .find_map(|l| l.split("ROLL ").nth(1).map(|n| n.trim().parse().unwrap()))
+                .expect("the child recorded a roll");
+            {
+                let mut r = Records::open(target).unwrap();
+                assert_eq!(r.roll(id).unwrap().summary.status, "running", "alive");
+            }
+            child.kill().unwrap(); // SIGKILL
+            child.wait().unwrap();
+            let mut r = Records::open(target).unwrap();
+            let roll = r.roll(id).unwrap();
+            assert_eq!(roll.summary.status, "interrupted");
+            assert!(roll.summary.reason.unwrap().contains("process ended"));
+            assert_eq!(
+                roll.segment_list,
+                vec![segment(0, 0, 100), segment(1, 100, 100)]
+            );
+            assert_eq!(roll.defect_list.len(), 1);
+        },
+    );
+}
+
+#[test]
+fn databases_that_cannot_be_had_say_why() {
+    let missing = tempfile::tempdir().unwrap();
+    let path = missing.path().join("no/such/folder/records.db");
+    let e = Records::open(path.to_str().unwrap())
+        .err()
+        .expect("refused");
+    assert!(matches!(e, Error::Open { .. }), "{e}");
+    assert!(e.to_string().contains("records.db"), "{e}");
+
+    let e = Records::open("postgres://rollfuse:pw@127.0.0.1:1/records")
+        .err()
+        .expect("refused");
+    let text = e.to_string();
+    assert!(text.contains("cannot open the records"), "{text}");
+    assert!(!text.contains(":pw@"), "the password is not shown: {text}");
+
+    let Some(url) = postgres_url() else {
+        eprintln!("SKIPPED: a wrong password on PostgreSQL — ROLLFUSE_TEST_POSTGRES is not set");
+        return;
+    };
+    let (scheme_user, rest) = url.split_once('@').unwrap();
+    let user = scheme_user.rsplit_once(':').map_or(scheme_user, |(u, _)| u);
+    let wrong = format!("{user}:not-the-password@{rest}");
+    let e = Records::open(&wrong).err().expect("refused");
+    let text = e.to_string();
+    assert!(text.contains("password authentication failed"), "{text}");
+    assert!(!text.contains("not-the-password"), "{text}");
+}
