@@ -674,7 +674,7 @@ pub fn remove_stale(paths: Vec<PathBuf>) -> anyhow::Result<()> {
 }
 
 /// The folder `path` is in (`.` for a bare name).
-fn folder_of(path: &Path) -> &Path {
+pub fn folder_of(path: &Path) -> &Path {
     path.parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."))

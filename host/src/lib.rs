@@ -25,6 +25,7 @@
 //! - [`names`]: the names of settings' values, as the command line and Python take them.
 //! - [`npy`]: NumPy array files.
 //! - [`progress`]: how long work reports its progress ([`progress::Progress`]).
+//! - [`records`]: what the commands put in the inspection records ([`rollfuse_records`]).
 
 pub use rollfuse_core as core;
 
@@ -42,6 +43,7 @@ pub mod names;
 pub mod npy;
 pub mod pipeline_memory;
 pub mod progress;
+pub mod records;
 pub mod serve;
 pub mod session;
 pub mod sim;

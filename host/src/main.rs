@@ -3,7 +3,7 @@
 use clap::{Parser, Subcommand};
 use rollfuse::commands::bars::{Mode, Show};
 use rollfuse::commands::{
-    demo, depth, detect, eval, fuse, metrics, simulate, splice, stream, tradeoff,
+    demo, depth, detect, eval, fuse, metrics, rolls, simulate, splice, stream, tradeoff,
 };
 use std::process::ExitCode;
 use std::time::Duration;
@@ -58,6 +58,9 @@ enum Command {
     Stream(stream::Args),
     /// List the rollfuse devices on USB.
     Devices,
+    /// The inspection records: rolls of a line, one roll's record, its roll map
+    /// (docs/records.md).
+    Rolls(rolls::Args),
 }
 
 /// A command-line error as every other error is: one line on stderr (with clap's tip, if
@@ -122,6 +125,7 @@ fn main() -> ExitCode {
         Command::FitNormal(args) => detect::fit_normal_run(args),
         Command::Stream(args) => stream::run(args, show),
         Command::Devices => stream::devices(),
+        Command::Rolls(args) => rolls::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

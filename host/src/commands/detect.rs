@@ -12,6 +12,7 @@ use crate::detect::{Detection, Detector, UNKNOWN_FABRIC, model};
 use crate::files::{Batch, NewFolder, PngLayout, add_png};
 use crate::image::Planes;
 use anyhow::Context;
+use rollfuse_records::Records;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `rollfuse train`.
@@ -225,6 +226,44 @@ pub struct Args {
     /// boxes are reported in the images' own pixels.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=4))]
     pub upsample: u8,
+    /// Keep the defects found on a recorded roll's strip segments in these inspection
+    /// records (a SQLite file or a `postgres://` URL), replacing what an earlier run kept
+    /// for the segment; an image that is no recorded segment is said and skipped.
+    #[arg(long, value_name = "DB")]
+    pub records: Option<String>,
+}
+
+/// Keeps the defects `found` (kind, score, box) on `path` in `records`, if `path` is a
+/// segment of a recorded roll.
+fn record_found<'a>(
+    records: Option<&mut Records>,
+    path: &Path,
+    image: &Planes,
+    found: impl Iterator<Item = (&'a str, f32, [f32; 4])>,
+) -> anyhow::Result<()> {
+    let Some(records) = records else {
+        return Ok(());
+    };
+    let Some((roll, segment)) = records.segment_at(path)? else {
+        eprintln!(
+            "warning: {} is no recorded roll's segment: its defects are not recorded",
+            path.display()
+        );
+        return Ok(());
+    };
+    let defects: Vec<_> = found
+        .map(|(kind, score, box_px)| {
+            crate::records::defect(kind, score, box_px, image, segment.first_row)
+        })
+        .collect();
+    records.replace_defects(roll, segment.seq, &defects)?;
+    println!(
+        "records: roll {roll} segment {}: {} defect{}",
+        segment.seq,
+        defects.len(),
+        if defects.len() == 1 { "" } else { "s" }
+    );
+    Ok(())
 }
 
 /// One image's results in the JSON file: the detection, its fabric probabilities by name.
@@ -268,8 +307,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(dir) = &args.draw {
         made.push(NewFolder::create(dir)?);
     }
+    let mut records = args
+        .records
+        .as_deref()
+        .map(super::rolls::open)
+        .transpose()?;
     if let Some(normal) = &args.normal {
-        return anomalies_run(&args, normal, &drawn);
+        return anomalies_run(&args, normal, &drawn, records.as_mut());
     }
     let mut detector = Detector::load_or_built_in(args.model.as_deref())?;
     detector.threshold = args.threshold;
@@ -281,6 +325,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .detect_at_scale(&image, args.upsample.into())
             .with_context(|| format!("{}", path.display()))?;
         println!("{}", summary(path, &d));
+        let found = d.defects.iter().map(|f| (f.kind.name(), f.score, f.box_px));
+        record_found(records.as_mut(), path, &image, found)?;
         if let Some(out) = drawn.get(k) {
             let (w, h, rgb) = draw(&image, &d.defects);
             add_png(&mut batch, out, &rgb, (w, h), PngLayout::Rgb8)?;
@@ -440,7 +486,12 @@ struct AnomalyDefect {
 }
 
 /// `rollfuse detect --normal`: each image scored against the normal model.
-fn anomalies_run(args: &Args, normal: &Path, drawn: &[PathBuf]) -> anyhow::Result<()> {
+fn anomalies_run(
+    args: &Args,
+    normal: &Path,
+    drawn: &[PathBuf],
+    mut records: Option<&mut Records>,
+) -> anyhow::Result<()> {
     let model = NormalModel::load(normal)?;
     let mut batch = Batch::new();
     let mut results = Vec::new();
@@ -460,6 +511,9 @@ fn anomalies_run(args: &Args, normal: &Path, drawn: &[PathBuf]) -> anyhow::Resul
             a.anomaly_score,
             counted(&regions, "region")
         );
+        let found = a.regions.iter();
+        let found = found.map(|r| (crate::detect::anomaly::KIND, r.score, r.box_px));
+        record_found(records.as_deref_mut(), path, &image, found)?;
         if let Some(out) = drawn.get(k) {
             let (w, h, rgb) = outline(&image, a.regions.iter().map(|r| (r.box_px, ANOMALY_COLOUR)));
             add_png(&mut batch, out, &rgb, (w, h), PngLayout::Rgb8)?;

@@ -7,6 +7,7 @@ pub mod detect;
 pub mod eval;
 pub mod fuse;
 pub mod metrics;
+pub mod rolls;
 pub mod side_files;
 pub mod simulate;
 pub mod splice;

@@ -128,6 +128,13 @@ pub struct Args {
     /// How the LL band weighs each frame.
     #[arg(long, value_parser = named::<LlWeighting>(), default_value = "paper")]
     pub ll_weighting: LlWeighting,
+    /// Roll: where the roll is kept in the inspection records.
+    #[command(flatten)]
+    pub record: crate::commands::rolls::RecordTo,
+    /// Roll, with --records: belt millimetres a frame pixel, for the records' positions
+    /// (default: the manifest's, where there is one).
+    #[arg(long, requires = "records")]
+    pub mm_per_px: Option<f64>,
 }
 
 impl Args {

@@ -75,6 +75,11 @@ pub fn run(mut args: Args, show: Show) -> anyhow::Result<()> {
     if args.mode == ModeArg::Auto {
         println!("mode: {why}");
     }
+    if matches!(plan, Plan::Mosaic(_)) && args.record.records.is_some() {
+        bail!(
+            "--records keeps rolls: a mosaic of a few frames is not one (--mode roll fuses a roll)"
+        );
+    }
     match plan {
         Plan::Mosaic(frames) => mosaic::run(&args, frames, &cfg, show),
         Plan::Roll(loaded) => roll::run(&args, loaded, &cfg, show),

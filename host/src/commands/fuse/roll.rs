@@ -71,6 +71,8 @@ pub fn run(
     check_outputs(args, &csv_path, &index_path)?;
     let _folder = crate::files::NewFolder::for_file(out)?;
     let opts = strip_options(args, cfg)?;
+    // Opened before the work: a database that cannot be had is said at once.
+    let mut records = args.record.open()?;
     let mut csv = PendingFile::create(&csv_path)?;
     csv.write_all(b"frame,file,row,col,source,score,sigma\n")?;
     let bars = Bars::new(show);
@@ -124,7 +126,52 @@ pub fn run(
     let segments = writer.finish(&details)?;
     side_files::remove_others(out, &[Side::Strip, Side::FramesCsv])?;
     print_summary(args, &report, &segments, took, &index_path);
+    if let Some(records) = &mut records {
+        record(records, args, &details, &segments)?;
+    }
     untrusted(&report, args.accept_untrusted, &index_path)
+}
+
+/// Keeps the fused roll in the records: its source the frames, its configuration the
+/// strip's details, complete, or failed when its placement cannot be trusted.
+fn record(
+    records: &mut rollfuse_records::Records,
+    args: &Args,
+    details: &Details,
+    segments: &[Segment],
+) -> anyhow::Result<()> {
+    let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let (first, last) = (&args.frames[0], &args.frames[args.frames.len() - 1]);
+    let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
+    let manifest_scale = crate::image::dimensions(first)
+        .ok()
+        .and_then(|size| manifest_geometry(&manifest, size))
+        .map(|g| g.mm_per_px);
+    let start = rollfuse_records::RollStart {
+        source: format!(
+            "frames {} … {}",
+            absolute(first).display(),
+            absolute(last).display()
+        ),
+        line: args.record.line.clone(),
+        device: "host".into(),
+        configuration: serde_json::to_string(details)?,
+        out: absolute(&args.out).display().to_string(),
+        mm_per_row: args.mm_per_px.or(manifest_scale),
+    };
+    let status = if details.trusted {
+        rollfuse_records::Status::Complete
+    } else {
+        rollfuse_records::Status::Failed("its placement cannot be trusted".into())
+    };
+    let id = crate::records::record_strip(records, &start, &args.out, segments, &status)?;
+    println!(
+        "records: roll {id}, {} segment{} ({})",
+        segments.len(),
+        if segments.len() == 1 { "" } else { "s" },
+        status.word()
+    );
+    Ok(())
 }
 
 /// Warns of every doubt about the placement; an error (exit 3) unless `accepted`.

@@ -1,0 +1,125 @@
+//! What the commands put in the inspection records (`--records DB`, [`rollfuse_records`]):
+//! a fused strip's segments, and defects found on a recorded strip's segments with their
+//! belt positions and a small crop of each.
+
+use crate::image::Planes;
+use crate::strip_file::Segment;
+use anyhow::Context;
+use rollfuse_records::{DefectRecord, Records, RollStart, SegmentRecord, Status};
+use std::path::Path;
+
+/// The largest crop kept of a defect, pixels a side (a larger box keeps its middle).
+pub const CROP_SIDE: usize = 96;
+/// Pixels of cloth kept around a defect's box in its crop.
+const CROP_MARGIN: f32 = 8.0;
+
+/// Records a strip written whole (`rollfuse fuse`): the roll `start`, each of `segments`
+/// (files beside `out`, read for their checksums) and the roll's end, `status`. A roll of
+/// the same source recorded before is replaced. Returns the roll's id.
+pub fn record_strip(
+    records: &mut Records,
+    start: &RollStart,
+    out: &Path,
+    segments: &[Segment],
+    status: &Status,
+) -> anyhow::Result<i64> {
+    let roll = records.begin_roll(start)?;
+    let folder = crate::files::folder_of(out);
+    for (seq, s) in segments.iter().enumerate() {
+        let path = folder.join(&s.file);
+        let record = SegmentRecord::of_file(seq as i64, &path, s.first_row, s.rows as i64)
+            .with_context(|| format!("cannot read {} to record it", path.display()))?;
+        records.add_segment(roll, &record, &[])?;
+    }
+    records.finish_roll(roll, status)?;
+    Ok(roll)
+}
+
+/// A defect of `kind` found at `box_px` (`[x0, y0, x1, y1]`) in `image`, a segment whose
+/// first row is belt row `first_row`; its crop cut from `image`.
+pub fn defect(
+    kind: &str,
+    score: f32,
+    box_px: [f32; 4],
+    image: &Planes,
+    first_row: i64,
+) -> DefectRecord {
+    let [x0, y0, x1, y1] = box_px;
+    DefectRecord {
+        segment_seq: None,
+        kind: kind.to_owned(),
+        score: f64::from(score),
+        belt_row: first_row as f64 + f64::from(y0 + y1) / 2.0,
+        across_px: f64::from(x0 + x1) / 2.0,
+        bbox: [
+            x0.round() as i64,
+            y0.round() as i64,
+            (x1 - x0).round() as i64,
+            (y1 - y0).round() as i64,
+        ],
+        crop: crop_png(image, box_px),
+    }
+}
+
+/// The box with a margin, at most [`CROP_SIDE`] a side around its middle, of the first
+/// plane as an 8-bit gray PNG; none for a box outside the image.
+pub fn crop_png(image: &Planes, [x0, y0, x1, y1]: [f32; 4]) -> Option<Vec<u8>> {
+    use image::ImageEncoder;
+    let span = |a: f32, b: f32, size: usize| -> Option<(usize, usize)> {
+        let (lo, hi) = (
+            (a - CROP_MARGIN).max(0.0),
+            (b + CROP_MARGIN).min(size as f32),
+        );
+        let (mid, half) = (
+            (lo + hi) / 2.0,
+            ((hi - lo) / 2.0).min(CROP_SIDE as f32 / 2.0),
+        );
+        let (lo, hi) = (
+            (mid - half).floor().max(0.0),
+            (mid + half).ceil().min(size as f32),
+        );
+        (hi > lo).then_some((lo as usize, hi as usize))
+    };
+    let (cx0, cx1) = span(x0, x1, image.width)?;
+    let (cy0, cy1) = span(y0, y1, image.height)?;
+    let plane = image.planes.first()?;
+    let pixels: Vec<u8> = (cy0..cy1)
+        .flat_map(|y| (cx0..cx1).map(move |x| (y, x)))
+        .map(|(y, x)| plane[y * image.width + x].round().clamp(0.0, 255.0) as u8)
+        .collect();
+    let mut png = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut png)
+        .write_image(
+            &pixels,
+            (cx1 - cx0) as u32,
+            (cy1 - cy0) as u32,
+            image::ExtendedColorType::L8,
+        )
+        .ok()?;
+    Some(png)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_defect_lies_where_its_box_is_on_the_belt_with_a_bounded_crop() {
+        let image = Planes {
+            width: 300,
+            height: 400,
+            planes: vec![(0..120_000).map(|i| (i % 256) as f32).collect()],
+        };
+        let d = defect("hole", 0.9, [10.0, 20.0, 30.0, 60.0], &image, 5000);
+        assert_eq!(d.belt_row, 5040.0);
+        assert_eq!(d.across_px, 20.0);
+        assert_eq!(d.bbox, [10, 20, 20, 40]);
+        let crop = image::load_from_memory(d.crop.as_ref().unwrap()).unwrap();
+        // 8 px of margin each side, cut at the image's left edge: x 2..38, y 12..68.
+        assert_eq!((crop.width(), crop.height()), (36, 56));
+        let big = crop_png(&image, [0.0, 0.0, 300.0, 400.0]).unwrap();
+        let big = image::load_from_memory(&big).unwrap();
+        assert_eq!((big.width(), big.height()), (96, 96));
+        assert!(crop_png(&image, [500.0, 0.0, 600.0, 10.0]).is_none());
+    }
+}

@@ -1,0 +1,155 @@
+//! The inspection records from the command line: a simulated textile roll fused into
+//! the records, its defects found and recorded, read back by `rolls list/show/map`; run
+//! again without anything recorded twice; and a clear line for what cannot be had.
+
+mod common;
+
+use common::{fails, rollfuse};
+use std::path::Path;
+
+fn ok(args: &[&str]) -> String {
+    let out = rollfuse(args);
+    assert!(
+        out.status.success(),
+        "rollfuse {}: {}",
+        args.join(" "),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+fn json(args: &[&str]) -> serde_json::Value {
+    serde_json::from_str(&ok(args)).unwrap()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn a_fused_roll_and_its_defects_are_recorded_and_read_back() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (sim, db) = (tmp.path().join("sim"), tmp.path().join("records.db"));
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/textile.toml");
+    ok(&["simulate", scene, "--out", s(&sim)]);
+    let strip = tmp.path().join("strip/roll.png");
+    let fuse = [
+        "fuse",
+        s(&sim),
+        "--out",
+        s(&strip),
+        "--records",
+        s(&db),
+        "--line",
+        "3",
+    ];
+    assert!(ok(&fuse).contains("records: roll 1, 1 segment (complete)"));
+
+    let rolls = json(&["rolls", "list", "--records", s(&db), "--json"]);
+    let roll = &rolls.as_array().unwrap()[0];
+    assert_eq!(roll["status"], "complete");
+    assert_eq!(roll["line"], "3");
+    assert_eq!(roll["mm_per_row"], 0.04, "the manifest's scale");
+    assert_eq!(roll["segments"], 1);
+    let listed = ok(&["rolls", "list", "--records", s(&db), "--line", "3"]);
+    assert!(listed.starts_with("1 complete line 3 started "), "{listed}");
+    assert!(ok(&["rolls", "list", "--records", s(&db), "--line", "4"]).is_empty());
+
+    // The detector on the recorded strip: its defects kept on the segment, twice over
+    // as once.
+    let found = tmp.path().join("found.json");
+    let detect = [
+        "detect",
+        s(&strip),
+        "--records",
+        s(&db),
+        "--json",
+        s(&found),
+    ];
+    ok(&detect);
+    ok(&detect);
+    let found: serde_json::Value = serde_json::from_slice(&std::fs::read(&found).unwrap()).unwrap();
+    let boxes = found[0]["defects"].as_array().unwrap();
+    let shown = json(&["rolls", "show", "1", "--records", s(&db), "--json"]);
+    let defects = shown["defect_list"].as_array().unwrap();
+    assert_eq!(defects.len(), boxes.len(), "{shown}");
+    let segment = &shown["segment_list"][0];
+    assert_eq!(segment["file"], "roll.png");
+    let first_row = segment["first_row"].as_f64().unwrap();
+    assert_eq!(
+        segment["bytes"].as_u64().unwrap(),
+        std::fs::metadata(&strip).unwrap().len()
+    );
+    // The records keep them along the belt; the detector lists them best first.
+    let mut centres: Vec<f64> = boxes
+        .iter()
+        .map(|b| (b["box_px"][1].as_f64().unwrap() + b["box_px"][3].as_f64().unwrap()) / 2.0)
+        .collect();
+    centres.sort_by(f64::total_cmp);
+    for (d, centre) in defects.iter().zip(&centres) {
+        let belt_row = d["belt_row"].as_f64().unwrap();
+        assert!(
+            (belt_row - (first_row + centre)).abs() < 1e-3,
+            "{d} {centre}"
+        );
+    }
+
+    // The map: an SVG and the cutting room's CSV, positions in mm from the roll's start.
+    let map = tmp.path().join("maps/roll1.svg");
+    ok(&["rolls", "map", "1", "--records", s(&db), "--out", s(&map)]);
+    let svg = std::fs::read_to_string(&map).unwrap();
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+    let csv = std::fs::read_to_string(map.with_extension("csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(
+        lines[0],
+        "kind,score,belt_m,belt_mm,across_mm,segment,x,y,w,h"
+    );
+    assert_eq!(lines.len(), defects.len() + 1);
+    for (line, d) in lines[1..].iter().zip(defects) {
+        let mm: f64 = line.split(',').nth(3).unwrap().parse().unwrap();
+        let want = (d["belt_row"].as_f64().unwrap() - first_row) * 0.04;
+        assert!((mm - want).abs() < 0.06, "{line} against {want}");
+    }
+
+    // Fusing the same frames again replaces the roll's record: one roll, its defects gone
+    // with the strip they were found on.
+    ok(&fuse);
+    let rolls = json(&["rolls", "list", "--records", s(&db), "--json"]);
+    assert_eq!(rolls.as_array().unwrap().len(), 1);
+    assert_eq!(rolls[0]["id"], 1);
+    assert_eq!(rolls[0]["defects"], 0);
+}
+
+#[test]
+fn records_that_cannot_be_had_are_said_in_one_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let db = tmp.path().join("records.db");
+    let db = s(&db);
+    fails(
+        &["rolls", "show", "7", "--records", db],
+        "no roll 7 in the records",
+    );
+    fails(
+        &[
+            "rolls",
+            "list",
+            "--records",
+            "postgres://line:secret@127.0.0.1:1/records",
+        ],
+        "cannot open the records at postgres://line:***@127.0.0.1:1/records",
+    );
+    fails(
+        &["rolls", "map", "1", "--records", db, "--out", "map.png"],
+        "the map is an .svg file",
+    );
+    fails(
+        &["rolls", "list", "--records", db, "--since", "yesterday"],
+        "--since yesterday: not a time",
+    );
+    let missing = tmp.path().join("no/such/records.db");
+    fails(
+        &["rolls", "list", "--records", s(&missing)],
+        "cannot open the records at",
+    );
+}
