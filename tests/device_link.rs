@@ -143,11 +143,9 @@ fn reference_tiles(
 
 fn options(out: &Path, config: Option<DeviceConfig>, record: Option<&Path>) -> Options {
     Options {
-        out: out.to_path_buf(),
         config,
-        max_tiles: None,
-        max_duration: None,
         record: record.map(Path::to_path_buf),
+        ..Options::into_folder(out)
     }
 }
 

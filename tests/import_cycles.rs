@@ -22,6 +22,7 @@ type ModPath = Vec<String>;
 const CRATES: &[(&str, &str)] = &[
     ("shared/src", "lib.rs"),
     ("host/src", "lib.rs"),
+    ("host/records/src", "lib.rs"),
     ("firmware/src", "lib.rs"),
     // The board's binary: its `mcu` modules.
     ("firmware/src", "main.rs"),

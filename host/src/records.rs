@@ -1,6 +1,7 @@
 //! What the commands put in the inspection records (`--records DB`, [`rollfuse_records`]):
-//! a fused strip's segments, and defects found on a recorded strip's segments with their
-//! belt positions and a small crop of each.
+//! a fused strip's segments, a streamed strip's segments as they are written
+//! ([`RollKeeper`]), and defects found on a recorded strip's segments with their belt
+//! positions and a small crop of each.
 
 use crate::image::Planes;
 use crate::strip_file::Segment;
@@ -12,6 +13,102 @@ use std::path::Path;
 pub const CROP_SIDE: usize = 96;
 /// Pixels of cloth kept around a defect's box in its crop.
 const CROP_MARGIN: f32 = 8.0;
+
+/// Where a streamed roll is kept in the records.
+#[derive(Debug, Clone)]
+pub struct KeepRoll {
+    /// The records: a SQLite file's path or a `postgres://` URL.
+    pub records: String,
+    /// The roll's record as it starts; its `out` is set to the strip's path.
+    pub start: RollStart,
+    /// Belt millimetres a camera pixel: the roll's scale once the device's downsampling
+    /// is known.
+    pub mm_per_px: Option<f64>,
+}
+
+/// A streamed roll being recorded: each strip segment as soon as it is whole on disk, the
+/// faults and the status when the session ends.
+pub struct RollKeeper {
+    records: Records,
+    roll: i64,
+    folder: std::path::PathBuf,
+    recorded: usize,
+    /// Belt millimetres a camera pixel, until the scale is set.
+    mm_per_px: Option<f64>,
+}
+
+impl RollKeeper {
+    /// Opens the records and starts the roll of a strip written to `strip`. Refuses a
+    /// strip already at `strip` unless it is this source's own (a recording streamed
+    /// again): segments land in place as they are written, and would overwrite it.
+    pub fn start(keep: &KeepRoll, strip: &Path) -> anyhow::Result<RollKeeper> {
+        let mut records = Records::open(&keep.records)?;
+        let out = std::path::absolute(strip).unwrap_or_else(|_| strip.to_path_buf());
+        let earlier = [
+            crate::strip_file::StripWriter::index_path(strip),
+            strip.to_path_buf(),
+            crate::strip_file::StripWriter::segment_path(strip, 0),
+        ];
+        let own = records
+            .roll_of_source(&keep.start.source)?
+            .is_some_and(|r| r.out == out.display().to_string());
+        if let Some(there) = earlier.iter().find(|p| p.exists()).filter(|_| !own) {
+            anyhow::bail!(
+                "{} holds a strip already ({}): with --records a roll's segments land as they \
+                 are written and would replace it; choose a new --out or move it away",
+                crate::files::folder_of(strip).display(),
+                there.display()
+            );
+        }
+        let start = RollStart {
+            out: out.display().to_string(),
+            ..keep.start.clone()
+        };
+        let roll = records.begin_roll(&start)?;
+        Ok(RollKeeper {
+            records,
+            roll,
+            folder: crate::files::folder_of(strip).to_path_buf(),
+            recorded: 0,
+            mm_per_px: keep.mm_per_px,
+        })
+    }
+
+    /// The device's tiles are downsampled `downsample`×: the roll's scale follows from the
+    /// camera's (the first configuration's; set once).
+    pub fn configured(&mut self, downsample: u8) -> anyhow::Result<()> {
+        if let Some(k) = self.mm_per_px.take() {
+            self.records
+                .set_scale(self.roll, k * f64::from(downsample.max(1)))?;
+        }
+        Ok(())
+    }
+
+    /// The roll's id.
+    pub fn roll(&self) -> i64 {
+        self.roll
+    }
+
+    /// Records `segments` (numbered, whole on disk) not recorded yet.
+    pub fn segments(&mut self, segments: &[(usize, Segment)]) -> anyhow::Result<()> {
+        let from = self.recorded;
+        for (seq, s) in segments.iter().filter(|(n, _)| *n >= from) {
+            let path = self.folder.join(&s.file);
+            let record = SegmentRecord::of_file(*seq as i64, &path, s.first_row, s.rows as i64)
+                .with_context(|| format!("cannot read {} to record it", path.display()))?;
+            self.records.add_segment(self.roll, &record, &[])?;
+            self.recorded = seq + 1;
+        }
+        Ok(())
+    }
+
+    /// Ends the roll: its `faults` counted, complete or failed.
+    pub fn finish(mut self, faults: &[(&str, u64)], status: &Status) -> anyhow::Result<()> {
+        self.records.set_faults(self.roll, faults)?;
+        self.records.finish_roll(self.roll, status)?;
+        Ok(())
+    }
+}
 
 /// Records a strip written whole (`rollfuse fuse`): the roll `start`, each of `segments`
 /// (files beside `out`, read for their checksums) and the roll's end, `status`. A roll of

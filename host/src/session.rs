@@ -41,6 +41,21 @@ pub struct Request {
     /// Files the session reads besides its device's (a detector's model), by what they
     /// are: never written over.
     pub other_inputs: Vec<(&'static str, PathBuf)>,
+    /// Most rows per strip segment.
+    pub segment_rows: usize,
+    /// Where the roll is kept in the inspection records, if anywhere.
+    pub records: Option<RecordsRequest>,
+}
+
+/// `--records`, `--line`, `--mm-per-px`.
+#[derive(Debug, Clone)]
+pub struct RecordsRequest {
+    /// A SQLite file's path or a `postgres://` URL.
+    pub records: String,
+    /// The production line.
+    pub line: String,
+    /// Belt millimetres a camera pixel (with `sim`, default the scene's).
+    pub mm_per_px: Option<f64>,
 }
 
 /// The device configuration a session asks for.
@@ -119,13 +134,22 @@ pub fn open(request: &Request) -> anyhow::Result<Opened> {
     if let Some(r) = &request.record {
         crate::files::check_writable(r)?;
     }
-    let (link, config) = open_link(request, &checked)?;
+    ensure!(
+        request.segment_rows >= 1,
+        "--segment-rows must be at least 1"
+    );
+    let (link, config, scene_scale) = open_link(request, &checked)?;
+    let keep = (request.records.as_ref())
+        .map(|r| keep_roll(request, r, &checked, config, scene_scale))
+        .transpose()?;
     let opts = Options {
         out: request.out.clone(),
         config,
         max_tiles: request.tiles,
         max_duration: checked.max_duration,
         record: request.record.clone(),
+        segment_rows: request.segment_rows,
+        keep,
     };
     Ok(Opened {
         link,
@@ -235,13 +259,56 @@ fn frame_period(rate: f64) -> anyhow::Result<Duration> {
     Ok(Duration::from_secs_f64(1.0 / rate))
 }
 
-/// The link the options name, and the configuration to send (none to a recording).
-fn open_link(
+/// The roll's record as a session starts it: its source (a recording is one source
+/// however often it is streamed; a device or the virtual device is a new one each
+/// session), the configuration sent, the scale given or the scene's.
+fn keep_roll(
     request: &Request,
+    r: &RecordsRequest,
     checked: &Checked,
-) -> anyhow::Result<(Box<dyn Transport>, Option<DeviceConfig>)> {
+    config: Option<DeviceConfig>,
+    scene_scale: Option<f64>,
+) -> anyhow::Result<crate::records::KeepRoll> {
+    if let Some(k) = r.mm_per_px {
+        ensure!(
+            k.is_finite() && k > 0.0,
+            "--mm-per-px must be positive, got {k}"
+        );
+    }
+    let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let now = humantime::format_rfc3339_millis(std::time::SystemTime::now());
+    let source = match (&checked.replay, &request.scene) {
+        (Some(file), _) => format!("recording {}", absolute(file).display()),
+        (None, Some(scene)) => {
+            format!(
+                "virtual device, scene {}, at {now}",
+                absolute(scene).display()
+            )
+        }
+        (None, None) => format!("device on USB at {now}"),
+    };
+    Ok(crate::records::KeepRoll {
+        records: r.records.clone(),
+        start: rollfuse_records::RollStart {
+            source,
+            line: r.line.clone(),
+            device: request.device.clone(),
+            configuration: serde_json::to_string(&config)?,
+            out: String::new(),
+            mm_per_row: None,
+        },
+        mm_per_px: r.mm_per_px.or(scene_scale),
+    })
+}
+
+/// An opened link: the transport, the configuration to send (none to a recording), and
+/// the scene's belt millimetres a camera pixel (the virtual device).
+type Link = (Box<dyn Transport>, Option<DeviceConfig>, Option<f64>);
+
+/// The link the options name.
+fn open_link(request: &Request, checked: &Checked) -> anyhow::Result<Link> {
     Ok(match checked.replay.as_deref() {
-        Some(file) => (Box::new(Replay::open(file)?), None),
+        Some(file) => (Box::new(Replay::open(file)?), None, None),
         None if request.device == "usb" => (
             Box::new(Usb::open()?),
             Some(
@@ -249,6 +316,7 @@ fn open_link(
                     .fusion
                     .config(DeviceConfig::default().frame_spacing_px),
             ),
+            None,
         ),
         None => {
             let path = request
@@ -260,9 +328,15 @@ fn open_link(
             } else {
                 DeviceMemory::Firmware
             };
-            let dev = SimDevice::start_paced(&Scene::load(path)?, memory, checked.frame_period)?;
+            let scene = Scene::load(path)?;
+            let dev = SimDevice::start_paced(&scene, memory, checked.frame_period)?;
             let spacing = dev.default_config().frame_spacing_px;
-            (Box::new(dev), Some(request.fusion.config(spacing)))
+            let scale = scene.sensor.mm_per_px;
+            (
+                Box::new(dev),
+                Some(request.fusion.config(spacing)),
+                Some(scale),
+            )
         }
     })
 }

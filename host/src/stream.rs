@@ -19,13 +19,15 @@
 use crate::link::replay::Recorder;
 use crate::link::{Received, Transport};
 use crate::progress::Progress;
-use crate::strip_file::{DEFAULT_SEGMENT_ROWS, StripWriter};
+use crate::records::RollKeeper;
+use crate::strip_file::{Segment, StripWriter};
 use anyhow::{Context, bail};
 use rollfuse_core::device::{PipelineConfig, Sensor};
 use rollfuse_core::protocol::{
     self, Command, DecodeError, DeviceConfig, DeviceInfo, DeviceMessage, MAX_MESSAGE, NakReason,
     SeqEvent, SeqTracker, StatusCounters,
 };
+use rollfuse_records::Status;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -57,6 +59,27 @@ pub struct Options {
     pub max_duration: Option<Duration>,
     /// Record every received message here.
     pub record: Option<PathBuf>,
+    /// Most rows per strip segment.
+    pub segment_rows: usize,
+    /// Keep the roll in the inspection records: each segment recorded as soon as it is
+    /// whole on disk (and then written in place: [`StripWriter::in_place`]).
+    pub keep: Option<crate::records::KeepRoll>,
+}
+
+impl Options {
+    /// A session writing into the folder `out`: the device's own configuration, no
+    /// limits, no recording, not kept in the records.
+    pub fn into_folder(out: &Path) -> Options {
+        Options {
+            out: out.to_path_buf(),
+            config: None,
+            max_tiles: None,
+            max_duration: None,
+            record: None,
+            segment_rows: crate::strip_file::DEFAULT_SEGMENT_ROWS,
+            keep: None,
+        }
+    }
 }
 
 /// Follows a session as it goes, for live views (the served page) and for programs that
@@ -230,6 +253,9 @@ pub fn describe(c: &DeviceConfig, [w, h]: [u16; 2]) -> String {
 /// The strip as tiles arrive: written in index order, late tiles held back a little.
 struct StreamedStrip {
     out: PathBuf,
+    segment_rows: usize,
+    /// Segments in place as they are written ([`StripWriter::in_place`]).
+    in_place: bool,
     size: Option<(u16, u16)>,
     writer: Option<StripWriter>,
     /// Tiles received ahead of the next index to write.
@@ -246,9 +272,11 @@ enum Refused {
 }
 
 impl StreamedStrip {
-    fn new(out: PathBuf) -> Self {
+    fn new(out: PathBuf, segment_rows: usize, in_place: bool) -> Self {
         Self {
             out,
+            segment_rows,
+            in_place,
             size: None,
             writer: None,
             pending: BTreeMap::new(),
@@ -321,10 +349,13 @@ impl StreamedStrip {
         };
         let (w, t) = (usize::from(w), usize::from(t));
         if self.writer.is_none() {
-            self.writer = Some(
-                StripWriter::new(&self.out, w, 1, 8, DEFAULT_SEGMENT_ROWS)?
-                    .fill_gaps(FILL_GAP_TILES * t),
-            );
+            let writer = StripWriter::new(&self.out, w, 1, 8, self.segment_rows)?
+                .fill_gaps(FILL_GAP_TILES * t);
+            self.writer = Some(if self.in_place {
+                writer.in_place()
+            } else {
+                writer
+            });
         }
         let writer = self.writer.as_mut().context("no strip writer")?;
         let mut row = vec![0f32; w];
@@ -337,18 +368,25 @@ impl StreamedStrip {
         Ok(())
     }
 
-    /// Writes every tile still held and the strip's index; the strip's files (none
+    /// The segments written since the last call, with their numbers.
+    fn new_segments(&mut self) -> Vec<(usize, Segment)> {
+        self.writer
+            .as_mut()
+            .map(StripWriter::new_segments)
+            .unwrap_or_default()
+    }
+
+    /// Writes every tile still held and the strip's index; the strip's segments (none
     /// without a tile).
-    fn finish(mut self, m: &mut Manifest) -> anyhow::Result<Vec<String>> {
+    fn finish(mut self, m: &mut Manifest) -> anyhow::Result<Vec<Segment>> {
         self.drain(m, 0)?;
         let Some(writer) = self.writer else {
             return Ok(Vec::new());
         };
-        let segments = writer.finish(serde_json::json!({
+        writer.finish(serde_json::json!({
             "tile_size": m.tile_size,
             "configurations": m.configurations,
-        }))?;
-        Ok(segments.into_iter().map(|s| s.file).collect())
+        }))
     }
 }
 
@@ -521,6 +559,8 @@ struct Session<'a> {
     manifest: Manifest,
     manifest_path: PathBuf,
     strip: StreamedStrip,
+    /// The roll in the records, if kept there.
+    keeper: Option<RollKeeper>,
     seqs: SeqTracker,
     /// The next command's sequence number.
     cmd_seq: u32,
@@ -541,6 +581,10 @@ impl<'a> Session<'a> {
         watch: &'a mut dyn Watch,
     ) -> anyhow::Result<Self> {
         let folder = crate::files::NewFolder::create(&opts.out)?;
+        let [strip_path, _, manifest_path] = output_files(&opts.out);
+        let keeper = (opts.keep.as_ref())
+            .map(|k| RollKeeper::start(k, &strip_path))
+            .transpose()?;
         let recorder = opts.record.as_deref().map(Recorder::create).transpose()?;
         let started = Instant::now();
         let live = link.is_live();
@@ -551,7 +595,6 @@ impl<'a> Session<'a> {
             Vec::new()
         };
         progress.start("receiving tiles", None, "tiles");
-        let [strip_path, _, manifest_path] = output_files(&opts.out);
         Ok(Self {
             _folder: folder,
             opts,
@@ -562,7 +605,8 @@ impl<'a> Session<'a> {
             recorder,
             manifest: Manifest::default(),
             manifest_path,
-            strip: StreamedStrip::new(strip_path),
+            strip: StreamedStrip::new(strip_path, opts.segment_rows, keeper.is_some()),
+            keeper,
             seqs: SeqTracker::new(),
             cmd_seq,
             essential,
@@ -688,18 +732,22 @@ impl<'a> Session<'a> {
     }
 
     /// Dates the configuration in force from `tile`, the first of the size it makes.
-    fn confirm_configuration(&mut self, tile: &protocol::Tile<'_>) {
+    fn confirm_configuration(&mut self, tile: &protocol::Tile<'_>) -> anyhow::Result<()> {
         if let Some(last) = self.manifest.configurations.last_mut()
             && last.from_tile.is_none()
             && last.tile_size == [tile.width, tile.height]
         {
             last.from_tile = Some(tile.index);
+            if let Some(keeper) = &mut self.keeper {
+                keeper.configured(last.config.downsample)?;
+            }
             self.progress.note(&format!(
                 "from tile {}: {}",
                 tile.index,
                 describe(&last.config, last.tile_size)
             ));
         }
+        Ok(())
     }
 
     /// A command the device refused: listed, and the end of the session if essential.
@@ -748,9 +796,12 @@ impl<'a> Session<'a> {
 
     /// Places a tile in the strip (or counts why not) and reports the rate.
     fn on_tile(&mut self, tile: &protocol::Tile<'_>) -> anyhow::Result<()> {
-        self.confirm_configuration(tile);
+        self.confirm_configuration(tile)?;
         if !take_tile(&mut self.strip, tile, &mut self.manifest)? {
             return Ok(());
+        }
+        if let Some(keeper) = &mut self.keeper {
+            keeper.segments(&self.strip.new_segments())?;
         }
         self.watch.tile(tile, &self.manifest);
         let m = &self.manifest;
@@ -783,6 +834,19 @@ impl<'a> Session<'a> {
         }
     }
 
+    /// A failed session's roll is recorded as failed, with `e`, its segments as they were
+    /// recorded; a failure to record that is added to `e`.
+    fn fail_roll(&mut self, e: anyhow::Error) -> anyhow::Error {
+        let Some(keeper) = self.keeper.take() else {
+            return e;
+        };
+        let why = Status::Failed(format!("{e:#}"));
+        match keeper.finish(&fault_counts(&self.manifest), &why) {
+            Ok(()) => e,
+            Err(lost) => e.context(format!("and the records could not say so: {lost:#}")),
+        }
+    }
+
     /// A failed session keeps its recording, every message taken before the failure, so
     /// the device's data outlives what went wrong (replay it once that is fixed) — but
     /// only under a new name: it never replaces an older recording. Returns `e`, saying
@@ -811,8 +875,14 @@ impl<'a> Session<'a> {
         if configs.last().is_some_and(|c| c.from_tile.is_none()) {
             configs.pop();
         }
-        let strip_files = self.strip.finish(&mut self.manifest)?;
+        let segments = self.strip.finish(&mut self.manifest)?;
         write_manifest(&self.manifest_path, &self.manifest)?;
+        if let Some(mut keeper) = self.keeper.take() {
+            let numbered: Vec<(usize, Segment)> = segments.iter().cloned().enumerate().collect();
+            keeper.segments(&numbered)?;
+            keeper.finish(&fault_counts(&self.manifest), &Status::Complete)?;
+        }
+        let strip_files = segments.into_iter().map(|s| s.file).collect();
         Ok(Outcome {
             manifest: self.manifest,
             strip_files,
@@ -843,8 +913,36 @@ pub fn run_watched(
     let mut session = Session::open(link, opts, progress, watch)?;
     match session.receive_all(link) {
         Ok(()) => session.close(),
-        Err(e) => Err(session.keep_recording(e)),
+        Err(e) => {
+            let e = session.fail_roll(e);
+            Err(session.keep_recording(e))
+        }
     }
+}
+
+/// The faults of a session as the records count them: the refused messages and link
+/// faults by kind, and the tiles lost.
+fn fault_counts(m: &Manifest) -> Vec<(&'static str, u64)> {
+    let f = &m.faults;
+    let lost: u64 = m.gaps.iter().map(|[a, b]| u64::from(b - a) + 1).sum();
+    vec![
+        ("bad_crc", f.bad_crc),
+        ("truncated", f.truncated),
+        ("too_long", f.too_long),
+        ("wrong_version", f.wrong_version),
+        ("malformed", f.malformed),
+        ("over_limit", f.over_limit),
+        ("sequence_gaps", f.sequence_gaps),
+        ("messages_missing", f.messages_missing),
+        ("repeated", f.repeated),
+        ("far_ahead", f.far_ahead),
+        ("renumbered", f.renumbered),
+        ("duplicate_tiles", f.duplicate_tiles),
+        ("late_tiles", f.late_tiles),
+        ("mismatched_tiles", f.mismatched_tiles),
+        ("after_final_status", f.after_final_status),
+        ("tiles_lost", lost),
+    ]
 }
 
 fn write_manifest(path: &Path, manifest: &Manifest) -> anyhow::Result<()> {

@@ -14,6 +14,12 @@
 //! leaves the older strip, its index included, as it was; a run killed outright leaves
 //! only its hidden files, which the next run writing to that folder removes.
 //!
+//! A strip kept in the inspection records is written [`StripWriter::in_place`] instead:
+//! each segment goes to its numbered name as soon as it is full (a lone one too), so a
+//! run killed midway leaves every full segment whole where the records say it is; an
+//! older index is removed before the first segment lands, and its segments past this
+//! strip's when it finishes.
+//!
 //! Memory: one segment, `segment_rows × width × channels` samples.
 
 use crate::files::{Batch, PngLayout, add_png, write_bytes_atomic};
@@ -122,6 +128,10 @@ pub struct StripWriter {
     files: Vec<Written>,
     /// Set once `finish` has put the strip in place: nothing to clean up.
     finished: bool,
+    /// Each segment in place as it is written ([`StripWriter::in_place`]).
+    in_place: bool,
+    /// Segments written since [`StripWriter::new_segments`] last took them.
+    unreported: usize,
 }
 
 /// Where a written segment lies until the strip finishes.
@@ -158,7 +168,25 @@ impl StripWriter {
             written: Vec::new(),
             files: Vec::new(),
             finished: false,
+            in_place: false,
+            unreported: 0,
         })
+    }
+
+    /// Puts each segment at its numbered name as soon as it is full, and keeps it there
+    /// even if the strip fails: the mode of a strip whose segments are recorded as they
+    /// are written (a lone segment keeps its number too).
+    pub fn in_place(mut self) -> Self {
+        self.in_place = true;
+        self
+    }
+
+    /// The segments written since the last call, each whole at its name in
+    /// [`StripWriter::in_place`] mode, with their numbers.
+    pub fn new_segments(&mut self) -> Vec<(usize, Segment)> {
+        let from = self.written.len() - self.unreported;
+        self.unreported = 0;
+        (from..).zip(self.written[from..].iter().cloned()).collect()
     }
 
     /// Fills a jump of at most `rows` missing rows with zeros inside the segment instead
@@ -183,15 +211,7 @@ impl StripWriter {
     /// Moves the segments written beside older files into place, the older index first
     /// removed so that no index describes a mix of two strips meanwhile.
     fn replace_older(&mut self) -> anyhow::Result<()> {
-        let index = Self::index_path(&self.out);
-        match std::fs::remove_file(&index) {
-            Ok(()) => {}
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(e) => {
-                return Err(e)
-                    .with_context(|| format!("cannot remove the old {}", index.display()));
-            }
-        }
+        remove_if_there(&Self::index_path(&self.out))?;
         for file in &mut self.files {
             if let Written::Beside { hidden, target } = file {
                 std::fs::rename(&*hidden, &*target)
@@ -206,7 +226,7 @@ impl StripWriter {
     /// segments numbered past this one's, and the lone `out` when this one has segments.
     fn remove_stale(&self) -> anyhow::Result<()> {
         let mut stale = Self::segments_on_disk(&self.out, self.written.len());
-        if self.written.len() > 1 && self.out.exists() {
+        if (self.written.len() > 1 || self.in_place) && self.out.exists() {
             stale.push(self.out.clone());
         }
         crate::files::remove_stale(stale)
@@ -273,17 +293,26 @@ impl StripWriter {
             return Ok(());
         };
         let path = self.numbered(self.written.len());
-        // Every segment waits under a hidden name, its owner's, until the strip finishes:
-        // an older file at its name stays whole until then, and a run killed midway
-        // leaves only hidden files that the next run in this folder sweeps away.
-        let hidden = crate::files::temporary_beside(&path, "new");
-        let hidden = hidden.with_file_name(format!(
-            "{}.png",
-            hidden.file_name().unwrap_or_default().to_string_lossy()
-        ));
-        let written = Written::Beside {
-            hidden,
-            target: path.clone(),
+        let written = if self.in_place {
+            if self.written.is_empty() {
+                // No index may describe a mix of the older strip and this one.
+                remove_if_there(&Self::index_path(&self.out))?;
+            }
+            Written::InPlace(path.clone())
+        } else {
+            // Every segment waits under a hidden name, its owner's, until the strip
+            // finishes: an older file at its name stays whole until then, and a run
+            // killed midway leaves only hidden files that the next run in this folder
+            // sweeps away.
+            let hidden = crate::files::temporary_beside(&path, "new");
+            let hidden = hidden.with_file_name(format!(
+                "{}.png",
+                hidden.file_name().unwrap_or_default().to_string_lossy()
+            ));
+            Written::Beside {
+                hidden,
+                target: path.clone(),
+            }
         };
         let at = match &written {
             Written::InPlace(p) | Written::Beside { hidden: p, .. } => p,
@@ -307,6 +336,7 @@ impl StripWriter {
             first_row: first,
             rows: self.current_rows,
         });
+        self.unreported += 1;
         self.data.clear();
         self.current_rows = 0;
         Ok(())
@@ -323,7 +353,7 @@ impl StripWriter {
         self.replace_older()?;
         self.finished = true;
         self.remove_stale()?;
-        if self.written.len() == 1 {
+        if self.written.len() == 1 && !self.in_place {
             let lone = self.numbered(0);
             std::fs::rename(&lone, &self.out)
                 .with_context(|| format!("cannot move {} into place", self.out.display()))?;
@@ -348,16 +378,31 @@ impl StripWriter {
 }
 
 impl Drop for StripWriter {
-    /// A strip left unfinished (an error on the way) takes back what it wrote; the older
-    /// strip it would have replaced is as it was.
+    /// A strip left unfinished (an error on the way) takes back what it wrote, except the
+    /// segments it put in place ([`StripWriter::in_place`]); the older strip it would
+    /// have replaced is as it was.
     fn drop(&mut self) {
         if self.finished {
             return;
         }
         for file in &self.files {
-            let (Written::InPlace(p) | Written::Beside { hidden: p, .. }) = file;
-            let _ = std::fs::remove_file(p);
+            match file {
+                // In place as it was written: whole, and kept (the records list it).
+                Written::InPlace(_) if self.in_place => {}
+                Written::InPlace(p) | Written::Beside { hidden: p, .. } => {
+                    let _ = std::fs::remove_file(p);
+                }
+            }
         }
+    }
+}
+
+/// Removes `path` if it is there.
+fn remove_if_there(path: &Path) -> anyhow::Result<()> {
+    match std::fs::remove_file(path) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(e).with_context(|| format!("cannot remove the old {}", path.display())),
     }
 }
 
@@ -389,6 +434,45 @@ mod tests {
         let index = std::fs::read_to_string(dir.path().join("strip.json")).unwrap();
         assert!(index.contains("\"strip.0003.png\""), "{index}");
         assert!(!out.exists());
+    }
+
+    #[test]
+    fn in_place_segments_land_as_they_fill_and_stay_when_the_strip_fails() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("strip.png");
+        std::fs::write(StripWriter::index_path(&out), "{}").unwrap();
+        let mut w = StripWriter::new(&out, 2, 1, 8, 3).unwrap().in_place();
+        for row in 0..7 {
+            w.push(row, &[&[row as f32; 2]]).unwrap();
+        }
+        let landed: Vec<(usize, String)> = w
+            .new_segments()
+            .into_iter()
+            .map(|(n, s)| (n, s.file))
+            .collect();
+        assert_eq!(
+            landed,
+            [(0, "strip.0000.png".into()), (1, "strip.0001.png".into())]
+        );
+        assert!(w.new_segments().is_empty(), "each segment is reported once");
+        assert!(dir.path().join("strip.0001.png").exists());
+        assert!(
+            !StripWriter::index_path(&out).exists(),
+            "the older index goes before the first segment lands"
+        );
+        drop(w);
+        assert!(dir.path().join("strip.0000.png").exists());
+        assert!(dir.path().join("strip.0001.png").exists());
+        assert!(!dir.path().join("strip.0002.png").exists(), "never full");
+
+        // A lone segment keeps its number: the records name it so from the start.
+        std::fs::write(&out, "older").unwrap();
+        let mut w = StripWriter::new(&out, 2, 1, 8, 3).unwrap().in_place();
+        w.push(0, &[&[1.0; 2]]).unwrap();
+        let segs = w.finish(()).unwrap();
+        assert_eq!(segs[0].file, "strip.0000.png");
+        assert!(!out.exists(), "the older lone strip is stale");
+        assert!(!dir.path().join("strip.0001.png").exists());
     }
 
     #[test]

@@ -377,17 +377,31 @@ fn every_documented_command_names_a_subcommand_and_options_the_tool_has() {
         commands.len()
     );
     let mut helps = std::collections::HashMap::new();
+    let help_of = |words: &[&str], file: &str| {
+        let out = rollfuse(&[words, &["--help"][..]].concat());
+        assert!(
+            out.status.success(),
+            "{file}: `rollfuse {}` is not a command",
+            words.join(" ")
+        );
+        String::from_utf8_lossy(&out.stdout).to_string()
+    };
     for (file, args) in &commands {
         let sub = args[0].as_str();
-        let help = helps.entry(sub.to_string()).or_insert_with(|| {
-            let out = rollfuse(&[sub, "--help"]);
-            assert!(
-                out.status.success(),
-                "{file}: `rollfuse {sub}` is not a command"
-            );
-            String::from_utf8_lossy(&out.stdout).to_string()
-        });
-        for word in &args[1..] {
+        let mut help = helps
+            .entry(sub.to_string())
+            .or_insert_with(|| help_of(&[sub], file))
+            .clone();
+        // A command of commands (`rolls list`): its subcommand's options.
+        let nested = help.contains("\nCommands:") && args.len() > 1;
+        if nested {
+            let key = format!("{sub} {}", args[1]);
+            help = helps
+                .entry(key)
+                .or_insert_with(|| help_of(&[sub, &args[1]], file))
+                .clone();
+        }
+        for word in &args[1 + usize::from(nested)..] {
             let flag = word.trim_start_matches('[').trim_end_matches(']');
             let flag = flag.split('=').next().unwrap_or_default();
             if !flag.starts_with("--") {

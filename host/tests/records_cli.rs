@@ -75,6 +75,7 @@ fn a_fused_roll_and_its_defects_are_recorded_and_read_back() {
     assert_eq!(defects.len(), boxes.len(), "{shown}");
     let segment = &shown["segment_list"][0];
     assert_eq!(segment["file"], "roll.png");
+    assert_eq!(segment["width"], 320, "read from the PNG");
     let first_row = segment["first_row"].as_f64().unwrap();
     assert_eq!(
         segment["bytes"].as_u64().unwrap(),
@@ -151,5 +152,131 @@ fn records_that_cannot_be_had_are_said_in_one_line() {
     fails(
         &["rolls", "list", "--records", s(&missing)],
         "cannot open the records at",
+    );
+}
+
+const LETTERS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/letters.toml");
+
+fn roll_json(db: &Path, id: i64) -> Option<serde_json::Value> {
+    let id = id.to_string();
+    let out = rollfuse(&["rolls", "show", &id, "--records", s(db), "--json"]);
+    out.status
+        .success()
+        .then(|| serde_json::from_slice(&out.stdout).unwrap())
+}
+
+#[test]
+fn a_stream_killed_midway_leaves_its_roll_interrupted_with_its_whole_segments() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (out, db) = (tmp.path().join("roll"), tmp.path().join("records.db"));
+    // Paced at 15 frames a second, one tile a segment: segments land one by one.
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_rollfuse"))
+        .args([
+            "stream",
+            "--device",
+            "sim",
+            "--scene",
+            LETTERS,
+            "--frame-rate",
+            "15",
+        ])
+        .args([
+            "--out",
+            s(&out),
+            "--records",
+            s(&db),
+            "--segment-rows",
+            "16",
+        ])
+        .args(["--progress", "none"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut seen = 0;
+    for _ in 0..600 {
+        seen = roll_json(&db, 1).map_or(0, |r| r["segments"].as_i64().unwrap());
+        if seen >= 3 {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    assert!(seen >= 3, "the stream recorded {seen} segments");
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+
+    let roll = roll_json(&db, 1).expect("the records open after the kill");
+    assert_eq!(roll["status"], "interrupted", "{roll}");
+    let listed = roll["segment_list"].as_array().unwrap();
+    assert!(listed.len() >= 3);
+    for (n, segment) in listed.iter().enumerate() {
+        assert_eq!(segment["seq"], n as i64);
+        let record: rollfuse_records::SegmentRecord = rollfuse_records::SegmentRecord {
+            seq: n as i64,
+            file: segment["file"].as_str().unwrap().into(),
+            first_row: segment["first_row"].as_i64().unwrap(),
+            rows: segment["rows"].as_i64().unwrap(),
+            width: segment["width"].as_i64().unwrap(),
+            bytes: segment["bytes"].as_i64().unwrap(),
+            crc32: segment["crc32"].as_u64().unwrap() as u32,
+        };
+        assert!(
+            record.matches_file(&out.join(&record.file)),
+            "{} is whole on disk as recorded",
+            record.file
+        );
+    }
+}
+
+#[test]
+fn a_recording_streamed_again_replaces_its_roll_and_another_strip_is_not_overwritten() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (rec, db) = (
+        tmp.path().join("session.rfrec"),
+        tmp.path().join("records.db"),
+    );
+    let first = tmp.path().join("first");
+    let record = ["--out", s(&first), "--record", s(&rec)];
+    ok(&[
+        &["stream", "--device", "sim", "--scene", LETTERS][..],
+        &record[..],
+    ]
+    .concat());
+    let out = tmp.path().join("replayed");
+    let replay = format!("replay:{}", s(&rec));
+    let args = [
+        "stream",
+        "--device",
+        &replay,
+        "--out",
+        s(&out),
+        "--records",
+        s(&db),
+    ];
+    ok(&args);
+    let once = roll_json(&db, 1).unwrap();
+    ok(&args);
+    let twice = roll_json(&db, 1).unwrap();
+    assert_eq!(once["segment_list"], twice["segment_list"]);
+    let rolls = json(&["rolls", "list", "--records", s(&db), "--json"]);
+    assert_eq!(rolls.as_array().unwrap().len(), 1, "{rolls}");
+    // Another roll into the same folder would land on this one's segments.
+    fails(
+        &[
+            "stream",
+            "--device",
+            "sim",
+            "--scene",
+            LETTERS,
+            "--out",
+            s(&out),
+            "--records",
+            s(&db),
+        ],
+        "holds a strip already",
+    );
+    assert_eq!(
+        roll_json(&db, 1).unwrap()["segment_list"],
+        once["segment_list"]
     );
 }

@@ -66,11 +66,8 @@ fn clean_stream() -> &'static Vec<Vec<u8>> {
 
 fn options(out: &Path, record: Option<&Path>) -> Options {
     Options {
-        out: out.to_path_buf(),
-        config: None,
-        max_tiles: None,
-        max_duration: None,
         record: record.map(Path::to_path_buf),
+        ..Options::into_folder(out)
     }
 }
 

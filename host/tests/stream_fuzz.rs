@@ -133,13 +133,7 @@ proptest! {
         let out = tmp.path().join("out");
         std::fs::create_dir(&out).unwrap();
         let mut link = Replay::open(&rec).unwrap();
-        let options = Options {
-            out: out.clone(),
-            config: None,
-            max_tiles: None,
-            max_duration: None,
-            record: None,
-        };
+        let options = Options::into_folder(&out);
         // An error is an answer; a panic fails the test.
         let _ = stream::run(&mut link, &options, &Silent);
         let written = files(&out);

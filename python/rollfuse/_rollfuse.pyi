@@ -250,5 +250,9 @@ def stream(
     norm: Literal["per-tile", "per-frame"] = "per-frame",
     unbounded_memory: bool = False,
     frame_rate: Optional[float] = None,
+    records: Optional[str] = None,
+    line: str = "default",
+    mm_per_px: Optional[float] = None,
+    segment_rows: int = 4096,
 ) -> Stream:
     """Streams fused tiles from 'sim', 'usb' or 'replay:FILE' as ``rollfuse stream``."""

@@ -11,8 +11,9 @@ use pyo3::exceptions::PyStopIteration;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rollfuse::progress::Silent;
-use rollfuse::session::{Fusion, Opened, Request, open};
+use rollfuse::session::{Fusion, Opened, RecordsRequest, Request, open};
 use rollfuse::stream::{Manifest, Outcome, StopReason, Watch, run_watched};
+use rollfuse::strip_file::DEFAULT_SEGMENT_ROWS;
 use rollfuse_core::protocol::{Command, Tile};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -205,12 +206,17 @@ impl Drop for Stream {
 ///     with the stream). tiles, seconds: stop a live device after so many tiles or
 ///     seconds. record: record every message to this file. The fusion options are the
 ///     command line's (--wavelet … --norm); frame_rate paces the virtual device.
+///     records: keep the roll in these inspection records (a SQLite file or a
+///     'postgres://' URL), from production line `line`, its scale `mm_per_px` belt
+///     millimetres a camera pixel (with 'sim', default the scene's); segment_rows: most
+///     rows per strip segment.
 /// Unset, the fusion options are the module's defaults (db2, 1 level, 1×).
 /// Returns a Stream: iterate it for the tiles; its `manifest` once it has ended.
 #[pyfunction]
 #[pyo3(signature = (device, *, scene=None, out=None, tiles=None, seconds=None, record=None,
     wavelet=None, levels=None, downsample=None, tile_rows=None, frames_per_tile=None,
-    spacing_px=None, refine_rows=None, norm=None, unbounded_memory=false, frame_rate=None))]
+    spacing_px=None, refine_rows=None, norm=None, unbounded_memory=false, frame_rate=None,
+    records=None, line="default".to_owned(), mm_per_px=None, segment_rows=DEFAULT_SEGMENT_ROWS))]
 pub fn stream(
     py: Python<'_>,
     device: String,
@@ -229,6 +235,10 @@ pub fn stream(
     norm: Option<&str>,
     unbounded_memory: bool,
     frame_rate: Option<f64>,
+    records: Option<String>,
+    line: String,
+    mm_per_px: Option<f64>,
+    segment_rows: usize,
 ) -> PyResult<Stream> {
     let folder = match out {
         Some(p) => Folder::Given(p),
@@ -259,6 +269,12 @@ pub fn stream(
         frame_rate,
         serve: None,
         other_inputs: Vec::new(),
+        segment_rows,
+        records: records.map(|records| RecordsRequest {
+            records,
+            line,
+            mm_per_px,
+        }),
     };
     let Opened { mut link, opts, .. } = py.detach(|| open(&request)).or_py()?;
     let (tx, rx) = sync_channel(WAITING_TILES);

@@ -31,7 +31,7 @@
 //!     })
 //!     .unwrap();
 //! let segment = SegmentRecord { seq: 0, file: "strip.png".into(), first_row: 0, rows: 2000,
-//!                               bytes: 1, crc32: 0 };
+//!                               width: 320, bytes: 1, crc32: 0 };
 //! records.add_segment(roll, &segment, &[]).unwrap();
 //! records.finish_roll(roll, &Status::Complete).unwrap();
 //! assert_eq!(records.roll(roll).unwrap().summary.belt_mm, Some(100.0));
@@ -173,14 +173,15 @@ impl Records {
                 &[roll.into(), seq.clone()],
             )?;
             db.exec(
-                "INSERT INTO segments (roll_id, seq, file, first_row, rows, bytes, crc32) \
-                 VALUES ($1, $2, $3, $4, $5, $6, $7)",
+                "INSERT INTO segments (roll_id, seq, file, first_row, rows, width, bytes, crc32) \
+                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8)",
                 &[
                     roll.into(),
                     seq,
                     segment.file.as_str().into(),
                     segment.first_row.into(),
                     segment.rows.into(),
+                    segment.width.into(),
                     segment.bytes.into(),
                     i64::from(segment.crc32).into(),
                 ],
@@ -243,6 +244,24 @@ impl Records {
         })
     }
 
+    /// Sets roll `roll`'s scale, millimetres of belt a strip row (known only once its
+    /// configuration is).
+    pub fn set_scale(&mut self, roll: i64, mm_per_row: f64) -> Result<()> {
+        if !(mm_per_row.is_finite() && mm_per_row > 0.0) {
+            return Err(Error::Invalid(format!(
+                "a roll's scale must be positive millimetres a row, got {mm_per_row}"
+            )));
+        }
+        let changed = self.db.exec(
+            "UPDATE rolls SET mm_per_row = $1 WHERE id = $2",
+            &[mm_per_row.into(), roll.into()],
+        )?;
+        if changed == 0 {
+            return Err(Error::NoSuchRoll(roll));
+        }
+        Ok(())
+    }
+
     /// Ends roll `roll` with `status` (complete, or failed with the reason).
     pub fn finish_roll(&mut self, roll: i64, status: &Status) -> Result<()> {
         self.set_status(roll, status)
@@ -301,7 +320,7 @@ impl Records {
         let segment_list = self
             .db
             .query(
-                "SELECT seq, file, first_row, rows, bytes, crc32 FROM segments \
+                "SELECT seq, file, first_row, rows, width, bytes, crc32 FROM segments \
                  WHERE roll_id = $1 ORDER BY seq",
                 &[id.into()],
             )?
@@ -311,8 +330,9 @@ impl Records {
                 file: r[1].text(),
                 first_row: r[2].int(),
                 rows: r[3].int(),
-                bytes: r[4].int(),
-                crc32: r[5].int() as u32,
+                width: r[4].int(),
+                bytes: r[5].int(),
+                crc32: r[6].int() as u32,
             })
             .collect();
         let defect_list = self
@@ -343,6 +363,15 @@ impl Records {
         })
     }
 
+    /// The roll recorded from `source`, if any.
+    pub fn roll_of_source(&mut self, source: &str) -> Result<Option<RollSummary>> {
+        let rows = self.db.query(
+            &format!("SELECT {SUMMARY} FROM rolls r WHERE r.source = $1"),
+            &[source.into()],
+        )?;
+        Ok(rows.first().map(|r| summary_of(r)))
+    }
+
     /// The roll whose strip has a segment at `path` (matched by the strip's folder and the
     /// segment's file name), with the segment's number and first belt row.
     pub fn segment_at(&mut self, path: &std::path::Path) -> Result<Option<(i64, SegmentRecord)>> {
@@ -351,7 +380,7 @@ impl Records {
         };
         let name = name.to_string_lossy();
         let candidates = self.db.query(
-            "SELECT r.id, r.out, s.seq, s.first_row, s.rows, s.bytes, s.crc32 \
+            "SELECT r.id, r.out, s.seq, s.first_row, s.rows, s.width, s.bytes, s.crc32 \
              FROM segments s JOIN rolls r ON r.id = s.roll_id WHERE s.file = $1",
             &[name.as_ref().into()],
         )?;
@@ -364,8 +393,9 @@ impl Records {
                     file: name.to_string(),
                     first_row: r[3].int(),
                     rows: r[4].int(),
-                    bytes: r[5].int(),
-                    crc32: r[6].int() as u32,
+                    width: r[5].int(),
+                    bytes: r[6].int(),
+                    crc32: r[7].int() as u32,
                 };
                 (r[0].int(), seg)
             })

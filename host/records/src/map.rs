@@ -61,11 +61,16 @@ pub fn svg(roll: &Roll, width_px: u32) -> Result<String, String> {
     let (left, right, bar_top, bar_h) = (40.0, 20.0, 50.0, 80.0);
     let span = f64::from(width_px.max(200)) - left - right;
     let x_of = |mm: f64| left + span * (mm / length_mm).clamp(0.0, 1.0);
-    let strip_mm = roll
+    // Across the bar as across the strip: its widest segment (or, where no width is
+    // known, as far as the defects reach).
+    let width_px = roll.segment_list.iter().map(|s| s.width).max().unwrap_or(0);
+    let reach_px = roll
         .defect_list
         .iter()
-        .map(|d| (d.bbox[0] + d.bbox[2]) as f64 * k)
-        .fold(1.0f64, f64::max);
+        .map(|d| d.bbox[0] + d.bbox[2])
+        .max()
+        .unwrap_or(0);
+    let strip_mm = (width_px.max(reach_px).max(1)) as f64 * k;
     let mut kinds: Vec<&str> = Vec::new();
     for d in &roll.defect_list {
         if !kinds.contains(&d.kind.as_str()) {
@@ -105,11 +110,11 @@ pub fn svg(roll: &Roll, width_px: u32) -> Result<String, String> {
         let x = x_of(t);
         let _ = writeln!(
             s,
-            r##"<line x1="{x:.1}" y1="{}" x2="{x:.1}" y2="{}" stroke="#444444"/><text x="{x:.1}" y="{}" text-anchor="middle">{} m</text>"##,
+            r##"<line x1="{x:.1}" y1="{}" x2="{x:.1}" y2="{}" stroke="#444444"/><text x="{x:.1}" y="{}" text-anchor="middle">{}</text>"##,
             bar_top + bar_h,
             bar_top + bar_h + 6.0,
             bar_top + bar_h + 20.0,
-            trim(t / 1000.0)
+            distance(t, length_mm)
         );
         t += step;
     }
@@ -154,10 +159,16 @@ fn tick_step(length_mm: f64) -> f64 {
         .unwrap_or(10.0 * p)
 }
 
-/// A number of metres without trailing zeros.
-fn trim(m: f64) -> String {
-    let s = format!("{m:.3}");
-    s.trim_end_matches('0').trim_end_matches('.').to_owned()
+/// A tick's label: in metres on a roll of a metre or more, else in millimetres; no
+/// trailing zeros.
+fn distance(mm: f64, length_mm: f64) -> String {
+    let (value, unit) = if length_mm >= 1000.0 {
+        (mm / 1000.0, "m")
+    } else {
+        (mm, "mm")
+    };
+    let s = format!("{value:.3}");
+    format!("{} {unit}", s.trim_end_matches('0').trim_end_matches('.'))
 }
 
 fn xml(s: &str) -> String {
@@ -176,8 +187,9 @@ mod tests {
         assert_eq!(tick_step(1000.0), 100.0);
         assert_eq!(tick_step(1500.0), 200.0);
         assert_eq!(tick_step(42.0), 5.0);
-        assert_eq!(trim(0.2), "0.2");
-        assert_eq!(trim(1.0), "1");
+        assert_eq!(distance(200.0, 1500.0), "0.2 m");
+        assert_eq!(distance(1000.0, 1500.0), "1 m");
+        assert_eq!(distance(5.0, 28.0), "5 mm");
         assert_eq!(csv_field("a,b"), "\"a,b\"");
     }
 }

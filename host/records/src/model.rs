@@ -67,6 +67,8 @@ pub struct SegmentRecord {
     pub first_row: i64,
     /// Its rows.
     pub rows: i64,
+    /// Its width, pixels (0 where the file is no PNG).
+    pub width: i64,
     /// The file's size.
     pub bytes: i64,
     /// The file's CRC-32 (IEEE), to tell a file changed or cut short since.
@@ -83,6 +85,7 @@ impl SegmentRecord {
     ) -> std::io::Result<SegmentRecord> {
         let bytes = std::fs::read(path)?;
         Ok(SegmentRecord {
+            width: png_width(&bytes).unwrap_or(0),
             seq,
             file: path
                 .file_name()
@@ -101,6 +104,17 @@ impl SegmentRecord {
         std::fs::read(path)
             .is_ok_and(|b| b.len() as i64 == self.bytes && crc32fast::hash(&b) == self.crc32)
     }
+}
+
+/// A PNG's width, from its header (the signature, then the IHDR chunk: its length and
+/// type, then the width as a big-endian u32).
+fn png_width(bytes: &[u8]) -> Option<i64> {
+    const SIGNATURE: &[u8] = b"\x89PNG\r\n\x1a\n";
+    if bytes.get(..8)? != SIGNATURE || bytes.get(12..16)? != b"IHDR" {
+        return None;
+    }
+    let w: [u8; 4] = bytes.get(16..20)?.try_into().ok()?;
+    Some(i64::from(u32::from_be_bytes(w)))
 }
 
 /// One defect found on a roll.

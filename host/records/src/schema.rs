@@ -40,6 +40,7 @@ fn migration(n: i64, t: &Types) -> Option<String> {
                 file TEXT NOT NULL,
                 first_row {int} NOT NULL,
                 rows {int} NOT NULL,
+                width {int} NOT NULL,
                 bytes {int} NOT NULL,
                 crc32 {int} NOT NULL,
                 PRIMARY KEY (roll_id, seq)

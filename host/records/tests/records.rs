@@ -85,6 +85,7 @@ fn segment(seq: i64, first_row: i64, rows: i64) -> SegmentRecord {
         file: format!("strip.{seq:04}.png"),
         first_row,
         rows,
+        width: 320,
         bytes: 1000 + seq,
         crc32: 0xdead_beef,
     }

@@ -108,6 +108,17 @@ pub struct Args {
     /// up (the strip, the status, the detector's boxes) until interrupted (Ctrl-C).
     #[arg(long, requires = "serve")]
     pub keep_serving: bool,
+    /// Most rows per strip segment (a longer strip is written as numbered segments).
+    #[arg(long, default_value_t = crate::strip_file::DEFAULT_SEGMENT_ROWS)]
+    pub segment_rows: usize,
+    /// Where the roll is kept in the inspection records: each segment as soon as it is
+    /// whole on disk.
+    #[command(flatten)]
+    pub record_to: super::rolls::RecordTo,
+    /// With --records: belt millimetres a camera pixel, the roll's scale (with --device
+    /// sim, default the scene's).
+    #[arg(long, requires = "records")]
+    pub mm_per_px: Option<f64>,
 }
 
 impl Args {
@@ -138,6 +149,16 @@ impl Args {
             frame_rate: self.frame_rate,
             serve: self.serve.clone(),
             other_inputs,
+            segment_rows: self.segment_rows,
+            records: self
+                .record_to
+                .records
+                .clone()
+                .map(|records| session::RecordsRequest {
+                    records,
+                    line: self.record_to.line.clone(),
+                    mm_per_px: self.mm_per_px,
+                }),
         }
     }
 }

@@ -142,11 +142,8 @@ fn show_frames(letters: &Scene, out: &Path) -> Timed<(Acquisition, Vec<usize>)> 
 fn stream_device(letters: &Scene, out: &Path) -> Timed<(Outcome, Planes)> {
     let mut device = SimDevice::start(letters)?;
     let session = stream::Options {
-        out: out.join("stream"),
         config: Some(device.default_config()),
-        max_tiles: None,
-        max_duration: None,
-        record: None,
+        ..stream::Options::into_folder(&out.join("stream"))
     };
     let streamed = stream::run(&mut device, &session, &Silent)?;
     let strip = Planes::load(&out.join(Files::STRIP))?;

@@ -52,13 +52,7 @@ fn device_strip(scene: &Scene, sim: &Simulator) -> anyhow::Result<(i64, Planes, 
     let tmp = std::env::temp_dir().join(format!("rollfuse-eval-roll-{}", std::process::id()));
     let mut device = SimDevice::start(scene)?;
     let d = usize::from(device.default_config().downsample);
-    let opts = crate::stream::Options {
-        out: tmp.clone(),
-        config: None,
-        max_tiles: None,
-        max_duration: None,
-        record: None,
-    };
+    let opts = crate::stream::Options::into_folder(&tmp);
     let result = (|| {
         crate::stream::run(&mut device, &opts, &crate::progress::Silent)?;
         let index: serde_json::Value =

@@ -14,11 +14,5 @@ pub fn letters(frames: usize) -> Scene {
 
 /// A stream's options writing into `out`, with the device's configuration and no limits.
 pub fn options(out: &Path) -> Options {
-    Options {
-        out: out.to_path_buf(),
-        config: None,
-        max_tiles: None,
-        max_duration: None,
-        record: None,
-    }
+    Options::into_folder(out)
 }
