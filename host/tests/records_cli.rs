@@ -33,9 +33,13 @@ fn a_fused_roll_and_its_defects_are_recorded_and_read_back() {
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/textile.toml");
     ok(&["simulate", scene, "--out", s(&sim)]);
     let strip = tmp.path().join("strip/roll.png");
+    // With the motion record, the strip's belt rows are the simulator's strip rows.
+    let manifest = sim.join("manifest.json");
     let fuse = [
         "fuse",
         s(&sim),
+        "--manifest",
+        s(&manifest),
         "--out",
         s(&strip),
         "--records",
@@ -113,6 +117,40 @@ fn a_fused_roll_and_its_defects_are_recorded_and_read_back() {
         assert!((mm - want).abs() < 0.06, "{line} against {want}");
     }
 
+    // Each defect on the map lies within 1 mm of one the simulator put there, along the
+    // belt (from the roll's start) and across it.
+    let truth: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(sim.join("truth/defects.json")).unwrap()).unwrap();
+    let k = truth["mm_per_px"].as_f64().unwrap();
+    let centres: Vec<(f64, f64)> = truth["defects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| {
+            let b: Vec<f64> = (0..4).map(|i| d["box_px"][i].as_f64().unwrap()).collect();
+            (
+                ((b[1] + b[3]) / 2.0 - first_row) * k,
+                (b[0] + b[2]) / 2.0 * k,
+            )
+        })
+        .collect();
+    assert!(
+        !defects.is_empty(),
+        "the detector found none of {centres:?}"
+    );
+    for line in &lines[1..] {
+        let f: Vec<&str> = line.split(',').collect();
+        let (along, across): (f64, f64) = (f[3].parse().unwrap(), f[4].parse().unwrap());
+        let nearest = centres
+            .iter()
+            .map(|(a, c)| (a - along).hypot(c - across))
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            nearest <= 1.0,
+            "{line}: {nearest:.2} mm from the nearest true defect"
+        );
+    }
+
     // Fusing the same frames again replaces the roll's record: one roll, its defects gone
     // with the strip they were found on.
     ok(&fuse);
@@ -167,9 +205,19 @@ fn roll_json(db: &Path, id: i64) -> Option<serde_json::Value> {
 
 #[test]
 fn a_stream_killed_midway_leaves_its_roll_interrupted_with_its_whole_segments() {
+    // Killed at several points of the roll: after 1, 3 and 6 segments were recorded.
+    for kill_after in [1, 3, 6] {
+        killed_after(kill_after);
+    }
+}
+
+/// Streams a paced roll into records, kills it with SIGKILL once `segments` are recorded,
+/// and checks what it left.
+fn killed_after(segments: i64) {
     let tmp = tempfile::tempdir().unwrap();
     let (out, db) = (tmp.path().join("roll"), tmp.path().join("records.db"));
-    // Paced at 15 frames a second, one tile a segment: segments land one by one.
+    // Paced at 5 frames a second (the roll takes 7 s), one tile a segment: segments land
+    // one by one, and the stream is still running when it is killed.
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_rollfuse"))
         .args([
             "stream",
@@ -178,7 +226,7 @@ fn a_stream_killed_midway_leaves_its_roll_interrupted_with_its_whole_segments() 
             "--scene",
             LETTERS,
             "--frame-rate",
-            "15",
+            "5",
         ])
         .args([
             "--out",
@@ -196,19 +244,19 @@ fn a_stream_killed_midway_leaves_its_roll_interrupted_with_its_whole_segments() 
     let mut seen = 0;
     for _ in 0..600 {
         seen = roll_json(&db, 1).map_or(0, |r| r["segments"].as_i64().unwrap());
-        if seen >= 3 {
+        if seen >= segments {
             break;
         }
-        std::thread::sleep(std::time::Duration::from_millis(50));
+        std::thread::sleep(std::time::Duration::from_millis(20));
     }
-    assert!(seen >= 3, "the stream recorded {seen} segments");
+    assert!(seen >= segments, "the stream recorded {seen} segments");
     child.kill().unwrap(); // SIGKILL
     child.wait().unwrap();
 
     let roll = roll_json(&db, 1).expect("the records open after the kill");
     assert_eq!(roll["status"], "interrupted", "{roll}");
     let listed = roll["segment_list"].as_array().unwrap();
-    assert!(listed.len() >= 3);
+    assert!(listed.len() as i64 >= segments);
     for (n, segment) in listed.iter().enumerate() {
         assert_eq!(segment["seq"], n as i64);
         let record: rollfuse_records::SegmentRecord = rollfuse_records::SegmentRecord {
