@@ -7,7 +7,7 @@ use std::time::Duration;
 
 /// How long a writer waits for another's lock (SQLite) or for the server to answer a
 /// connection (PostgreSQL) before the error is reported.
-const WAIT: Duration = Duration::from_secs(10);
+pub const WAIT: Duration = Duration::from_secs(10);
 
 /// A parameter or a column's value.
 #[derive(Debug, Clone, PartialEq)]
@@ -123,15 +123,31 @@ impl Backend {
         if is_postgres(target) {
             return open_postgres(target);
         }
-        let fail = |e: rusqlite::Error| Error::Open {
-            target: target.to_owned(),
-            why: e.to_string(),
+        let fail = |e: rusqlite::Error| {
+            if is_busy(&e) {
+                return Error::Busy(e.to_string());
+            }
+            Error::Open {
+                target: target.to_owned(),
+                why: e.to_string(),
+            }
         };
         let c = rusqlite::Connection::open(target).map_err(fail)?;
         c.busy_timeout(WAIT).map_err(fail)?;
         // WAL: readers (the live page, `rolls list`) never wait for the stream writing,
-        // and a process killed mid-transaction leaves the last commit intact.
-        c.pragma_update(None, "journal_mode", "WAL").map_err(fail)?;
+        // and a process killed mid-transaction leaves the last commit intact. Turning it on
+        // takes the file for a moment without waiting on the busy handler: another
+        // process opening the same new file then makes it fail at once, so it is tried
+        // again until WAIT is up.
+        let started = std::time::Instant::now();
+        loop {
+            match c.pragma_update(None, "journal_mode", "WAL") {
+                Err(e) if is_busy(&e) && started.elapsed() < WAIT => {
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+                other => break other.map_err(fail)?,
+            }
+        }
         c.pragma_update(None, "synchronous", "NORMAL")
             .map_err(fail)?;
         c.pragma_update(None, "foreign_keys", "ON").map_err(fail)?;
@@ -221,6 +237,14 @@ impl Backend {
             }
         }
     }
+}
+
+/// Whether SQLite said the file is held by another connection.
+fn is_busy(e: &rusqlite::Error) -> bool {
+    matches!(
+        e.sqlite_error_code(),
+        Some(rusqlite::ErrorCode::DatabaseBusy | rusqlite::ErrorCode::DatabaseLocked)
+    )
 }
 
 /// Whether `target` names a PostgreSQL server.

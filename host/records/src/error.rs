@@ -21,6 +21,8 @@ pub enum Error {
     },
     /// A statement failed (a full disk, a lost connection, a constraint).
     Database(String),
+    /// Another writer held the database longer than a writer waits.
+    Busy(String),
     /// No roll has this id.
     NoSuchRoll(i64),
     /// A value that cannot be recorded (a roll's scale that is not positive, say).
@@ -39,6 +41,10 @@ impl fmt::Display for Error {
                  one knows up to {supported}): upgrade rollfuse to use them"
             ),
             Error::Database(why) => write!(f, "records: {why}"),
+            Error::Busy(why) => write!(
+                f,
+                "records: another writer held the database too long ({why})"
+            ),
             Error::NoSuchRoll(id) => write!(f, "no roll {id} in the records"),
             Error::Invalid(why) => write!(f, "records: {why}"),
         }
@@ -49,7 +55,12 @@ impl std::error::Error for Error {}
 
 impl From<rusqlite::Error> for Error {
     fn from(e: rusqlite::Error) -> Self {
-        Error::Database(e.to_string())
+        match e.sqlite_error_code() {
+            Some(rusqlite::ErrorCode::DatabaseBusy | rusqlite::ErrorCode::DatabaseLocked) => {
+                Error::Busy(e.to_string())
+            }
+            _ => Error::Database(e.to_string()),
+        }
     }
 }
 

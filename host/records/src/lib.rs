@@ -67,6 +67,21 @@ impl Records {
     /// if missing) — brings its schema up to date and marks the rolls of this host whose
     /// process has ended as interrupted.
     pub fn open(target: &str) -> Result<Records> {
+        // A SQLite writer that finds the file busy without waiting (a snapshot another
+        // process moved on from, as a batch's workers opening one new file at once can
+        // make) starts again, for as long as a writer waits.
+        let started = std::time::Instant::now();
+        loop {
+            match Self::open_once(target) {
+                Err(Error::Busy(_)) if started.elapsed() < backend::WAIT => {
+                    std::thread::sleep(std::time::Duration::from_millis(50));
+                }
+                other => return other,
+            }
+        }
+    }
+
+    fn open_once(target: &str) -> Result<Records> {
         let mut db = Backend::open(target)?;
         schema::migrate(&mut db).map_err(|e| match e {
             Error::Database(why) => Error::Open {

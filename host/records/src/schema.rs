@@ -74,15 +74,20 @@ fn migration(n: i64, t: &Types) -> Option<String> {
 /// Brings the schema to [`VERSION`], or refuses a newer one.
 pub fn migrate(db: &mut Backend) -> Result<()> {
     let types = db.types();
-    db.batch(&format!(
+    let version_table = format!(
         "CREATE TABLE IF NOT EXISTS schema_version (version {} NOT NULL)",
         types.int
-    ))?;
+    );
+    if let Backend::Postgres(_) = db {
+        db.batch(&version_table)?;
+    }
     db.transaction(|db| {
-        // Locks the version row's table so two processes opening a new database at once
-        // do not both migrate it (SQLite's IMMEDIATE transaction already does).
-        if let Backend::Postgres(_) = db {
-            db.batch("LOCK TABLE schema_version IN EXCLUSIVE MODE")?;
+        // Two processes opening a new database at once must not both migrate it: SQLite's
+        // IMMEDIATE transaction holds the file from its start (the version table made
+        // inside it), PostgreSQL locks the version table.
+        match db {
+            Backend::Postgres(_) => db.batch("LOCK TABLE schema_version IN EXCLUSIVE MODE")?,
+            Backend::Sqlite(_) => db.batch(&version_table)?,
         }
         let found = db
             .query("SELECT version FROM schema_version", &[])?

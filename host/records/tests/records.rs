@@ -311,6 +311,78 @@ fn a_killed_writer_leaves_its_roll_interrupted_with_its_whole_segments() {
     );
 }
 
+fn since_epoch_ms() -> u128 {
+    let now = std::time::SystemTime::now();
+    now.duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_millis()
+}
+
+/// One worker of [`many_writers_open_one_new_file_at_once`]: opens the records, records a
+/// roll.
+#[test]
+fn opening_child() {
+    let (Ok(target), Ok(k)) = (
+        std::env::var("ROLLFUSE_OPEN_CHILD"),
+        std::env::var("ROLLFUSE_OPEN_CHILD_N"),
+    ) else {
+        return;
+    };
+    // Every worker opens at the same moment, as a cluster's warm workers do.
+    let at: u128 = std::env::var("ROLLFUSE_OPEN_CHILD_AT")
+        .unwrap()
+        .parse()
+        .unwrap();
+    while since_epoch_ms() < at {
+        std::thread::sleep(std::time::Duration::from_micros(200));
+    }
+    // A roll at a time, each opening the records anew, as a batch's tasks do.
+    for roll in 0..ROLLS_A_WORKER {
+        let mut r = Records::open(&target).unwrap();
+        let id = r
+            .begin_roll(&start(&format!("worker {k} roll {roll}"), "1"))
+            .unwrap();
+        for seq in 0..3 {
+            r.add_segment(id, &segment(seq, seq * 10, 10), &[defect("hole", 1.0)])
+                .unwrap();
+        }
+        r.finish_roll(id, &Status::Complete).unwrap();
+    }
+}
+
+/// Rolls each worker of [`many_writers_open_one_new_file_at_once`] records.
+const ROLLS_A_WORKER: usize = 10;
+
+#[test]
+fn many_writers_open_one_new_file_at_once() {
+    // A batch's workers, processes, start together on a records file none has made yet.
+    let fresh = sqlite();
+    let at = since_epoch_ms() + 500;
+    let workers: Vec<_> = (0..4)
+        .map(|k| {
+            std::process::Command::new(std::env::current_exe().unwrap())
+                .args(["--exact", "opening_child", "--test-threads=1"])
+                .env("ROLLFUSE_OPEN_CHILD", &fresh.target)
+                .env("ROLLFUSE_OPEN_CHILD_N", k.to_string())
+                .env("ROLLFUSE_OPEN_CHILD_AT", at.to_string())
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for w in workers {
+        let out = w.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "a worker failed: {err}");
+    }
+    let mut r = Records::open(&fresh.target).unwrap();
+    assert_eq!(
+        r.list(&Filter::default()).unwrap().len(),
+        4 * ROLLS_A_WORKER
+    );
+}
+
 #[test]
 fn databases_that_cannot_be_had_say_why() {
     let missing = tempfile::tempdir().unwrap();
