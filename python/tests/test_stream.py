@@ -89,3 +89,15 @@ def test_bad_options_raise_with_the_cli_messages(recorded, tmp_path):
     for kwargs, error, message in cases:
         with pytest.raises(error, match=message):
             list(rollfuse.stream(**kwargs))
+
+
+def test_a_recording_played_back_into_records_is_one_roll_however_often(recorded, tmp_path, cli):
+    db = tmp_path / "records.db"
+    for _ in range(2):
+        s = rollfuse.stream(f"replay:{recorded['recording']}", out=tmp_path / "roll",
+                            records=str(db), line="7", segment_rows=64)
+        tiles = list(s)
+    rolls = json.loads(cli("rolls", "list", "--records", db, "--json"))
+    assert [(r["line"], r["status"]) for r in rolls] == [("7", "complete")]
+    assert rolls[0]["segments"] == len(s.strip_files) > 1
+    assert rolls[0]["belt_rows"] == 16 * len(tiles)
