@@ -34,6 +34,7 @@ fn server() -> &'static Server {
             source: "sim".into(),
             live: true,
             allowed_hosts: Vec::new(),
+            records: None,
         })
         .unwrap()
     })

@@ -23,6 +23,7 @@ fn serve_options(control: bool) -> ServeOptions {
         source: "sim".into(),
         live: true,
         allowed_hosts: Vec::new(),
+        records: None,
     }
 }
 
@@ -447,6 +448,7 @@ fn a_replayed_stream_takes_no_commands() {
         source: "replay".into(),
         live: false,
         allowed_hosts: Vec::new(),
+        records: None,
     })
     .unwrap();
     let token = server.token().unwrap().to_string();
@@ -567,4 +569,66 @@ fn the_page_shows_the_configuration_the_tiles_are_made_with() {
     // Not the 1× the device announced before it was configured.
     assert_eq!(status["device"]["config"]["downsample"], 2, "{status}");
     assert_eq!(status["tile_size"], serde_json::json!([160, 16]));
+}
+
+#[test]
+fn the_page_shows_the_roll_s_map_and_its_line_s_last_rolls_from_the_records() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (out, db) = (tmp.path().join("roll"), tmp.path().join("records.db"));
+    let db = db.to_str().unwrap().to_string();
+    let strip = std::path::absolute(stream::output_files(&out)[0].clone()).unwrap();
+    let server = Server::start(&ServeOptions {
+        records: Some(rollfuse::serve::records::RollView {
+            records: db.clone(),
+            line: "3".into(),
+            strip,
+        }),
+        ..serve_options(false)
+    })
+    .unwrap();
+    assert_eq!(get(&server, "/roll.svg").0, 404, "no roll yet");
+    let keep = rollfuse::records::KeepRoll {
+        records: db,
+        start: rollfuse_records::RollStart {
+            source: "the page's test".into(),
+            line: "3".into(),
+            device: "sim".into(),
+            configuration: "{}".into(),
+            out: String::new(),
+            mm_per_row: None,
+        },
+        mm_per_px: Some(0.05),
+    };
+    let opts = stream::Options {
+        keep: Some(keep),
+        segment_rows: 64,
+        ..options(&out)
+    };
+    let mut dev = SimDevice::start(&letters(12)).unwrap();
+    let outcome = stream::run_watched(&mut dev, &opts, &Silent, &mut server.watcher()).unwrap();
+    server.finish(&outcome.manifest);
+    // The records are read every 2 s: the roll appears by the next reading.
+    let mut shown = serde_json::Value::Null;
+    for _ in 0..100 {
+        let (code, body) = get(&server, "/rolls.json");
+        assert_eq!(code, 200);
+        shown = serde_json::from_slice(&body).unwrap();
+        if shown["rolls"][0]["status"] == "complete" {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert_eq!(shown["line"], "3", "{shown}");
+    assert_eq!(shown["current"], 1, "{shown}");
+    assert_eq!(shown["rolls"][0]["status"], "complete", "{shown}");
+    assert!(shown["error"].is_null(), "{shown}");
+    let (code, svg) = get(&server, "/roll.svg");
+    assert_eq!(code, 200);
+    assert!(String::from_utf8(svg).unwrap().starts_with("<svg"));
+    let status: serde_json::Value =
+        serde_json::from_slice(&get(&server, "/status.json").1).unwrap();
+    assert_eq!(status["records"], true);
+    // Without --records there is nothing to show.
+    let plain = Server::start(&serve_options(false)).unwrap();
+    assert_eq!(get(&plain, "/rolls.json").0, 404);
 }

@@ -25,6 +25,7 @@ fn server() -> Server {
         source: "sim".into(),
         live: true,
         allowed_hosts: vec!["line3.plant".into()],
+        records: None,
     })
     .unwrap()
 }

@@ -127,12 +127,16 @@ class Page:
         return result.get("result", {}).get("value")
 
 
-def start_stream(rollfuse, scene, out_dir, frame_rate, detect):
-    """`rollfuse stream --serve 127.0.0.1:0`, paced (with the detector if `detect`); the
-    process and the page's address."""
+def start_stream(rollfuse, scene, out_dir, frame_rate, detect, records=None):
+    """`rollfuse stream --serve 127.0.0.1:0`, paced (with the detector if `detect`, into
+    the inspection records `records` if given); the process and the page's address."""
+    # With records, short segments: each is recorded as it lands, so the roll's map is
+    # there while the stream runs.
+    extra = (["--detect"] if detect else []) + (
+        ["--records", records, "--segment-rows", "64"] if records else [])
     proc = subprocess.Popen(
         [rollfuse, "stream", "--device", "sim", "--scene", scene, "--out", out_dir,
-         "--frame-rate", str(frame_rate), "--serve", "127.0.0.1:0"] + (["--detect"] if detect else []),
+         "--frame-rate", str(frame_rate), "--serve", "127.0.0.1:0"] + extra,
         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
     )
     line = proc.stdout.readline().strip()
@@ -211,6 +215,8 @@ def main():
     ap.add_argument("--screenshot", required=True)
     ap.add_argument("--detect", action="store_true",
                     help="run the defect detector too, and require its boxes on the page")
+    ap.add_argument("--records", action="store_true",
+                    help="keep the roll in records too, and require its map on the page")
     args = ap.parse_args()
     # A helper Chromium left behind may still hold its profile; that must not fail the check.
     with tempfile.TemporaryDirectory(ignore_cleanup_errors=True) as tmp:
@@ -220,9 +226,15 @@ def main():
         stream = None
         try:
             page = Page(WebSocket(ws_url))
+            records = os.path.join(tmp, "records.db") if args.records else None
             stream, url = start_stream(args.rollfuse, args.scene, os.path.join(tmp, "out"),
-                                       args.frame_rate, args.detect)
+                                       args.frame_rate, args.detect, records)
             samples, tables, ended = watch_page(page, url, seconds=60)
+            # The map the page last loaded while streaming (the records are read every
+            # 2 s, the page asks every 3 s) stays once the server is gone.
+            map_width = page.evaluate(
+                "document.getElementById('rollmap').hidden ? 0 : "
+                "document.getElementById('rollmap').naturalWidth")
             boxes = page.evaluate("found.boxes.length")
             table_shown = page.evaluate("!document.getElementById('detector').hidden")
             shot = page.call("Page.captureScreenshot", format="png")
@@ -260,6 +272,11 @@ def main():
     elif table_shown:
         print("FAIL: the page shows a detector that does not run")
         return 1
+    if args.records:
+        print(f"roll map on the page: {map_width} px wide")
+        if not map_width:
+            print("FAIL: the roll's map never showed on the page")
+            return 1
     print("the page showed the strip growing, with no console error")
     return 0
 

@@ -82,7 +82,7 @@ pub fn svg(roll: &Roll, width_px: u32) -> Result<String, String> {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{width_px}" height="{height:.0}" font-family="sans-serif" font-size="12">"#
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{width_px}" height="{height:.0}" viewBox="0 0 {width_px} {height:.0}" font-family="sans-serif" font-size="12">"#
     );
     let _ = writeln!(
         s,

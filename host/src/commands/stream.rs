@@ -302,6 +302,14 @@ fn start_server(
         source,
         live,
         allowed_hosts: args.allow_host.clone(),
+        records: args.record_to.records.clone().map(|records| {
+            let strip = stream::output_files(&args.out)[0].clone();
+            serve::records::RollView {
+                records,
+                line: args.record_to.line.clone(),
+                strip: std::path::absolute(&strip).unwrap_or(strip),
+            }
+        }),
     };
     let server = serve::Server::start_detecting(&options, detector)?;
     println!("live page: http://{}/", server.addr());

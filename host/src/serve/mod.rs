@@ -11,6 +11,7 @@ pub mod detect;
 mod events;
 pub mod findings;
 pub mod http;
+pub mod records;
 mod routes;
 pub mod state;
 
@@ -51,6 +52,9 @@ pub struct ServeOptions {
     /// requests naming any other host are refused, so a page on another site cannot read
     /// this one through DNS rebinding.
     pub allowed_hosts: Vec<String>,
+    /// The inspection records to show beside the strip: this roll's map and its line's
+    /// last rolls ([`records`]).
+    pub records: Option<records::RollView>,
 }
 
 /// The running server. Dropping it stops it, once the answers under way are written (up
@@ -63,6 +67,8 @@ pub struct Server {
     stopping: Arc<AtomicBool>,
     addr: SocketAddr,
     accept: Option<JoinHandle<()>>,
+    /// The thread reading the records for the page, with `records`.
+    records: Option<JoinHandle<()>>,
 }
 
 /// Parses a `--serve` address (`127.0.0.1:8080`, `[::1]:8080`, `0.0.0.0:8080`).
@@ -113,6 +119,7 @@ impl Server {
                 source: opts.source.clone(),
                 state: "streaming",
                 control: opts.control,
+                records: opts.records.is_some(),
                 ..Status::default()
             }),
             ring: Default::default(),
@@ -123,6 +130,7 @@ impl Server {
             ended: Default::default(),
             requests: Default::default(),
             request_done: Default::default(),
+            records: Default::default(),
         });
         let detector = detector
             .map(|d| detect::LiveDetector::start(Arc::clone(&shared), d))
@@ -137,12 +145,17 @@ impl Server {
                 .spawn(move || accept_loop(&listener, &shared, &stopping, &hosts))
                 .context("cannot start the server's thread")?
         };
+        let records = (opts.records.clone())
+            .map(|view| records::start(view, Arc::clone(&shared), Arc::clone(&stopping)))
+            .transpose()
+            .context("cannot start the records' thread")?;
         Ok(Self {
             shared,
             detector: std::sync::Mutex::new(detector),
             stopping,
             addr,
             accept: Some(accept),
+            records,
         })
     }
 
@@ -202,6 +215,9 @@ impl Drop for Server {
         // its last byte. Without this, a process that exits right after would cut them off.
         self.shared.wait_for_requests(ANSWER_GRACE);
         self.stopping.store(true, Ordering::Release);
+        if let Some(t) = self.records.take() {
+            let _ = t.join();
+        }
         // The accept thread waits for a connection: one to itself wakes it. Should that
         // fail, the thread is left to end with the process.
         let mut wake = self.addr;

@@ -63,16 +63,43 @@ fn route(request: &Request, shared: &Shared) -> Answer {
         }
         ("GET" | "HEAD", "/status.json") => status_json(shared),
         ("GET" | "HEAD", "/strip.png") => strip_png(shared, query),
+        ("GET" | "HEAD", "/rolls.json") => rolls_json(shared),
+        ("GET" | "HEAD", "/roll.svg") => roll_svg(shared),
         ("POST", p) if p.starts_with("/control/") => control(request, shared, p, query),
-        (_, "/" | "/index.html" | "/status.json" | "/strip.png" | "/events") => {
-            Answer::text(405, "method not allowed: this path is read with GET")
-        }
+        (
+            _,
+            "/" | "/index.html" | "/status.json" | "/strip.png" | "/events" | "/rolls.json"
+            | "/roll.svg",
+        ) => Answer::text(405, "method not allowed: this path is read with GET"),
         (_, p) if p.starts_with("/control/") => Answer::text(405, "control requests are POST"),
         _ => {
             let shown: String = path.chars().take(ECHOED_PATH).collect();
             let more = if shown.len() < path.len() { "…" } else { "" };
             Answer::text(404, &format!("no such page: {shown}{more}"))
         }
+    }
+}
+
+/// The records as last read: this roll's id, the line's last rolls, the last error.
+fn rolls_json(shared: &Shared) -> Answer {
+    match &*lock(&shared.records) {
+        Some(shown) => {
+            let json = serde_json::to_vec_pretty(shown).unwrap_or_default();
+            Answer::new(200, "application/json", json)
+        }
+        None => Answer::text(404, "no records: the stream was started without --records"),
+    }
+}
+
+/// This roll's map, as last drawn.
+fn roll_svg(shared: &Shared) -> Answer {
+    match lock(&shared.records).as_ref().and_then(|s| s.map.clone()) {
+        Some(svg) => Answer::new(200, "image/svg+xml", svg.into_bytes()),
+        None => Answer::text(
+            404,
+            "no roll map yet: the roll is recorded with its first segment, and mapped once \
+             its scale is known",
+        ),
     }
 }
 

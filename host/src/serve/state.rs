@@ -190,6 +190,8 @@ pub struct Status {
     pub control: bool,
     /// The defect detector's findings, with `--detect`.
     pub detector: Option<DetectorStatus>,
+    /// Whether the page shows the inspection records (`/rolls.json`, `/roll.svg`).
+    pub records: bool,
 }
 
 impl Status {
@@ -243,6 +245,8 @@ pub struct Shared {
     pub requests: Mutex<usize>,
     /// Signalled whenever a request has been answered.
     pub request_done: Condvar,
+    /// The records as last read, with `--records` ([`super::records`]).
+    pub records: Mutex<Option<super::records::RecordsShown>>,
 }
 
 /// A request being answered: counted in [`Shared::requests`] until dropped.
