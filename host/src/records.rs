@@ -9,6 +9,10 @@ use anyhow::Context;
 use rollfuse_records::{DefectRecord, Records, RollStart, SegmentRecord, Status};
 use std::path::Path;
 
+/// A defect found on a strip: its kind, score and box (`[x0, row0, x1, row1]`: strip
+/// columns and belt rows).
+pub type StripBox = (&'static str, f32, [f32; 4]);
+
 /// The largest crop kept of a defect, pixels a side (a larger box keeps its middle).
 pub const CROP_SIDE: usize = 96;
 /// Pixels of cloth kept around a defect's box in its crop.
@@ -33,6 +37,12 @@ pub struct RollKeeper {
     roll: i64,
     folder: std::path::PathBuf,
     recorded: usize,
+    /// The recorded segments: number, first belt row, rows, file name.
+    segments: Vec<(i64, Segment)>,
+    /// Defects on the strip whose segment is not recorded yet.
+    waiting: Vec<StripBox>,
+    /// The defects recorded on each segment (recording one again replaces them all).
+    found: std::collections::BTreeMap<i64, Vec<DefectRecord>>,
     /// Belt millimetres a camera pixel, until the scale is set.
     mm_per_px: Option<f64>,
 }
@@ -70,6 +80,9 @@ impl RollKeeper {
             roll,
             folder: crate::files::folder_of(strip).to_path_buf(),
             recorded: 0,
+            segments: Vec::new(),
+            waiting: Vec::new(),
+            found: Default::default(),
             mm_per_px: keep.mm_per_px,
         })
     }
@@ -98,6 +111,35 @@ impl RollKeeper {
                 .with_context(|| format!("cannot read {} to record it", path.display()))?;
             self.records.add_segment(self.roll, &record, &[])?;
             self.recorded = seq + 1;
+            self.segments.push((*seq as i64, s.clone()));
+        }
+        self.place_waiting()
+    }
+
+    /// Records `found` on the segments they lie on; those on a segment not written yet
+    /// wait for it.
+    pub fn defects(&mut self, found: Vec<StripBox>) -> anyhow::Result<()> {
+        self.waiting.extend(found);
+        self.place_waiting()
+    }
+
+    /// Records the waiting defects whose segment is recorded, each segment's whole list
+    /// in one transaction.
+    fn place_waiting(&mut self) -> anyhow::Result<()> {
+        let placed = place(&self.segments, std::mem::take(&mut self.waiting));
+        self.waiting = placed.waiting;
+        for (seq, boxes) in placed.by_segment {
+            let Some((_, segment)) = self.segments.iter().find(|(n, _)| *n == seq) else {
+                continue;
+            };
+            let image = Planes::load(&self.folder.join(&segment.file))?;
+            let list = self.found.entry(seq).or_default();
+            list.extend(boxes.iter().map(|&(kind, score, b)| {
+                let first = segment.first_row as f32;
+                let in_segment = [b[0], b[1] - first, b[2], b[3] - first];
+                defect(kind, score, in_segment, &image, segment.first_row)
+            }));
+            self.records.replace_defects(self.roll, seq, list)?;
         }
         Ok(())
     }
@@ -108,6 +150,75 @@ impl RollKeeper {
         self.records.finish_roll(self.roll, status)?;
         Ok(())
     }
+}
+
+/// Records `found`, defects the detector reported after roll `roll` was finished (its
+/// last windows), on the roll's segments beside those recorded before; a defect on no
+/// recorded segment is left out. Returns how many were recorded.
+pub fn record_late_defects(target: &str, roll: i64, found: Vec<StripBox>) -> anyhow::Result<usize> {
+    if found.is_empty() {
+        return Ok(0);
+    }
+    let mut records = Records::open(target)?;
+    let record = records.roll(roll)?;
+    let folder = crate::files::folder_of(Path::new(&record.summary.out)).to_path_buf();
+    let segments: Vec<(i64, Segment)> = (record.segment_list.iter())
+        .map(|s| {
+            let segment = Segment {
+                file: s.file.clone(),
+                first_row: s.first_row,
+                rows: s.rows as usize,
+            };
+            (s.seq, segment)
+        })
+        .collect();
+    let placed = place(&segments, found);
+    let mut recorded = 0;
+    for (seq, boxes) in placed.by_segment {
+        let Some((_, segment)) = segments.iter().find(|(n, _)| *n == seq) else {
+            continue;
+        };
+        let image = Planes::load(&folder.join(&segment.file))?;
+        let mut list: Vec<DefectRecord> = (record.defect_list.iter())
+            .filter(|d| d.segment_seq == Some(seq))
+            .cloned()
+            .collect();
+        recorded += boxes.len();
+        list.extend(boxes.iter().map(|&(kind, score, b)| {
+            let first = segment.first_row as f32;
+            let in_segment = [b[0], b[1] - first, b[2], b[3] - first];
+            defect(kind, score, in_segment, &image, segment.first_row)
+        }));
+        records.replace_defects(roll, seq, &list)?;
+    }
+    Ok(recorded)
+}
+
+/// Defects sorted onto segments.
+struct Placed {
+    /// By segment number.
+    by_segment: std::collections::BTreeMap<i64, Vec<StripBox>>,
+    /// On no segment yet.
+    waiting: Vec<StripBox>,
+}
+
+/// Sorts `boxes` onto the `segments` holding their centre rows.
+fn place(segments: &[(i64, Segment)], boxes: Vec<StripBox>) -> Placed {
+    let mut placed = Placed {
+        by_segment: Default::default(),
+        waiting: Vec::new(),
+    };
+    for b in boxes {
+        let centre = f64::from(b.2[1] + b.2[3]) / 2.0;
+        let on = segments.iter().find(|(_, s)| {
+            (s.first_row as f64..(s.first_row + s.rows as i64) as f64).contains(&centre)
+        });
+        match on {
+            Some((seq, _)) => placed.by_segment.entry(*seq).or_default().push(b),
+            None => placed.waiting.push(b),
+        }
+    }
+    placed
 }
 
 /// Records a strip written whole (`rollfuse fuse`): the roll `start`, each of `segments`

@@ -96,6 +96,11 @@ pub trait Watch {
     fn command(&mut self) -> Option<Command> {
         None
     }
+    /// Defects found on the strip since the last call (a served page's detector), for the
+    /// records: each its kind, score and box in strip columns and belt rows.
+    fn defects(&mut self) -> Vec<crate::records::StripBox> {
+        Vec::new()
+    }
 }
 
 /// A watcher that does nothing.
@@ -409,6 +414,8 @@ pub enum StopReason {
 pub struct Outcome {
     /// What was written to `manifest.json`.
     pub manifest: Manifest,
+    /// The roll's id in the records, if kept there.
+    pub roll: Option<i64>,
     /// The strip's files in the output folder, in belt order (none without a tile).
     pub strip_files: Vec<String>,
     /// Why it stopped.
@@ -802,6 +809,7 @@ impl<'a> Session<'a> {
         }
         if let Some(keeper) = &mut self.keeper {
             keeper.segments(&self.strip.new_segments())?;
+            keeper.defects(self.watch.defects())?;
         }
         self.watch.tile(tile, &self.manifest);
         let m = &self.manifest;
@@ -877,14 +885,22 @@ impl<'a> Session<'a> {
         }
         let segments = self.strip.finish(&mut self.manifest)?;
         write_manifest(&self.manifest_path, &self.manifest)?;
-        if let Some(mut keeper) = self.keeper.take() {
-            let numbered: Vec<(usize, Segment)> = segments.iter().cloned().enumerate().collect();
-            keeper.segments(&numbered)?;
-            keeper.finish(&fault_counts(&self.manifest), &Status::Complete)?;
-        }
+        let roll = match self.keeper.take() {
+            Some(mut keeper) => {
+                let numbered: Vec<(usize, Segment)> =
+                    segments.iter().cloned().enumerate().collect();
+                keeper.segments(&numbered)?;
+                keeper.defects(self.watch.defects())?;
+                let roll = keeper.roll();
+                keeper.finish(&fault_counts(&self.manifest), &Status::Complete)?;
+                Some(roll)
+            }
+            None => None,
+        };
         let strip_files = segments.into_iter().map(|s| s.file).collect();
         Ok(Outcome {
             manifest: self.manifest,
+            roll,
             strip_files,
             stop: self.stop,
             elapsed: self.started.elapsed(),

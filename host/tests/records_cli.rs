@@ -328,3 +328,53 @@ fn a_recording_streamed_again_replaces_its_roll_and_another_strip_is_not_overwri
         once["segment_list"]
     );
 }
+
+#[test]
+fn defects_the_live_detector_finds_are_recorded_on_their_segments() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (out, db) = (tmp.path().join("roll"), tmp.path().join("records.db"));
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/textile.toml");
+    let printed = ok(&[
+        "stream",
+        "--device",
+        "sim",
+        "--scene",
+        scene,
+        "--out",
+        s(&out),
+        "--serve",
+        "127.0.0.1:0",
+        "--detect",
+        "--records",
+        s(&db),
+        "--segment-rows",
+        "64",
+    ]);
+    // `defects: 1 slub, 2 snags on 672 strip rows; …`: the live detector's count.
+    let line = printed
+        .lines()
+        .find(|l| l.starts_with("defects: "))
+        .unwrap();
+    let counted: i64 = line["defects: ".len()..line.find(" on ").unwrap()]
+        .split(", ")
+        .map(|n| n.split(' ').next().unwrap().parse::<i64>().unwrap())
+        .sum();
+    assert!(counted > 0, "{line}");
+    let roll = roll_json(&db, 1).unwrap();
+    let defects = roll["defect_list"].as_array().unwrap();
+    assert_eq!(defects.len() as i64, counted, "{line}\n{roll}");
+    for d in defects {
+        // Each on the segment holding its centre, its box in that segment's pixels.
+        let seq = d["segment_seq"].as_i64().unwrap();
+        let segment = &roll["segment_list"][seq as usize];
+        let first = segment["first_row"].as_f64().unwrap();
+        let rows = segment["rows"].as_f64().unwrap();
+        let row = d["belt_row"].as_f64().unwrap();
+        assert!((first..first + rows).contains(&row), "{d} on {segment}");
+        let [y, h] = [
+            d["bbox"][1].as_f64().unwrap(),
+            d["bbox"][3].as_f64().unwrap(),
+        ];
+        assert!((first + y + h / 2.0 - row).abs() <= 1.0, "{d} on {segment}");
+    }
+}

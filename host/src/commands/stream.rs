@@ -180,6 +180,11 @@ pub fn run(args: Args, show: super::bars::Show) -> anyhow::Result<()> {
         Some(server) => {
             let outcome = stream::run_watched(link.as_mut(), &opts, &bars, &mut server.watcher())?;
             server.finish(&outcome.manifest);
+            // The detector's last windows are checked as the server finishes.
+            if let (Some(roll), Some(target)) = (outcome.roll, &args.record_to.records) {
+                let late = server.take_unrecorded_defects();
+                crate::records::record_late_defects(target, roll, late)?;
+            }
             outcome
         }
         None => stream::run(link.as_mut(), &opts, &bars)?,

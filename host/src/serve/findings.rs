@@ -60,11 +60,24 @@ pub struct Findings {
     pub status: DetectorStatus,
     /// The newest boxes, oldest first.
     pub boxes: VecDeque<LiveBox>,
+    /// Whether the boxes go to the inspection records too (`--records`).
+    pub recording: bool,
+    /// Boxes not yet handed to the records, with `recording` (the session takes them as
+    /// it goes, so this stays short).
+    pub unrecorded: Vec<LiveBox>,
     /// Every fabric's probability summed over the rows checked, weighted by rows.
     weights: Vec<f64>,
 }
 
 impl Findings {
+    /// Nothing found yet; the boxes go to the records too when `recording`.
+    pub fn new(recording: bool) -> Self {
+        Self {
+            recording,
+            ..Self::default()
+        }
+    }
+
     /// Counts a window's boxes and weighs its fabric probabilities by its `rows`.
     pub(super) fn take(
         &mut self,
@@ -77,6 +90,9 @@ impl Findings {
         for b in boxes {
             *self.status.defects.entry(b.kind.to_string()).or_default() += 1;
             self.boxes.push_back(*b);
+            if self.recording {
+                self.unrecorded.push(*b);
+            }
         }
         while self.boxes.len() > KEPT_BOXES {
             self.boxes.pop_front();
@@ -106,6 +122,13 @@ impl Findings {
             };
             self.status.probability = w / total;
         }
+    }
+}
+
+impl LiveBox {
+    /// As the records take it.
+    pub fn strip_box(&self) -> crate::records::StripBox {
+        (self.kind, self.score, self.strip_box)
     }
 }
 

@@ -126,7 +126,7 @@ impl Server {
             clients: Default::default(),
             commands: Default::default(),
             detecting: detector.is_some(),
-            findings: Default::default(),
+            findings: std::sync::Mutex::new(findings::Findings::new(opts.records.is_some())),
             ended: Default::default(),
             requests: Default::default(),
             request_done: Default::default(),
@@ -167,6 +167,12 @@ impl Server {
     /// The detector's findings so far, with `--detect`.
     pub fn detector_status(&self) -> Option<findings::DetectorStatus> {
         self.shared.status_now().detector
+    }
+
+    /// The defects found since the session last took them, for the records (with
+    /// `--records`; the detector's last windows come after the session has ended).
+    pub fn take_unrecorded_defects(&self) -> Vec<crate::records::StripBox> {
+        self.watcher().defects()
     }
 
     /// The control token, with `--control`.
@@ -341,6 +347,15 @@ impl Watch for LiveWatch {
 
     fn command(&mut self) -> Option<Command> {
         lock(&self.shared.commands).pop_front()
+    }
+
+    fn defects(&mut self) -> Vec<crate::records::StripBox> {
+        let mut findings = lock(&self.shared.findings);
+        findings
+            .unrecorded
+            .drain(..)
+            .map(|b| b.strip_box())
+            .collect()
     }
 }
 

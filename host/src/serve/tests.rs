@@ -43,6 +43,7 @@ pub(super) fn shared() -> Arc<Shared> {
         ended: Default::default(),
         requests: Default::default(),
         request_done: Default::default(),
+        records: Default::default(),
     })
 }
 
