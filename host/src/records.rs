@@ -134,11 +134,7 @@ impl RollKeeper {
             };
             let image = Planes::load(&self.folder.join(&segment.file))?;
             let list = self.found.entry(seq).or_default();
-            list.extend(boxes.iter().map(|&(kind, score, b)| {
-                let first = segment.first_row as f32;
-                let in_segment = [b[0], b[1] - first, b[2], b[3] - first];
-                defect(kind, score, in_segment, &image, segment.first_row)
-            }));
+            list.extend(on_segment(&boxes, segment, &image));
             self.records.replace_defects(self.roll, seq, list)?;
         }
         Ok(())
@@ -184,14 +180,24 @@ pub fn record_late_defects(target: &str, roll: i64, found: Vec<StripBox>) -> any
             .cloned()
             .collect();
         recorded += boxes.len();
-        list.extend(boxes.iter().map(|&(kind, score, b)| {
-            let first = segment.first_row as f32;
-            let in_segment = [b[0], b[1] - first, b[2], b[3] - first];
-            defect(kind, score, in_segment, &image, segment.first_row)
-        }));
+        list.extend(on_segment(&boxes, segment, &image));
         records.replace_defects(roll, seq, &list)?;
     }
     Ok(recorded)
+}
+
+/// `boxes` (strip columns and belt rows) as defects of `segment`, whose file is `image`:
+/// their boxes in the segment's pixels, their crops cut from it.
+fn on_segment<'a>(
+    boxes: &'a [StripBox],
+    segment: &'a Segment,
+    image: &'a Planes,
+) -> impl Iterator<Item = DefectRecord> + 'a {
+    let first = segment.first_row as f32;
+    boxes.iter().map(move |&(kind, score, [x0, y0, x1, y1])| {
+        let in_segment = [x0, y0 - first, x1, y1 - first];
+        defect(kind, score, in_segment, image, segment.first_row)
+    })
 }
 
 /// Defects sorted onto segments.
