@@ -851,7 +851,12 @@ impl<'a> Session<'a> {
         let why = Status::Failed(format!("{e:#}"));
         match keeper.finish(&fault_counts(&self.manifest), &why) {
             Ok(()) => e,
-            Err(lost) => e.context(format!("and the records could not say so: {lost:#}")),
+            // Said after the error, not before it: the records' own failure is often the
+            // same one (a full disk), and the roll shows as interrupted on the next open.
+            Err(lost) => anyhow::anyhow!(
+                "{e:#} (nor could the records mark the roll failed: {lost:#}; it shows as \
+                 interrupted from the next start on)"
+            ),
         }
     }
 

@@ -378,3 +378,73 @@ fn defects_the_live_detector_finds_are_recorded_on_their_segments() {
         assert!((first + y + h / 2.0 - row).abs() <= 1.0, "{d} on {segment}");
     }
 }
+
+/// A small tmpfs mounted for a test, unmounted when dropped; none where mounting is not
+/// allowed (not root).
+struct SmallDisk(std::path::PathBuf);
+
+impl SmallDisk {
+    fn mount(at: &Path, size: &str) -> Option<SmallDisk> {
+        std::fs::create_dir_all(at).unwrap();
+        let done = std::process::Command::new("mount")
+            .args(["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs", s(at)])
+            .stderr(std::process::Stdio::null())
+            .status();
+        done.is_ok_and(|d| d.success())
+            .then(|| SmallDisk(at.to_path_buf()))
+    }
+}
+
+impl Drop for SmallDisk {
+    fn drop(&mut self) {
+        let _ = std::process::Command::new("umount").arg(&self.0).status();
+    }
+}
+
+#[test]
+fn records_on_a_full_disk_fail_the_stream_in_a_line_and_keep_what_they_listed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let Some(disk) = SmallDisk::mount(&tmp.path().join("small"), "200k") else {
+        eprintln!("SKIPPED: records on a full disk — no tmpfs can be mounted here (needs root)");
+        return;
+    };
+    let (out, db) = (tmp.path().join("roll"), disk.0.join("records.db"));
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/textile.toml");
+    let run = rollfuse(&[
+        "stream",
+        "--device",
+        "sim",
+        "--scene",
+        scene,
+        "--out",
+        s(&out),
+        "--records",
+        s(&db),
+        "--segment-rows",
+        "16",
+    ]);
+    // The session's notes, then the error in one line, exit 1.
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    let last = err.trim_end().lines().last().unwrap();
+    assert!(
+        last.starts_with("error: records: database or disk is full"),
+        "{err}"
+    );
+    // The records open on the full disk and list only segments whole on disk.
+    let roll = roll_json(&db, 1).expect("the records open");
+    assert!(
+        ["failed", "interrupted"].contains(&roll["status"].as_str().unwrap()),
+        "{roll}"
+    );
+    let listed = roll["segment_list"].as_array().unwrap();
+    assert!(
+        !listed.is_empty(),
+        "the disk filled before any segment: {roll}"
+    );
+    for segment in listed {
+        let bytes = std::fs::read(out.join(segment["file"].as_str().unwrap())).unwrap();
+        assert_eq!(bytes.len() as u64, segment["bytes"].as_u64().unwrap());
+    }
+}
