@@ -12,6 +12,7 @@ mod events;
 pub mod findings;
 pub mod http;
 pub mod records;
+mod roll_view;
 mod routes;
 pub mod state;
 

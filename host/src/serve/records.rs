@@ -4,10 +4,10 @@
 //! database and a database that is slow or gone only makes the view old (its error is
 //! shown with it).
 
+use super::roll_view::read;
+pub use super::roll_view::{LAST_ROLLS, RecordsShown, RollView};
 use super::state::{Shared, lock};
-use rollfuse_records::{Filter, Records, RollSummary, map};
-use serde::Serialize;
-use std::path::PathBuf;
+use rollfuse_records::Records;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
@@ -15,41 +15,6 @@ use std::time::Duration;
 
 /// How often the records are read again.
 pub const REFRESH: Duration = Duration::from_secs(2);
-
-/// Rolls of the line the page lists.
-pub const LAST_ROLLS: usize = 10;
-
-/// The map's width on the page, pixels.
-const MAP_WIDTH: u32 = 900;
-
-/// Which records the page shows, and which roll is this session's.
-#[derive(Debug, Clone)]
-pub struct RollView {
-    /// A SQLite file's path or a `postgres://` URL.
-    pub records: String,
-    /// The session's line: its last rolls are listed.
-    pub line: String,
-    /// The session's strip (absolute): the roll recorded with it is the current one.
-    pub strip: PathBuf,
-}
-
-/// What the page shows of the records, as last read.
-#[derive(Debug, Default, Clone, Serialize)]
-pub struct RecordsShown {
-    /// The line.
-    pub line: String,
-    /// This session's roll, once it is recorded.
-    pub current: Option<i64>,
-    /// The line's last rolls, the newest first.
-    pub rolls: Vec<RollSummary>,
-    /// Why the records could not be read last time, if they could not.
-    pub error: Option<String>,
-    /// Whether `/roll.svg` has the current roll's map.
-    pub map_ready: bool,
-    /// The current roll's map (an SVG), once it has a scale.
-    #[serde(skip)]
-    pub map: Option<String>,
-}
 
 /// Starts the thread that reads the records for the page until `stopping`.
 pub(super) fn start(
@@ -73,38 +38,4 @@ pub(super) fn start(
                 }
             }
         })
-}
-
-/// Reads the line's last rolls and the current roll's map; on an error, the error (and
-/// the connection is opened again next time).
-fn read(view: &RollView, records: &mut Option<Records>) -> RecordsShown {
-    let mut shown = RecordsShown {
-        line: view.line.clone(),
-        ..RecordsShown::default()
-    };
-    let result = (|| -> rollfuse_records::Result<()> {
-        let db = match records {
-            Some(db) => db,
-            None => records.insert(Records::open(&view.records)?),
-        };
-        let filter = Filter {
-            line: Some(view.line.clone()),
-            ..Filter::default()
-        };
-        let mut rolls = db.list(&filter)?;
-        let strip = view.strip.display().to_string();
-        shown.current = rolls.iter().find(|r| r.out == strip).map(|r| r.id);
-        rolls.truncate(LAST_ROLLS);
-        shown.rolls = rolls;
-        if let Some(id) = shown.current {
-            shown.map = map::svg(&db.roll(id)?, MAP_WIDTH).ok();
-            shown.map_ready = shown.map.is_some();
-        }
-        Ok(())
-    })();
-    if let Err(e) = result {
-        *records = None;
-        shown.error = Some(e.to_string());
-    }
-    shown
 }

@@ -245,8 +245,8 @@ pub struct Shared {
     pub requests: Mutex<usize>,
     /// Signalled whenever a request has been answered.
     pub request_done: Condvar,
-    /// The records as last read, with `--records` ([`super::records`]).
-    pub records: Mutex<Option<super::records::RecordsShown>>,
+    /// The records as last read, with `--records` ([`super::roll_view`]).
+    pub records: Mutex<Option<super::roll_view::RecordsShown>>,
 }
 
 /// A request being answered: counted in [`Shared::requests`] until dropped.
