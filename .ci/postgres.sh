@@ -7,7 +7,8 @@
 # Exits non-zero, with the reason on stderr, when no server can be had.
 set -euo pipefail
 action="$1" dir="$2"
-port=54329
+# Another port with ROLLFUSE_PG_PORT (a second server beside CI's).
+port="${ROLLFUSE_PG_PORT:-54329}"
 bin="$(ls -d /usr/lib/postgresql/*/bin 2>/dev/null | sort -V | tail -n 1 || true)"
 as_postgres() {
     if [ "$(id -u)" = 0 ]; then runuser -u postgres -- "$@"; else "$@"; fi

@@ -64,8 +64,9 @@ const SUMMARY: &str = "r.id, r.line, r.device, r.source, r.status, r.reason, r.s
 
 impl Records {
     /// Opens the records at `target` — a `postgres://` URL or a SQLite file's path (made
-    /// if missing) — brings its schema up to date and marks the rolls of this host whose
-    /// process has ended as interrupted.
+    /// if missing) — brings its schema up to date (a database already up to date is only
+    /// read) and marks the rolls of this host whose process has ended as interrupted,
+    /// where it may write.
     pub fn open(target: &str) -> Result<Records> {
         // A SQLite writer that finds the file busy without waiting (a snapshot another
         // process moved on from, as a batch's workers opening one new file at once can
@@ -91,8 +92,12 @@ impl Records {
             other => other,
         })?;
         let mut records = Records { db };
-        records.mark_interrupted()?;
-        Ok(records)
+        // Where this user may not write (a reader's account, a full disk) the rolls stay
+        // as they are: reading them must not depend on it.
+        match records.mark_interrupted() {
+            Err(Error::Busy(why)) => Err(Error::Busy(why)),
+            _ => Ok(records),
+        }
     }
 
     /// Marks the running rolls whose process has ended as interrupted; returns their ids.

@@ -71,8 +71,25 @@ fn migration(n: i64, t: &Types) -> Option<String> {
     }
 }
 
-/// Brings the schema to [`VERSION`], or refuses a newer one.
+/// The schema version of a database that has one.
+fn version_of(db: &mut Backend) -> Option<i64> {
+    let rows = db.query("SELECT version FROM schema_version", &[]).ok()?;
+    rows.first().map(|row| row[0].int())
+}
+
+/// Brings the schema to [`VERSION`], or refuses a newer one. A database already at
+/// [`VERSION`] is only read, so a user who may only read the records can open them.
 pub fn migrate(db: &mut Backend) -> Result<()> {
+    match version_of(db) {
+        Some(VERSION) => return Ok(()),
+        Some(found) if found > VERSION => {
+            return Err(Error::NewerSchema {
+                found,
+                supported: VERSION,
+            });
+        }
+        _ => {}
+    }
     let types = db.types();
     let version_table = format!(
         "CREATE TABLE IF NOT EXISTS schema_version (version {} NOT NULL)",

@@ -412,3 +412,35 @@ fn databases_that_cannot_be_had_say_why() {
     assert!(text.contains("password authentication failed"), "{text}");
     assert!(!text.contains("not-the-password"), "{text}");
 }
+
+#[test]
+fn a_user_who_may_only_read_opens_and_lists_the_rolls() {
+    let Some(pg) = postgres("a_user_who_may_only_read_opens_and_lists_the_rolls") else {
+        return;
+    };
+    {
+        let mut r = Records::open(&pg.target).unwrap();
+        let id = r.begin_roll(&start("recorded by a line", "3")).unwrap();
+        r.add_segment(id, &segment(0, 0, 10), &[]).unwrap();
+    }
+    let database = pg.target.rsplit_once('/').unwrap().1.to_string();
+    let reader = format!("{database}_reader");
+    let mut admin = postgres::Client::connect(&pg.target, postgres::NoTls).unwrap();
+    admin
+        .batch_execute(&format!(
+            "CREATE ROLE {reader} LOGIN PASSWORD 'only-reads';
+             GRANT SELECT ON ALL TABLES IN SCHEMA public TO {reader};"
+        ))
+        .unwrap();
+    let (base, rest) = pg.target.split_once("://").unwrap();
+    let host_and_db = rest.split_once('@').unwrap().1;
+    let as_reader = format!("{base}://{reader}:only-reads@{host_and_db}");
+    let mut r = Records::open(&as_reader).unwrap();
+    let rolls = r.list(&Filter::default()).unwrap();
+    assert_eq!(rolls.len(), 1);
+    assert_eq!(rolls[0].status, "running");
+    drop(r);
+    admin
+        .batch_execute(&format!("DROP OWNED BY {reader}; DROP ROLE {reader};"))
+        .unwrap();
+}
