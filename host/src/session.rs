@@ -231,6 +231,9 @@ fn refuse_overwriting_inputs(request: &Request, replay: Option<&Path>) -> anyhow
             .iter()
             .map(|(what, p)| (*what, p.as_path())),
     );
+    let records = request.records.as_ref().map(|r| r.records.as_str());
+    let records = records.filter(|r| !rollfuse_records::is_postgres(r));
+    inputs.extend(records.map(|r| ("records", Path::new(r))));
     let session = stream::output_files(&request.out);
     let outputs: Vec<&Path> = session.iter().map(PathBuf::as_path).collect();
     crate::files::refuse_overwriting(&outputs, &inputs)?;

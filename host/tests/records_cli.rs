@@ -186,6 +186,30 @@ fn records_that_cannot_be_had_are_said_in_one_line() {
         &["rolls", "list", "--records", db, "--since", "yesterday"],
         "--since yesterday: not a time",
     );
+    // The records' file is an input no output may overwrite.
+    let csv = tmp.path().join("map.csv");
+    let svg = tmp.path().join("map.svg");
+    fails(
+        &["rolls", "map", "1", "--records", s(&csv), "--out", s(&svg)],
+        "is the records",
+    );
+    let out = tmp.path().join("roll");
+    let strip = out.join("strip.png");
+    fails(
+        &[
+            "stream",
+            "--device",
+            "sim",
+            "--scene",
+            LETTERS,
+            "--out",
+            s(&out),
+            "--records",
+            s(&strip),
+        ],
+        "is the records",
+    );
+    assert!(!out.exists(), "nothing made");
     let missing = tmp.path().join("no/such/records.db");
     fails(
         &["rolls", "list", "--records", s(&missing)],

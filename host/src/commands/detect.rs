@@ -296,6 +296,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect();
     inputs.extend(args.model.as_deref().map(|m| ("model", m)));
     inputs.extend(args.normal.as_deref().map(|m| ("normal model", m)));
+    inputs.extend(args.records.as_deref().and_then(super::rolls::records_file));
     crate::files::refuse_overwriting(&outputs, &inputs)?;
     // Before any work: an output that cannot be written is said first, not after the
     // results; folders made for the outputs go again if the command fails before using them.

@@ -4,7 +4,7 @@
 use crate::files::Batch;
 use anyhow::{Context, ensure};
 use rollfuse_records::{Filter, Records, Roll, RollSummary, map};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Where a command keeps its roll in the records.
 #[derive(clap::Args, Debug, Clone)]
@@ -28,6 +28,16 @@ impl RecordTo {
     pub fn open(&self) -> anyhow::Result<Option<Records>> {
         self.records.as_deref().map(open).transpose()
     }
+
+    /// The records' file, an input no output may overwrite (none for a server).
+    pub fn as_input(&self) -> Option<(&'static str, &Path)> {
+        records_file(self.records.as_deref()?)
+    }
+}
+
+/// `target` as an input no output may overwrite, when it is a SQLite file.
+pub fn records_file(target: &str) -> Option<(&'static str, &Path)> {
+    (!rollfuse_records::is_postgres(target)).then(|| ("records", Path::new(target)))
 }
 
 /// Opens the records at `target`.
@@ -255,6 +265,8 @@ fn write_map(a: MapArgs) -> anyhow::Result<()> {
     for p in [&a.out, &csv_path] {
         crate::files::check_writable(p)?;
     }
+    let inputs: Vec<_> = records_file(&a.records).into_iter().collect();
+    crate::files::refuse_overwriting(&[&a.out, &csv_path], &inputs)?;
     let roll = open(&a.records)?.roll(a.id)?;
     let svg = map::svg(&roll, a.width).map_err(anyhow::Error::msg)?;
     let csv = map::csv(&roll).map_err(anyhow::Error::msg)?;

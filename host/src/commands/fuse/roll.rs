@@ -204,8 +204,12 @@ fn check_outputs(args: &Args, csv_path: &Path, index_path: &Path) -> anyhow::Res
         &args.frames,
         args.manifest.as_deref(),
     )?;
-    let frames: Vec<(&str, &Path)> = args.frames.iter().map(|p| ("input", p.as_path())).collect();
-    crate::strip_file::refuse_segment_names(out, &frames)?;
+    let records: Vec<(&str, &Path)> = args.record.as_input().into_iter().collect();
+    crate::files::refuse_overwriting(&[out, csv_path, index_path], &records)?;
+    let mut inputs: Vec<(&str, &Path)> =
+        args.frames.iter().map(|p| ("input", p.as_path())).collect();
+    inputs.extend(records);
+    crate::strip_file::refuse_segment_names(out, &inputs)?;
     if args.precision == crate::fullres::Precision::Fixed && args.out_bits == OutBits::Sixteen {
         eprintln!("note: --precision fixed makes 8-bit values; the 16-bit file holds them scaled");
     }
