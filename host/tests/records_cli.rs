@@ -26,6 +26,19 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// `stream --device sim --scene SCENE --out OUT --records DB`, then `more`.
+fn sim_into_records<'a>(
+    scene: &'a str,
+    out: &'a Path,
+    db: &'a Path,
+    more: &[&'a str],
+) -> Vec<&'a str> {
+    let mut args = vec!["stream", "--device", "sim", "--scene", scene];
+    args.extend(["--out", s(out), "--records", s(db)]);
+    args.extend(more);
+    args
+}
+
 #[test]
 fn a_fused_roll_and_its_defects_are_recorded_and_read_back() {
     let tmp = tempfile::tempdir().unwrap();
@@ -196,17 +209,7 @@ fn records_that_cannot_be_had_are_said_in_one_line() {
     let out = tmp.path().join("roll");
     let strip = out.join("strip.png");
     fails(
-        &[
-            "stream",
-            "--device",
-            "sim",
-            "--scene",
-            LETTERS,
-            "--out",
-            s(&out),
-            "--records",
-            s(&strip),
-        ],
+        &sim_into_records(LETTERS, &out, &strip, &[]),
         "is the records",
     );
     assert!(!out.exists(), "nothing made");
@@ -334,17 +337,7 @@ fn a_recording_streamed_again_replaces_its_roll_and_another_strip_is_not_overwri
     assert_eq!(rolls.as_array().unwrap().len(), 1, "{rolls}");
     // Another roll into the same folder would land on this one's segments.
     fails(
-        &[
-            "stream",
-            "--device",
-            "sim",
-            "--scene",
-            LETTERS,
-            "--out",
-            s(&out),
-            "--records",
-            s(&db),
-        ],
+        &sim_into_records(LETTERS, &out, &db, &[]),
         "holds a strip already",
     );
     assert_eq!(
@@ -358,22 +351,8 @@ fn defects_the_live_detector_finds_are_recorded_on_their_segments() {
     let tmp = tempfile::tempdir().unwrap();
     let (out, db) = (tmp.path().join("roll"), tmp.path().join("records.db"));
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/textile.toml");
-    let printed = ok(&[
-        "stream",
-        "--device",
-        "sim",
-        "--scene",
-        scene,
-        "--out",
-        s(&out),
-        "--serve",
-        "127.0.0.1:0",
-        "--detect",
-        "--records",
-        s(&db),
-        "--segment-rows",
-        "64",
-    ]);
+    let live = ["--serve", "127.0.0.1:0", "--detect", "--segment-rows", "64"];
+    let printed = ok(&sim_into_records(scene, &out, &db, &live));
     // `defects: 1 slub, 2 snags on 672 strip rows; …`: the live detector's count.
     let line = printed
         .lines()
@@ -434,19 +413,12 @@ fn records_on_a_full_disk_fail_the_stream_in_a_line_and_keep_what_they_listed() 
     };
     let (out, db) = (tmp.path().join("roll"), disk.0.join("records.db"));
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/textile.toml");
-    let run = rollfuse(&[
-        "stream",
-        "--device",
-        "sim",
-        "--scene",
+    let run = rollfuse(&sim_into_records(
         scene,
-        "--out",
-        s(&out),
-        "--records",
-        s(&db),
-        "--segment-rows",
-        "16",
-    ]);
+        &out,
+        &db,
+        &["--segment-rows", "16"],
+    ));
     // The session's notes, then the error in one line, exit 1.
     let err = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(1), "{err}");
