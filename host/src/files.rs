@@ -607,11 +607,24 @@ pub fn add_png(
     batch: &mut Batch,
     target: &Path,
     data: &[u8],
+    size: (usize, usize),
+    layout: PngLayout,
+) -> anyhow::Result<()> {
+    require_png_name(target)?;
+    batch.add(target, |out| {
+        encode_png(out, data, size, layout)
+            .with_context(|| format!("cannot write {}", target.display()))
+    })
+}
+
+/// Encodes a `width × height` PNG of `data` (samples row by row in `layout`) into `out`.
+pub fn encode_png(
+    out: impl Write,
+    data: &[u8],
     (width, height): (usize, usize),
     layout: PngLayout,
 ) -> anyhow::Result<()> {
     use image::ImageEncoder;
-    require_png_name(target)?;
     ensure!(
         width
             .checked_mul(height)
@@ -621,11 +634,8 @@ pub fn add_png(
         data.len()
     );
     let (w, h) = (u32::try_from(width)?, u32::try_from(height)?);
-    batch.add(target, |out| {
-        image::codecs::png::PngEncoder::new(out)
-            .write_image(data, w, h, layout.color())
-            .with_context(|| format!("cannot write {}", target.display()))
-    })
+    image::codecs::png::PngEncoder::new(out).write_image(data, w, h, layout.color())?;
+    Ok(())
 }
 
 /// Fails early, with the path in the message, if `path` cannot be written, before any

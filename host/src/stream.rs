@@ -373,18 +373,29 @@ impl StreamedStrip {
         Ok(())
     }
 
-    /// The segments written since the last call, with their numbers.
-    fn new_segments(&mut self) -> Vec<(usize, Segment)> {
-        self.writer
-            .as_mut()
-            .map(StripWriter::new_segments)
-            .unwrap_or_default()
+    /// Puts the full segments in place, each announced to the records first, and records
+    /// them.
+    fn land(&mut self, keeper: &mut RollKeeper) -> anyhow::Result<()> {
+        let Some(writer) = &mut self.writer else {
+            return Ok(());
+        };
+        keeper.announce(&writer.staged())?;
+        keeper.segments(&writer.new_segments()?)
     }
 
     /// Writes every tile still held and the strip's index; the strip's segments (none
     /// without a tile).
-    fn finish(mut self, m: &mut Manifest) -> anyhow::Result<Vec<Segment>> {
+    /// The last segment is recorded by `keeper`, if the strip is kept in the records.
+    fn finish(
+        mut self,
+        m: &mut Manifest,
+        keeper: Option<&mut RollKeeper>,
+    ) -> anyhow::Result<Vec<Segment>> {
         self.drain(m, 0)?;
+        if let (Some(writer), Some(keeper)) = (&mut self.writer, keeper) {
+            writer.end_segment()?;
+            self.land(keeper)?;
+        }
         let Some(writer) = self.writer else {
             return Ok(Vec::new());
         };
@@ -808,7 +819,7 @@ impl<'a> Session<'a> {
             return Ok(());
         }
         if let Some(keeper) = &mut self.keeper {
-            keeper.segments(&self.strip.new_segments())?;
+            self.strip.land(keeper)?;
             keeper.defects(self.watch.defects())?;
         }
         self.watch.tile(tile, &self.manifest);
@@ -888,13 +899,10 @@ impl<'a> Session<'a> {
         if configs.last().is_some_and(|c| c.from_tile.is_none()) {
             configs.pop();
         }
-        let segments = self.strip.finish(&mut self.manifest)?;
+        let segments = (self.strip).finish(&mut self.manifest, self.keeper.as_mut())?;
         write_manifest(&self.manifest_path, &self.manifest)?;
         let roll = match self.keeper.take() {
             Some(mut keeper) => {
-                let numbered: Vec<(usize, Segment)> =
-                    segments.iter().cloned().enumerate().collect();
-                keeper.segments(&numbered)?;
                 keeper.defects(self.watch.defects())?;
                 let roll = keeper.roll();
                 keeper.finish(&fault_counts(&self.manifest), &Status::Complete)?;

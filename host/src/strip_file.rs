@@ -18,7 +18,9 @@
 //! each segment goes to its numbered name as soon as it is full (a lone one too), so a
 //! run killed midway leaves every full segment whole where the records say it is; an
 //! older index is removed before the first segment lands, and its segments past this
-//! strip's when it finishes.
+//! strip's when it finishes. A full segment is first held encoded
+//! ([`StripWriter::staged`]), so that its record can be announced with its checksum
+//! before the file lands ([`StripWriter::new_segments`]).
 //!
 //! Memory: one segment, `segment_rows × width × channels` samples.
 
@@ -132,6 +134,19 @@ pub struct StripWriter {
     in_place: bool,
     /// Segments written since [`StripWriter::new_segments`] last took them.
     unreported: usize,
+    /// In [`StripWriter::in_place`] mode, the encoded segments not yet in place: the
+    /// last `staged.len()` of `written`.
+    staged: Vec<Vec<u8>>,
+}
+
+/// A full segment encoded and not yet at its name ([`StripWriter::staged`]).
+pub struct StagedSegment<'a> {
+    /// Its number in the strip.
+    pub number: usize,
+    /// As the index will list it.
+    pub segment: &'a Segment,
+    /// The file's bytes.
+    pub png: &'a [u8],
 }
 
 /// Where a written segment lies until the strip finishes.
@@ -170,6 +185,7 @@ impl StripWriter {
             finished: false,
             in_place: false,
             unreported: 0,
+            staged: Vec::new(),
         })
     }
 
@@ -181,12 +197,43 @@ impl StripWriter {
         self
     }
 
-    /// The segments written since the last call, each whole at its name in
-    /// [`StripWriter::in_place`] mode, with their numbers.
-    pub fn new_segments(&mut self) -> Vec<(usize, Segment)> {
+    /// The full segments held encoded until [`StripWriter::new_segments`] puts them in
+    /// place ([`StripWriter::in_place`] mode; none otherwise).
+    pub fn staged(&self) -> Vec<StagedSegment<'_>> {
+        let from = self.written.len() - self.staged.len();
+        (self.written[from..].iter().zip(&self.staged))
+            .enumerate()
+            .map(|(i, (segment, png))| StagedSegment {
+                number: from + i,
+                segment,
+                png,
+            })
+            .collect()
+    }
+
+    /// Puts the staged segments in place, then returns the segments written since the
+    /// last call, each whole at its name in [`StripWriter::in_place`] mode, with their
+    /// numbers.
+    pub fn new_segments(&mut self) -> anyhow::Result<Vec<(usize, Segment)>> {
+        self.land_staged()?;
         let from = self.written.len() - self.unreported;
         self.unreported = 0;
-        (from..).zip(self.written[from..].iter().cloned()).collect()
+        Ok((from..).zip(self.written[from..].iter().cloned()).collect())
+    }
+
+    /// Writes the segment being collected now, though it is not full (it is staged in
+    /// [`StripWriter::in_place`] mode): the last one of a strip about to finish.
+    pub fn end_segment(&mut self) -> anyhow::Result<()> {
+        self.flush()
+    }
+
+    /// Writes each staged segment, whole, at its name.
+    fn land_staged(&mut self) -> anyhow::Result<()> {
+        let from = self.written.len() - self.staged.len();
+        for (n, png) in (from..).zip(std::mem::take(&mut self.staged)) {
+            write_bytes_atomic(&self.numbered(n), &png)?;
+        }
+        Ok(())
     }
 
     /// Fills a jump of at most `rows` missing rows with zeros inside the segment instead
@@ -293,11 +340,15 @@ impl StripWriter {
             return Ok(());
         };
         let path = self.numbered(self.written.len());
+        let size = (self.width, self.current_rows);
         let written = if self.in_place {
             if self.written.is_empty() {
                 // No index may describe a mix of the older strip and this one.
                 remove_if_there(&Self::index_path(&self.out))?;
             }
+            let mut png = Vec::new();
+            crate::files::encode_png(&mut png, &self.data, size, self.layout)?;
+            self.staged.push(png);
             Written::InPlace(path.clone())
         } else {
             // Every segment waits under a hidden name, its owner's, until the strip
@@ -309,23 +360,14 @@ impl StripWriter {
                 "{}.png",
                 hidden.file_name().unwrap_or_default().to_string_lossy()
             ));
+            let mut segment = Batch::new();
+            add_png(&mut segment, &hidden, &self.data, size, self.layout)?;
+            segment.commit()?;
             Written::Beside {
                 hidden,
                 target: path.clone(),
             }
         };
-        let at = match &written {
-            Written::InPlace(p) | Written::Beside { hidden: p, .. } => p,
-        };
-        let mut segment = Batch::new();
-        add_png(
-            &mut segment,
-            at,
-            &self.data,
-            (self.width, self.current_rows),
-            self.layout,
-        )?;
-        segment.commit()?;
         self.files.push(written);
         self.written.push(Segment {
             file: path
@@ -346,6 +388,7 @@ impl StripWriter {
     /// index with `details`. Returns the segments written.
     pub fn finish<T: serde::Serialize>(mut self, details: T) -> anyhow::Result<Vec<Segment>> {
         self.flush()?;
+        self.land_staged()?;
         ensure!(
             !self.written.is_empty(),
             "the strip has no rows: nothing was written"
@@ -384,6 +427,10 @@ impl Drop for StripWriter {
     fn drop(&mut self) {
         if self.finished {
             return;
+        }
+        // Full segments are kept in place (the records may have announced them).
+        if self.in_place {
+            let _ = self.land_staged();
         }
         for file in &self.files {
             match file {
@@ -445,25 +492,49 @@ mod tests {
         for row in 0..7 {
             w.push(row, &[&[row as f32; 2]]).unwrap();
         }
-        let landed: Vec<(usize, String)> = w
-            .new_segments()
-            .into_iter()
+        let staged: Vec<(usize, Vec<u8>)> = (w.staged().iter())
+            .map(|s| (s.number, s.png.to_vec()))
+            .collect();
+        assert_eq!(staged.iter().map(|s| s.0).collect::<Vec<_>>(), [0, 1]);
+        assert!(
+            !dir.path().join("strip.0000.png").exists(),
+            "staged, not landed"
+        );
+        let landed: Vec<(usize, String)> = (w.new_segments().unwrap().into_iter())
             .map(|(n, s)| (n, s.file))
             .collect();
         assert_eq!(
             landed,
             [(0, "strip.0000.png".into()), (1, "strip.0001.png".into())]
         );
-        assert!(w.new_segments().is_empty(), "each segment is reported once");
-        assert!(dir.path().join("strip.0001.png").exists());
+        assert!(w.staged().is_empty());
+        assert!(
+            w.new_segments().unwrap().is_empty(),
+            "each segment is reported once"
+        );
+        for (n, png) in &staged {
+            let file = std::fs::read(StripWriter::segment_path(&out, *n)).unwrap();
+            assert_eq!(&file, png, "segment {n} landed as it was staged");
+        }
         assert!(
             !StripWriter::index_path(&out).exists(),
             "the older index goes before the first segment lands"
         );
+        w.push(7, &[&[7.0; 2]]).unwrap();
+        w.end_segment().unwrap();
+        assert_eq!(
+            w.staged().len(),
+            1,
+            "a short last segment is staged on request"
+        );
         drop(w);
         assert!(dir.path().join("strip.0000.png").exists());
         assert!(dir.path().join("strip.0001.png").exists());
-        assert!(!dir.path().join("strip.0002.png").exists(), "never full");
+        assert!(
+            dir.path().join("strip.0002.png").exists(),
+            "a staged segment lands when the strip fails"
+        );
+        assert!(!dir.path().join("strip.0003.png").exists());
 
         // A lone segment keeps its number: the records name it so from the start.
         std::fs::write(&out, "older").unwrap();

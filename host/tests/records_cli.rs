@@ -301,6 +301,10 @@ fn killed_after(segments: i64) {
             record.file
         );
     }
+    // And every segment at its name is listed (a kill between a segment's landing and its
+    // record included).
+    let on_disk = rollfuse::strip_file::StripWriter::segments_on_disk(&out.join("strip.png"), 0);
+    assert_eq!(on_disk.len(), listed.len(), "{on_disk:?} against {roll}");
 }
 
 #[test]

@@ -6,7 +6,12 @@
 //! Guarantees:
 //! - **Whole or nothing.** A segment and its defects are committed in one transaction,
 //!   after the segment's file is whole on disk, so the records never list a segment that
-//!   is not there (its size and CRC-32 are kept to tell a file changed since).
+//!   is not there (its size and CRC-32 are kept to tell a file changed since). A writer
+//!   that moves files into place as it goes announces each segment first
+//!   ([`Records::announce_segment`]); an announced segment is listed once it is confirmed,
+//!   or, if its writer was cut off between the two, once its file is found whole when the
+//!   roll ends or is marked interrupted — so a roll lists exactly its segments whole on
+//!   disk.
 //! - **Interrupted rolls are found.** A roll is `running` while its process lives; the
 //!   next [`Records::open`] on the same host marks one whose process has ended as
 //!   `interrupted`, its segments as they were recorded.
@@ -59,8 +64,11 @@ pub struct Records {
 /// The columns of a roll's line in `rolls list`, in [`summary_of`]'s order.
 const SUMMARY: &str = "r.id, r.line, r.device, r.source, r.status, r.reason, r.started_at, \
     r.ended_at, r.belt_rows, r.mm_per_row, r.out, \
-    (SELECT COUNT(*) FROM segments s WHERE s.roll_id = r.id), \
-    (SELECT COUNT(*) FROM defects d WHERE d.roll_id = r.id)";
+    (SELECT COUNT(*) FROM segments s WHERE s.roll_id = r.id AND s.pending = 0), \
+    (SELECT COUNT(*) FROM defects d WHERE d.roll_id = r.id), r.process";
+
+/// Why a roll whose process ended while it ran is interrupted.
+const PROCESS_ENDED: &str = "its process ended before the roll was finished";
 
 impl Records {
     /// Opens the records at `target` — a `postgres://` URL or a SQLite file's path (made
@@ -100,7 +108,8 @@ impl Records {
         }
     }
 
-    /// Marks the running rolls whose process has ended as interrupted; returns their ids.
+    /// Marks the running rolls whose process has ended as interrupted, and settles the
+    /// announced segments of this host's ended rolls; returns the ids marked.
     pub fn mark_interrupted(&mut self) -> Result<Vec<i64>> {
         let running = self.db.query(
             "SELECT id, process FROM rolls WHERE status = 'running'",
@@ -112,8 +121,21 @@ impl Records {
             .map(|row| row[0].int())
             .collect();
         for &id in &ended {
-            let why = "its process ended before the roll was finished";
-            self.set_status(id, &Status::Interrupted(why.into()))?;
+            self.set_status(id, &Status::Interrupted(PROCESS_ENDED.into()))?;
+        }
+        // Settled here, not as the status is set: a roll whose settling could not be
+        // written then (a full disk) is settled at a later open. Only this host can look
+        // at its files.
+        let unsettled = self.db.query(
+            "SELECT DISTINCT r.id, r.process FROM rolls r JOIN segments s \
+             ON s.roll_id = r.id WHERE s.pending = 1 AND r.status <> 'running'",
+            &[],
+        )?;
+        for row in unsettled
+            .iter()
+            .filter(|r| process::is_this_host(&r[1].text()))
+        {
+            self.settle_announced(row[0].int())?;
         }
         Ok(ended)
     }
@@ -172,54 +194,58 @@ impl Records {
     }
 
     /// Records segment `segment` of roll `roll` and the defects found on it (each recorded
-    /// as the segment's, whatever its `segment_seq`), in one
-    /// transaction; a segment recorded before under the same number is replaced, its
-    /// defects with it. Call it once the segment's file is whole on disk.
+    /// as the segment's, whatever its `segment_seq`), in one transaction; a segment
+    /// recorded or announced before under the same number is replaced, its defects with
+    /// it. Call it once the segment's file is whole on disk.
     pub fn add_segment(
         &mut self,
         roll: i64,
         segment: &SegmentRecord,
         defects: &[DefectRecord],
     ) -> Result<()> {
-        self.db.transaction(|db| {
-            require_roll(db, roll)?;
-            let seq = Value::from(segment.seq);
-            db.exec(
-                "DELETE FROM defects WHERE roll_id = $1 AND segment_seq = $2",
-                &[roll.into(), seq.clone()],
-            )?;
-            db.exec(
-                "DELETE FROM segments WHERE roll_id = $1 AND seq = $2",
-                &[roll.into(), seq.clone()],
-            )?;
-            db.exec(
-                "INSERT INTO segments (roll_id, seq, file, first_row, rows, width, bytes, crc32) \
-                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8)",
-                &[
-                    roll.into(),
-                    seq,
-                    segment.file.as_str().into(),
-                    segment.first_row.into(),
-                    segment.rows.into(),
-                    segment.width.into(),
-                    segment.bytes.into(),
-                    i64::from(segment.crc32).into(),
-                ],
-            )?;
-            for d in defects {
-                let on_segment = DefectRecord {
-                    segment_seq: Some(segment.seq),
-                    ..d.clone()
-                };
-                insert_defect(db, roll, &on_segment)?;
-            }
-            db.exec(
-                "UPDATE rolls SET belt_rows = (SELECT COALESCE(SUM(rows), 0) FROM segments \
-                 WHERE roll_id = $1) WHERE id = $1",
-                &[roll.into()],
-            )?;
-            Ok(())
-        })
+        self.db
+            .transaction(|db| put_segment(db, roll, segment, defects, false))
+    }
+
+    /// Announces segment `segment` of roll `roll` before its file is moved into place
+    /// under its name: it is not listed until [`Records::add_segment`] confirms it, or
+    /// until the roll ends or is marked interrupted with the file found whole (its size
+    /// and CRC-32 as announced) — a writer killed between the move and the confirmation
+    /// loses no segment that is whole on disk, and one killed before it lists none that
+    /// is not.
+    pub fn announce_segment(&mut self, roll: i64, segment: &SegmentRecord) -> Result<()> {
+        self.db
+            .transaction(|db| put_segment(db, roll, segment, &[], true))
+    }
+
+    /// Settles roll `roll`'s announced segments: each whose file is whole beside the
+    /// roll's strip is listed, the others are forgotten. Only the host that wrote the
+    /// roll may call it (another host does not see its files).
+    fn settle_announced(&mut self, roll: i64) -> Result<()> {
+        let announced = self.db.query(
+            "SELECT s.seq, s.file, s.first_row, s.rows, s.width, s.bytes, s.crc32, r.out \
+             FROM segments s JOIN rolls r ON r.id = s.roll_id \
+             WHERE s.roll_id = $1 AND s.pending = 1",
+            &[roll.into()],
+        )?;
+        for row in &announced {
+            let segment = segment_of(row);
+            let out = std::path::PathBuf::from(row[7].text());
+            let folder = out.parent().unwrap_or(std::path::Path::new(""));
+            let whole = segment.matches_file(&folder.join(&segment.file));
+            self.db.transaction(|db| {
+                if whole {
+                    put_segment(db, roll, &segment, &[], false)
+                } else {
+                    db.exec(
+                        "DELETE FROM segments WHERE roll_id = $1 AND seq = $2",
+                        &[roll.into(), segment.seq.into()],
+                    )?;
+                    Ok(())
+                }
+            })?;
+        }
+        Ok(())
     }
 
     /// Replaces the defects recorded on segment `seq` of roll `roll` with `defects`, in one
@@ -282,9 +308,11 @@ impl Records {
         Ok(())
     }
 
-    /// Ends roll `roll` with `status` (complete, or failed with the reason).
+    /// Ends roll `roll` with `status` (complete, or failed with the reason), its announced
+    /// segments settled.
     pub fn finish_roll(&mut self, roll: i64, status: &Status) -> Result<()> {
-        self.set_status(roll, status)
+        self.set_status(roll, status)?;
+        self.settle_announced(roll)
     }
 
     fn set_status(&mut self, roll: i64, status: &Status) -> Result<()> {
@@ -341,19 +369,11 @@ impl Records {
             .db
             .query(
                 "SELECT seq, file, first_row, rows, width, bytes, crc32 FROM segments \
-                 WHERE roll_id = $1 ORDER BY seq",
+                 WHERE roll_id = $1 AND pending = 0 ORDER BY seq",
                 &[id.into()],
             )?
             .iter()
-            .map(|r| SegmentRecord {
-                seq: r[0].int(),
-                file: r[1].text(),
-                first_row: r[2].int(),
-                rows: r[3].int(),
-                width: r[4].int(),
-                bytes: r[5].int(),
-                crc32: r[6].int() as u32,
-            })
+            .map(|r| segment_of(r))
             .collect();
         let defect_list = self
             .db
@@ -376,7 +396,7 @@ impl Records {
             .collect();
         Ok(Roll {
             summary: summary_of(row),
-            configuration: row[13].text(),
+            configuration: row[14].text(),
             segment_list,
             defect_list,
             faults,
@@ -400,25 +420,15 @@ impl Records {
         };
         let name = name.to_string_lossy();
         let candidates = self.db.query(
-            "SELECT r.id, r.out, s.seq, s.first_row, s.rows, s.width, s.bytes, s.crc32 \
-             FROM segments s JOIN rolls r ON r.id = s.roll_id WHERE s.file = $1",
+            "SELECT s.seq, s.file, s.first_row, s.rows, s.width, s.bytes, s.crc32, r.id, r.out \
+             FROM segments s JOIN rolls r ON r.id = s.roll_id \
+             WHERE s.file = $1 AND s.pending = 0",
             &[name.as_ref().into()],
         )?;
         Ok(candidates.iter().find_map(|r| {
-            let out = std::path::PathBuf::from(r[1].text());
+            let out = std::path::PathBuf::from(r[8].text());
             let same = out.parent().is_some_and(|p| same_folder(p, folder));
-            same.then(|| {
-                let seg = SegmentRecord {
-                    seq: r[2].int(),
-                    file: name.to_string(),
-                    first_row: r[3].int(),
-                    rows: r[4].int(),
-                    width: r[5].int(),
-                    bytes: r[6].int(),
-                    crc32: r[7].int() as u32,
-                };
-                (r[0].int(), seg)
-            })
+            same.then(|| (r[7].int(), segment_of(r)))
         }))
     }
 }
@@ -446,6 +456,69 @@ fn require_roll(db: &mut Backend, roll: i64) -> Result<()> {
         return Err(Error::NoSuchRoll(roll));
     }
     Ok(())
+}
+
+/// Writes `segment` of roll `roll` (replacing one of its number, and that one's defects)
+/// with `defects` on it, announced only (`pending`) or listed, and the roll's belt rows.
+fn put_segment(
+    db: &mut Backend,
+    roll: i64,
+    segment: &SegmentRecord,
+    defects: &[DefectRecord],
+    pending: bool,
+) -> Result<()> {
+    require_roll(db, roll)?;
+    let seq = Value::from(segment.seq);
+    db.exec(
+        "DELETE FROM defects WHERE roll_id = $1 AND segment_seq = $2",
+        &[roll.into(), seq.clone()],
+    )?;
+    db.exec(
+        "DELETE FROM segments WHERE roll_id = $1 AND seq = $2",
+        &[roll.into(), seq.clone()],
+    )?;
+    db.exec(
+        "INSERT INTO segments (roll_id, seq, file, first_row, rows, width, bytes, crc32, \
+         pending) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9)",
+        &[
+            roll.into(),
+            seq,
+            segment.file.as_str().into(),
+            segment.first_row.into(),
+            segment.rows.into(),
+            segment.width.into(),
+            segment.bytes.into(),
+            i64::from(segment.crc32).into(),
+            i64::from(pending).into(),
+        ],
+    )?;
+    for d in defects {
+        let on_segment = DefectRecord {
+            segment_seq: Some(segment.seq),
+            ..d.clone()
+        };
+        insert_defect(db, roll, &on_segment)?;
+    }
+    db.exec(
+        "UPDATE rolls SET belt_rows = (SELECT COALESCE(SUM(rows), 0) FROM segments \
+         WHERE roll_id = $1 AND pending = 0) WHERE id = $1",
+        &[roll.into()],
+    )?;
+    Ok(())
+}
+
+/// A segment from the first seven columns of `r`: seq, file, first_row, rows, width,
+/// bytes, crc32.
+fn segment_of(r: &[Value]) -> SegmentRecord {
+    SegmentRecord {
+        seq: r[0].int(),
+        file: r[1].text(),
+        first_row: r[2].int(),
+        rows: r[3].int(),
+        width: r[4].int(),
+        bytes: r[5].int(),
+        crc32: r[6].int() as u32,
+    }
 }
 
 fn insert_defect(db: &mut Backend, roll: i64, d: &DefectRecord) -> Result<()> {
@@ -476,16 +549,24 @@ fn insert_defect(db: &mut Backend, roll: i64, d: &DefectRecord) -> Result<()> {
     Ok(())
 }
 
+/// A roll's summary from [`SUMMARY`]'s columns. A roll still marked running whose process
+/// has ended is reported interrupted, though the mark could not be written (a full disk, a
+/// reader's account).
 fn summary_of(r: &[Value]) -> RollSummary {
     let belt_rows = r[8].int();
     let mm_per_row = r[9].real();
+    let (mut status, mut reason) = (r[4].text(), r[5].opt_text());
+    if status == Status::Running.word() && process::has_ended(&r[13].text()) {
+        let why = Status::Interrupted(PROCESS_ENDED.into());
+        (status, reason) = (why.word().to_owned(), why.reason().map(str::to_owned));
+    }
     RollSummary {
         id: r[0].int(),
         line: r[1].text(),
         device: r[2].text(),
         source: r[3].text(),
-        status: r[4].text(),
-        reason: r[5].opt_text(),
+        status,
+        reason,
         started_at: r[6].text(),
         ended_at: r[7].opt_text(),
         belt_rows,

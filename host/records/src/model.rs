@@ -84,19 +84,21 @@ impl SegmentRecord {
         rows: i64,
     ) -> std::io::Result<SegmentRecord> {
         let bytes = std::fs::read(path)?;
-        Ok(SegmentRecord {
-            width: png_width(&bytes).unwrap_or(0),
+        let file = path.file_name().unwrap_or_default().to_string_lossy();
+        Ok(Self::of_bytes(seq, &file, first_row, rows, &bytes))
+    }
+
+    /// The record of segment `seq`, a file `file` that will hold `bytes`.
+    pub fn of_bytes(seq: i64, file: &str, first_row: i64, rows: i64, bytes: &[u8]) -> Self {
+        SegmentRecord {
+            width: png_width(bytes).unwrap_or(0),
             seq,
-            file: path
-                .file_name()
-                .unwrap_or_default()
-                .to_string_lossy()
-                .into_owned(),
+            file: file.to_owned(),
             first_row,
             rows,
             bytes: bytes.len() as i64,
-            crc32: crc32fast::hash(&bytes),
-        })
+            crc32: crc32fast::hash(bytes),
+        }
     }
 
     /// Whether the file at `path` is this segment, whole.

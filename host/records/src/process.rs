@@ -18,8 +18,7 @@ pub fn this_process() -> String {
 /// Whether the process named `token` is known to have ended. False when it cannot be
 /// told (another host, or a system without `/proc`).
 pub fn has_ended(token: &str) -> bool {
-    let mut parts = token.rsplitn(3, ':');
-    let (Some(start), Some(pid), Some(host)) = (parts.next(), parts.next(), parts.next()) else {
+    let Some((host, pid, start)) = parts(token) else {
         return false;
     };
     let Ok(pid) = pid.parse::<u32>() else {
@@ -29,6 +28,18 @@ pub fn has_ended(token: &str) -> bool {
         return false;
     }
     start_time(pid).as_deref() != Some(start)
+}
+
+/// Whether the process named `token` ran on this host.
+pub fn is_this_host(token: &str) -> bool {
+    parts(token).is_some_and(|(host, _, _)| host == host_name())
+}
+
+/// A process name's host, PID and start (a host name may hold `:`).
+fn parts(token: &str) -> Option<(&str, &str, &str)> {
+    let mut parts = token.rsplitn(3, ':');
+    let (start, pid) = (parts.next()?, parts.next()?);
+    Some((parts.next()?, pid, start))
 }
 
 fn host_name() -> String {
@@ -65,5 +76,8 @@ mod tests {
         }
         assert!(!has_ended("another-host:1:1"));
         assert!(!has_ended("garbage"));
+        assert!(is_this_host(&me));
+        assert!(!is_this_host("another-host:1:1"));
+        assert!(!is_this_host("garbage"));
     }
 }

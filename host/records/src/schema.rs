@@ -6,7 +6,7 @@ use crate::backend::{Backend, Types};
 use crate::error::{Error, Result};
 
 /// The newest schema this build writes.
-pub const VERSION: i64 = 1;
+pub const VERSION: i64 = 2;
 
 /// Migration `n` (from version `n` to `n + 1`) in this database's column types.
 fn migration(n: i64, t: &Types) -> Option<String> {
@@ -66,6 +66,11 @@ fn migration(n: i64, t: &Types) -> Option<String> {
                 count {int} NOT NULL,
                 PRIMARY KEY (roll_id, kind)
             );"
+        )),
+        // A segment announced before its file is moved into place (`pending` 1) is listed
+        // only once it is confirmed, or found whole when an interrupted roll is settled.
+        1 => Some(format!(
+            "ALTER TABLE segments ADD COLUMN pending {int} NOT NULL DEFAULT 0"
         )),
         _ => None,
     }
@@ -131,4 +136,33 @@ pub fn migrate(db: &mut Backend) -> Result<()> {
         }
         Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A database left at version 1 by an older build keeps its rows, now listed whole.
+    #[test]
+    fn a_version_1_database_is_brought_up_to_date_with_its_rows() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("old.db");
+        let mut db = Backend::open(path.to_str().unwrap()).unwrap();
+        let types = db.types();
+        db.batch(&migration(0, &types).unwrap()).unwrap();
+        db.batch(
+            "CREATE TABLE schema_version (version INTEGER NOT NULL);
+             INSERT INTO schema_version (version) VALUES (1);
+             INSERT INTO rolls (source, line, device, configuration, out, started_at, status,
+                                process)
+             VALUES ('old', '1', 'host', '{}', '/s.png', 't', 'complete', 'h:1:1');
+             INSERT INTO segments (roll_id, seq, file, first_row, rows, width, bytes, crc32)
+             VALUES (1, 0, 's.png', 0, 10, 4, 5, 6);",
+        )
+        .unwrap();
+        migrate(&mut db).unwrap();
+        assert_eq!(version_of(&mut db), Some(VERSION));
+        let rows = db.query("SELECT seq, pending FROM segments", &[]).unwrap();
+        assert_eq!((rows[0][0].int(), rows[0][1].int()), (0, 0));
+    }
 }

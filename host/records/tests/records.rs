@@ -249,7 +249,7 @@ fn a_newer_schema_is_refused_untouched() {
                 e,
                 Error::NewerSchema {
                     found: 99,
-                    supported: 1
+                    supported: rollfuse_records::SCHEMA_VERSION
                 }
             ),
             "{e}"
@@ -258,18 +258,47 @@ fn a_newer_schema_is_refused_untouched() {
     });
 }
 
-/// The writer a crash test kills: it records a roll's first two segments, says so, and
-/// waits to be killed.
+/// An announced segment: its number, the bytes announced, the bytes on disk when its
+/// writer is killed.
+type Announced = (i64, &'static [u8], Option<&'static [u8]>);
+
+/// The announced segments of the crash test's roll.
+const ANNOUNCED: [Announced; 3] = [
+    // Moved into place, not yet confirmed: whole on disk, so listed.
+    (2, b"segment two", Some(b"segment two")),
+    // Killed before its file was moved into place.
+    (3, b"segment three", None),
+    // An older run's file still at its name.
+    (4, b"segment four", Some(b"older four")),
+];
+
+/// The writer a crash test kills: it records a roll's first two segments, announces
+/// three more ([`ANNOUNCED`]), says so, and waits to be killed.
 #[test]
 fn crash_child() {
     let Ok(target) = std::env::var("ROLLFUSE_CRASH_CHILD") else {
         return;
     };
+    let folder = std::path::PathBuf::from(std::env::var("ROLLFUSE_CRASH_FOLDER").unwrap());
     let mut r = Records::open(&target).unwrap();
-    let id = r.begin_roll(&start("killed", "1")).unwrap();
+    let out = folder.join("strip.png").to_string_lossy().into_owned();
+    let id = r
+        .begin_roll(&RollStart {
+            out,
+            ..start("killed", "1")
+        })
+        .unwrap();
     r.add_segment(id, &segment(0, 0, 100), &[defect("hole", 5.0)])
         .unwrap();
     r.add_segment(id, &segment(1, 100, 100), &[]).unwrap();
+    for (seq, announced, on_disk) in ANNOUNCED {
+        let file = format!("strip.{seq:04}.png");
+        let record = SegmentRecord::of_bytes(seq, &file, seq * 100, 100, announced);
+        r.announce_segment(id, &record).unwrap();
+        if let Some(bytes) = on_disk {
+            std::fs::write(folder.join(&file), bytes).unwrap();
+        }
+    }
     println!("ROLL {id}");
     std::thread::sleep(std::time::Duration::from_secs(60));
 }
@@ -280,9 +309,11 @@ fn a_killed_writer_leaves_its_roll_interrupted_with_its_whole_segments() {
     on_both(
         "a_killed_writer_leaves_its_roll_interrupted_with_its_whole_segments",
         |target| {
+            let folder = tempfile::tempdir().unwrap();
             let mut child = std::process::Command::new(std::env::current_exe().unwrap())
                 .args(["--exact", "crash_child", "--nocapture", "--test-threads=1"])
                 .env("ROLLFUSE_CRASH_CHILD", target)
+                .env("ROLLFUSE_CRASH_FOLDER", folder.path())
                 .stdout(std::process::Stdio::piped())
                 .spawn()
                 .unwrap();
@@ -294,7 +325,14 @@ fn a_killed_writer_leaves_its_roll_interrupted_with_its_whole_segments() {
                 .expect("the child recorded a roll");
             {
                 let mut r = Records::open(target).unwrap();
-                assert_eq!(r.roll(id).unwrap().summary.status, "running", "alive");
+                let roll = r.roll(id).unwrap();
+                assert_eq!(roll.summary.status, "running", "alive");
+                assert_eq!(
+                    roll.segment_list.len(),
+                    2,
+                    "announced segments are not listed"
+                );
+                assert_eq!(roll.summary.segments, 2);
             }
             child.kill().unwrap(); // SIGKILL
             child.wait().unwrap();
@@ -302,10 +340,14 @@ fn a_killed_writer_leaves_its_roll_interrupted_with_its_whole_segments() {
             let roll = r.roll(id).unwrap();
             assert_eq!(roll.summary.status, "interrupted");
             assert!(roll.summary.reason.unwrap().contains("process ended"));
+            let (seq, announced, _) = ANNOUNCED[0];
+            let moved = SegmentRecord::of_bytes(seq, "strip.0002.png", 200, 100, announced);
             assert_eq!(
                 roll.segment_list,
-                vec![segment(0, 0, 100), segment(1, 100, 100)]
+                vec![segment(0, 0, 100), segment(1, 100, 100), moved],
+                "exactly the segments whole on disk"
             );
+            assert_eq!(roll.summary.belt_rows, 300);
             assert_eq!(roll.defect_list.len(), 1);
         },
     );
@@ -422,10 +464,18 @@ fn a_user_who_may_only_read_opens_and_lists_the_rolls() {
         let mut r = Records::open(&pg.target).unwrap();
         let id = r.begin_roll(&start("recorded by a line", "3")).unwrap();
         r.add_segment(id, &segment(0, 0, 10), &[]).unwrap();
+        r.begin_roll(&start("cut off", "3")).unwrap();
     }
     let database = pg.target.rsplit_once('/').unwrap().1.to_string();
     let reader = format!("{database}_reader");
     let mut admin = postgres::Client::connect(&pg.target, postgres::NoTls).unwrap();
+    // The second roll's process has ended (this host, this PID, another start).
+    admin
+        .batch_execute(
+            "UPDATE rolls SET process = regexp_replace(process, ':[^:]*$', ':0') \
+             WHERE source = 'cut off'",
+        )
+        .unwrap();
     admin
         .batch_execute(&format!(
             "CREATE ROLE {reader} LOGIN PASSWORD 'only-reads';
@@ -437,8 +487,17 @@ fn a_user_who_may_only_read_opens_and_lists_the_rolls() {
     let as_reader = format!("{base}://{reader}:only-reads@{host_and_db}");
     let mut r = Records::open(&as_reader).unwrap();
     let rolls = r.list(&Filter::default()).unwrap();
-    assert_eq!(rolls.len(), 1);
-    assert_eq!(rolls[0].status, "running");
+    let status = |source: &str| {
+        let roll = rolls.iter().find(|r| r.source == source).unwrap();
+        (roll.status.as_str(), roll.reason.is_some())
+    };
+    assert_eq!(status("recorded by a line"), ("running", false));
+    // Shown as it is, though this user could not mark it.
+    assert_eq!(status("cut off"), ("interrupted", true));
+    let stored = admin
+        .query_one("SELECT status FROM rolls WHERE source = 'cut off'", &[])
+        .unwrap();
+    assert_eq!(stored.get::<_, String>(0), "running");
     drop(r);
     admin
         .batch_execute(&format!("DROP OWNED BY {reader}; DROP ROLE {reader};"))
