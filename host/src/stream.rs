@@ -373,6 +373,14 @@ impl StreamedStrip {
         Ok(())
     }
 
+    /// Ends the segment being collected and lands it with the full ones ([`Self::land`]).
+    fn end_and_land(&mut self, keeper: &mut RollKeeper) -> anyhow::Result<()> {
+        if let Some(writer) = &mut self.writer {
+            writer.end_segment()?;
+        }
+        self.land(keeper)
+    }
+
     /// Puts the full segments in place, each announced to the records first, and records
     /// them.
     fn land(&mut self, keeper: &mut RollKeeper) -> anyhow::Result<()> {
@@ -392,9 +400,8 @@ impl StreamedStrip {
         keeper: Option<&mut RollKeeper>,
     ) -> anyhow::Result<Vec<Segment>> {
         self.drain(m, 0)?;
-        if let (Some(writer), Some(keeper)) = (&mut self.writer, keeper) {
-            writer.end_segment()?;
-            self.land(keeper)?;
+        if let Some(keeper) = keeper {
+            self.end_and_land(keeper)?;
         }
         let Some(writer) = self.writer else {
             return Ok(Vec::new());
@@ -854,11 +861,14 @@ impl<'a> Session<'a> {
     }
 
     /// A failed session's roll is recorded as failed, with `e`, its segments as they were
-    /// recorded; a failure to record that is added to `e`.
+    /// recorded and the rows collected since as one more, where that can still be done; a
+    /// failure to record the roll is added to `e`.
     fn fail_roll(&mut self, e: anyhow::Error) -> anyhow::Error {
-        let Some(keeper) = self.keeper.take() else {
+        let Some(mut keeper) = self.keeper.take() else {
             return e;
         };
+        // Best effort: what cannot be recorded now lands whole when the strip is dropped.
+        let _ = self.strip.end_and_land(&mut keeper);
         let why = Status::Failed(format!("{e:#}"));
         match keeper.finish(&fault_counts(&self.manifest), &why) {
             Ok(()) => e,

@@ -632,6 +632,51 @@ impl Transport for Unplugged {
     }
 }
 
+/// A kept roll whose link fails midway is recorded failed with every segment whole on
+/// disk, the rows collected since the last full one included.
+#[test]
+fn a_failed_session_s_roll_lists_every_segment_it_wrote() {
+    let messages = clean_stream();
+    let tmp = tempfile::tempdir().unwrap();
+    let db = tmp.path().join("records.db");
+    let keep = rollfuse::records::KeepRoll {
+        records: db.to_string_lossy().into_owned(),
+        start: rollfuse_records::RollStart {
+            source: "unplugged".into(),
+            line: "1".into(),
+            device: "sim".into(),
+            configuration: "{}".into(),
+            out: String::new(),
+            mm_per_row: None,
+        },
+        mm_per_px: None,
+    };
+    let opts = Options {
+        keep: Some(keep),
+        // Not a whole number of tiles a segment: the last rows are a short segment.
+        segment_rows: 40,
+        ..options(tmp.path(), None)
+    };
+    let mut unplugged = Unplugged {
+        messages: messages[..messages.len() / 2].iter().cloned().collect(),
+    };
+    let Err(err) = stream::run(&mut unplugged, &opts, &Silent) else {
+        panic!("the session did not fail");
+    };
+    let mut records = rollfuse_records::Records::open(&db.to_string_lossy()).unwrap();
+    let roll = records.roll(1).unwrap();
+    assert_eq!(roll.summary.status, "failed", "{err:#}");
+    let strip = tmp.path().join("strip.png");
+    let on_disk = rollfuse::strip_file::StripWriter::segments_on_disk(&strip, 0);
+    assert!(on_disk.len() >= 2, "{on_disk:?}");
+    assert_eq!(roll.segment_list.len(), on_disk.len(), "{roll:?}");
+    for s in &roll.segment_list {
+        assert!(s.matches_file(&tmp.path().join(&s.file)), "{s:?}");
+    }
+    let last = roll.segment_list.last().unwrap();
+    assert!(last.rows < 40, "the short last segment is kept: {roll:?}");
+}
+
 /// A session whose link fails midway keeps its recording, every message taken before
 /// the failure, so the device's data can be replayed; but it never replaces an older
 /// recording of the same name.
