@@ -23,6 +23,7 @@ fn about(widths: Widths) -> About {
             .collect(),
         made_by: "test".into(),
         familiarity: None,
+        threshold: None,
     }
 }
 
@@ -218,6 +219,32 @@ fn bad_models_are_one_clear_line() {
         &["detect", i, "--model", odd.to_str().unwrap()],
         "its familiarity statistics are unreadable",
     );
+    // A threshold outside 0..=1.
+    let high = tmp.path().join("high.safetensors");
+    std::fs::write(&high, with_metadata(&bytes, "threshold", "1.5")).unwrap();
+    fails(
+        &["detect", i, "--model", high.to_str().unwrap()],
+        "its threshold",
+    );
+}
+
+/// A model's own threshold is kept in its file and used unless `--threshold` says
+/// otherwise; the built-in model's is the one docs/detect.md states.
+#[test]
+fn a_model_s_threshold_is_its_default() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("m.safetensors");
+    let net = Net::new(TINY, 17, &Device::flex());
+    let kept = About {
+        threshold: Some(0.55),
+        ..about(TINY)
+    };
+    save(&path, &net, &kept).unwrap();
+    assert_eq!(Detector::load(&path).unwrap().threshold, 0.55);
+    tiny_model(&path, TINY);
+    let default = rollfuse::detect::DEFAULT_THRESHOLD;
+    assert_eq!(Detector::load(&path).unwrap().threshold, default);
+    assert_eq!(Detector::built_in().unwrap().threshold, 0.4);
 }
 
 /// A safetensors file's bytes with metadata `key` set to `value`.

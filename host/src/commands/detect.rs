@@ -34,6 +34,15 @@ pub struct TrainArgs {
     /// `varied` (lights, gel, defocus and noise drawn for each roll; see docs/detect.md).
     #[arg(long, default_value = "standard", conflicts_with = "images")]
     pub style: crate::detect::data::Style,
+    /// Give each training crop a random look: half turned, its tone, light, blur and noise
+    /// changed (see docs/detect.md).
+    #[arg(long, conflicts_with = "images")]
+    pub augment: bool,
+    /// The heatmap score the model's detections need unless `detect --threshold` says
+    /// otherwise, kept in the model (choose it on held-out rolls of the look it learned:
+    /// `eval --detect --style S --model M --threshold T`) [default: none kept: 0.3].
+    #[arg(long, conflicts_with = "images")]
+    pub threshold: Option<f32>,
     /// Crops a step [default: 16 on simulated rolls, 8 fine-tuning].
     #[arg(long)]
     pub batch: Option<usize>,
@@ -94,6 +103,7 @@ fn train_on_rolls(args: &TrainArgs, show: Show) -> anyhow::Result<String> {
         batch: args.batch.unwrap_or(TrainOptions::default().batch),
         seed: args.seed,
         style: args.style,
+        augment: args.augment,
         ..TrainOptions::default()
     };
     let start = match &args.from {
@@ -119,11 +129,21 @@ fn train_on_rolls(args: &TrainArgs, show: Show) -> anyhow::Result<String> {
         args.seed,
         args.style.name()
     );
+    if args.augment {
+        made_by.push_str(" --augment");
+    }
+    if let Some(t) = args.threshold {
+        made_by.push_str(&format!(" --threshold {t}"));
+    }
     if let Some((_, before)) = &start {
         made_by = format!("{before}; then {made_by} --from it");
     }
     // Kept on the terminal: the loss the training ended at stays readable.
-    let (net, about, report) = train(&opts, start.map(|s| s.0), &made_by, &Bars::kept(show))?;
+    args.threshold
+        .map(crate::detect::check_threshold)
+        .transpose()?;
+    let (net, mut about, report) = train(&opts, start.map(|s| s.0), &made_by, &Bars::kept(show))?;
+    about.threshold = args.threshold;
     model::save(&args.out, &net, &about)?;
     let accuracy = |a: Option<f64>| a.map_or("no validation".to_string(), |a| format!("{a:.3}"));
     let familiarity = match (&report.familiarity_missing, report.validation_unfamiliar) {
@@ -218,9 +238,10 @@ pub struct Args {
     /// Write each image with its boxes drawn to DIR/STEM_detect.png.
     #[arg(long)]
     pub draw: Option<PathBuf>,
-    /// Heatmap score a detection needs, 0..1.
-    #[arg(long, default_value_t = crate::detect::DEFAULT_THRESHOLD, conflicts_with = "normal")]
-    pub threshold: f32,
+    /// Heatmap score a detection needs, 0..1 [default: the model's own (the built-in
+    /// model's 0.4), else 0.3].
+    #[arg(long, conflicts_with = "normal")]
+    pub threshold: Option<f32>,
     /// Upsample the images N× first (bilinear), for images downsampled from the camera's
     /// scale, such as `rollfuse stream`'s strips from a device configured to downsample;
     /// boxes are reported in the images' own pixels.
@@ -277,7 +298,9 @@ struct ImageResult<'a> {
 
 /// Runs `rollfuse detect`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    crate::detect::check_threshold(args.threshold)?;
+    args.threshold
+        .map(crate::detect::check_threshold)
+        .transpose()?;
     let drawn: Vec<PathBuf> = match &args.draw {
         Some(dir) => args
             .images
@@ -317,7 +340,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return anomalies_run(&args, normal, &drawn, records.as_mut());
     }
     let mut detector = Detector::load_or_built_in(args.model.as_deref())?;
-    detector.threshold = args.threshold;
+    detector.threshold = args.threshold.unwrap_or(detector.threshold);
     let mut batch = Batch::new();
     let mut results = Vec::new();
     for (k, path) in args.images.iter().enumerate() {

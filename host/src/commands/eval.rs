@@ -49,14 +49,10 @@ pub struct Args {
         conflicts_with = "normal"
     )]
     pub style: crate::detect::data::Style,
-    /// With --detect: the heatmap score a detection needs, 0..1, as `detect --threshold`.
-    #[arg(
-        long,
-        default_value_t = crate::detect::DEFAULT_THRESHOLD,
-        requires = "detect",
-        conflicts_with = "normal"
-    )]
-    pub threshold: f32,
+    /// With --detect: the heatmap score a detection needs, 0..1, as `detect --threshold`
+    /// [default: the model's own].
+    #[arg(long, requires = "detect", conflicts_with = "normal")]
+    pub threshold: Option<f32>,
     /// With --detect: held-out rolls to simulate (fabric = seed mod 17).
     #[arg(long, default_value_t = 34, requires = "detect")]
     pub rolls: usize,
@@ -164,12 +160,11 @@ fn run_detect(args: &Args, show: Show) -> anyhow::Result<()> {
     if args.normal {
         return run_anomaly(args, show);
     }
-    crate::detect::check_threshold(args.threshold)?;
-    let mut detector = match &args.model {
-        Some(m) => crate::detect::Detector::load(m)?,
-        None => crate::detect::Detector::built_in()?,
-    };
-    detector.threshold = args.threshold;
+    args.threshold
+        .map(crate::detect::check_threshold)
+        .transpose()?;
+    let mut detector = crate::detect::Detector::load_or_built_in(args.model.as_deref())?;
+    detector.threshold = args.threshold.unwrap_or(detector.threshold);
     let shape = crate::detect::data::RollShape::STANDARD;
     let rows = evaluate_detect(&detector, args.rolls, &shape, args.style, &Bars::new(show))?;
     let _folder = crate::files::NewFolder::create(&args.out)?;
@@ -180,7 +175,7 @@ fn run_detect(args: &Args, show: Show) -> anyhow::Result<()> {
         args.model
             .as_ref()
             .map_or("built in".to_string(), |m| m.display().to_string()),
-        args.threshold,
+        detector.threshold,
         markdown(&rows)
     );
     write_table(&args.out, "detect", &rows, &md)

@@ -12,6 +12,7 @@
 //! - [`labels`], [`tune`]: the user's labelled images (COCO), and fine-tuning on them.
 
 pub mod anomaly;
+pub mod augment;
 pub mod cells;
 pub mod data;
 pub mod draw;
@@ -36,7 +37,7 @@ pub const MIN_SIDE: usize = 32;
 pub const TILE_ROWS: usize = 480;
 /// Rows tiles overlap by: a defect is reported by the tile whose own part holds its centre.
 pub const TILE_OVERLAP: usize = 64;
-/// Heatmap score a detection needs.
+/// Heatmap score a detection needs, for a model that names none of its own.
 pub const DEFAULT_THRESHOLD: f32 = 0.3;
 
 /// Refuses a detection threshold outside 0..=1 (what `--threshold` takes).
@@ -76,7 +77,7 @@ pub struct Detection {
 pub struct Detector {
     net: net::Net,
     about: model::About,
-    /// Heatmap score a detection needs.
+    /// Heatmap score a detection needs (the model's own by default).
     pub threshold: f32,
 }
 
@@ -105,8 +106,8 @@ impl Detector {
     pub fn from_net(net: net::Net, about: model::About) -> Self {
         Self {
             net,
+            threshold: about.threshold.unwrap_or(DEFAULT_THRESHOLD),
             about,
-            threshold: DEFAULT_THRESHOLD,
         }
     }
 

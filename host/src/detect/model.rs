@@ -31,6 +31,9 @@ pub struct About {
     /// What the training cloth's features look like (none in models made before they
     /// were recorded: such a model cannot tell an unknown fabric).
     pub familiarity: Option<Familiarity>,
+    /// The heatmap score its detections need unless told otherwise, where it was chosen
+    /// for it (else [`super::DEFAULT_THRESHOLD`]).
+    pub threshold: Option<f32>,
 }
 
 impl About {
@@ -46,6 +49,9 @@ impl About {
         ]);
         if let Some(f) = &self.familiarity {
             meta.insert("familiarity".into(), f.to_metadata()?);
+        }
+        if let Some(t) = self.threshold {
+            meta.insert("threshold".into(), t.to_string());
         }
         Ok(meta)
     }
@@ -90,11 +96,20 @@ impl About {
                 Familiarity::from_metadata(text, super::cells::TEXTURE.dim(), fabrics.len())
             })
             .transpose()?;
+        let threshold = meta
+            .get("threshold")
+            .map(|t| -> anyhow::Result<f32> {
+                let t: f32 = t.parse().context("its threshold is not a number")?;
+                super::check_threshold(t).context("its threshold")?;
+                Ok(t)
+            })
+            .transpose()?;
         Ok(Self {
             widths: Widths(widths),
             fabrics,
             made_by: meta.get("made_by").cloned().unwrap_or_default(),
             familiarity,
+            threshold,
         })
     }
 }

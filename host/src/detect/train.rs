@@ -58,6 +58,8 @@ pub struct TrainOptions {
     pub shape: RollShape,
     /// How the rolls are drawn.
     pub style: Style,
+    /// Each crop given a random look ([`super::augment`]).
+    pub augment: bool,
 }
 
 impl Default for TrainOptions {
@@ -74,6 +76,7 @@ impl Default for TrainOptions {
             widths: Widths::SHIPPED,
             shape: RollShape::STANDARD,
             style: Style::Standard,
+            augment: false,
         }
     }
 }
@@ -193,7 +196,8 @@ pub fn train(
                 } else {
                     &frames
                 };
-                crop(pool[rng.random_range(0..pool.len())], opts.crop, rng)
+                let sample = pool[rng.random_range(0..pool.len())];
+                crop(sample, opts.crop, opts.augment, rng)
             })
             .collect();
         Batch::new(&crops, &device)
@@ -203,6 +207,7 @@ pub fn train(
         fabrics: FABRICS.iter().map(|f| f.name.to_string()).collect(),
         made_by: made_by.to_string(),
         familiarity: None,
+        threshold: None,
     };
     let validation: Vec<&Sample> = validation
         .iter()
@@ -350,8 +355,9 @@ impl Crop {
     }
 }
 
-/// A random `side × side` crop of `s`; half the time placed to hold one of its defects.
-pub fn crop(s: &Sample, side: usize, rng: &mut Pcg64Mcg) -> Crop {
+/// A random `side × side` crop of `s`; half the time placed to hold one of its defects;
+/// given a random look when `augment` ([`super::augment`]).
+pub fn crop(s: &Sample, side: usize, augment: bool, rng: &mut Pcg64Mcg) -> Crop {
     let (w, h) = (s.image.width, s.image.height);
     let mut x0 = rng.random_range(0..=w - side);
     let mut y0 = rng.random_range(0..=h - side);
@@ -384,17 +390,21 @@ pub fn crop(s: &Sample, side: usize, rng: &mut Pcg64Mcg) -> Crop {
             })
             .collect()
     };
-    let pixels: Vec<f32> = (y0..y0 + side)
+    let mut pixels: Vec<f32> = (y0..y0 + side)
         .flat_map(|y| {
             s.image.planes[0][y * w + x0..y * w + x0 + side]
                 .iter()
                 .copied()
         })
         .collect();
+    let (mut boxes, mut blurred) = (shift(&s.boxes), shift(&s.blurred));
+    if augment {
+        super::augment::apply(&mut pixels, side, &mut boxes, &mut blurred, rng);
+    }
     Crop {
         pixels: normalized(&pixels),
         side,
-        targets: encode(&shift(&s.boxes), &shift(&s.blurred), side, side),
+        targets: encode(&boxes, &blurred, side, side),
         class: Some(s.class),
     }
 }
@@ -498,6 +508,7 @@ mod tests {
                 defects: 1,
             },
             style: Style::Standard,
+            augment: true,
         };
         let (net, about, report) = train(&opts, None, "test", &crate::progress::Silent).unwrap();
         assert_eq!(about.fabrics.len(), 17);

@@ -98,6 +98,9 @@ pub fn tune(
     );
     let side = crop_side(&training, opts.crop);
     let (net, mut about) = start;
+    // The start's own threshold was chosen for the cloth it learned; the tuned model, and
+    // its measures before and after, use the default unless told otherwise.
+    about.threshold = None;
     let before = measure(&net, &about, &validation)?;
     let device = Device::flex().autodiff();
     device.seed(opts.seed);
@@ -114,7 +117,7 @@ pub fn tune(
             let crops: Vec<Crop> = (0..opts.batch)
                 .map(|_| {
                     let s = &training[rng.random_range(0..training.len())];
-                    crop(s, side, rng).without_fabric()
+                    crop(s, side, false, rng).without_fabric()
                 })
                 .collect();
             Batch::new(&crops, &device)

@@ -287,6 +287,7 @@ fn a_failing_detector_is_counted_and_shown_never_clean() {
         fabrics: (0..17).map(|i| format!("f{i}")).collect(),
         made_by: "test".into(),
         familiarity: None,
+        threshold: None,
     };
     crate::detect::model::save(&path, &net, &about).unwrap();
     let bytes = std::fs::read(&path).unwrap();
