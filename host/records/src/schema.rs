@@ -68,9 +68,11 @@ fn migration(n: i64, t: &Types) -> Option<String> {
             );"
         )),
         // A segment announced before its file is moved into place (`pending` 1) is listed
-        // only once it is confirmed, or found whole when an interrupted roll is settled.
+        // only once it is confirmed, or found whole when an interrupted roll is settled;
+        // every open looks for unsettled ones, through a partial index of just those.
         1 => Some(format!(
-            "ALTER TABLE segments ADD COLUMN pending {int} NOT NULL DEFAULT 0"
+            "ALTER TABLE segments ADD COLUMN pending {int} NOT NULL DEFAULT 0;
+            CREATE INDEX segments_announced ON segments (roll_id) WHERE pending = 1;"
         )),
         _ => None,
     }
