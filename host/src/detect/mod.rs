@@ -37,17 +37,7 @@ pub const MIN_SIDE: usize = 32;
 pub const TILE_ROWS: usize = 480;
 /// Rows tiles overlap by: a defect is reported by the tile whose own part holds its centre.
 pub const TILE_OVERLAP: usize = 64;
-/// Heatmap score a detection needs, for a model that names none of its own.
-pub const DEFAULT_THRESHOLD: f32 = 0.3;
-
-/// Refuses a detection threshold outside 0..=1 (what `--threshold` takes).
-pub fn check_threshold(threshold: f32) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        (0.0..=1.0).contains(&threshold),
-        "--threshold must be in 0..=1, got {threshold}"
-    );
-    Ok(())
-}
+pub use model::{DEFAULT_THRESHOLD, check_threshold};
 /// The fabric reported for an image unlike every fabric the model knows.
 pub const UNKNOWN_FABRIC: &str = "unknown";
 /// Most detections reported per tile.

@@ -19,6 +19,18 @@ pub const FORMAT: &str = "rollfuse-detector-1";
 /// Largest model file read, bytes.
 pub const MAX_MODEL_BYTES: u64 = 256 << 20;
 
+/// Heatmap score a detection needs, for a model that names none of its own.
+pub const DEFAULT_THRESHOLD: f32 = 0.3;
+
+/// Refuses a detection threshold outside 0..=1 (what `--threshold` takes).
+pub fn check_threshold(threshold: f32) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        (0.0..=1.0).contains(&threshold),
+        "--threshold must be in 0..=1, got {threshold}"
+    );
+    Ok(())
+}
+
 /// What a model file says about its network.
 #[derive(Debug, Clone, PartialEq)]
 pub struct About {
@@ -32,7 +44,7 @@ pub struct About {
     /// were recorded: such a model cannot tell an unknown fabric).
     pub familiarity: Option<Familiarity>,
     /// The heatmap score its detections need unless told otherwise, where it was chosen
-    /// for it (else [`super::DEFAULT_THRESHOLD`]).
+    /// for it (else [`DEFAULT_THRESHOLD`]).
     pub threshold: Option<f32>,
 }
 
@@ -100,7 +112,7 @@ impl About {
             .get("threshold")
             .map(|t| -> anyhow::Result<f32> {
                 let t: f32 = t.parse().context("its threshold is not a number")?;
-                super::check_threshold(t).context("its threshold")?;
+                check_threshold(t).context("its threshold")?;
                 Ok(t)
             })
             .transpose()?;
