@@ -227,11 +227,13 @@ impl StripWriter {
         self.flush()
     }
 
-    /// Writes each staged segment, whole, at its name.
+    /// Writes each staged segment, whole, at its name; one that cannot be written stays
+    /// staged with those after it (a strip dropped unfinished tries them again).
     fn land_staged(&mut self) -> anyhow::Result<()> {
-        let from = self.written.len() - self.staged.len();
-        for (n, png) in (from..).zip(std::mem::take(&mut self.staged)) {
-            write_bytes_atomic(&self.numbered(n), &png)?;
+        while let Some(png) = self.staged.first() {
+            let n = self.written.len() - self.staged.len();
+            write_bytes_atomic(&self.numbered(n), png)?;
+            self.staged.remove(0);
         }
         Ok(())
     }
