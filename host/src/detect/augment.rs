@@ -4,9 +4,9 @@
 //!
 //! Each crop is, independently: turned half a turn half the time (the light then comes
 //! from the other side; a turn, unlike a mirror, keeps a twill's hand, so the fabric stays
-//! the one it is, and a defect the kind it is), bent in
-//! tone by a gamma of 0.6–1.65, lit unevenly by a linear tilt of up to ±30 % across it,
-//! blurred half the time (σ 0.3–1.2 px) and given read noise (σ up to 4 gray levels).
+//! the one it is, and a defect the kind it is), bent in tone by a gamma of 0.6–1.65, lit
+//! unevenly by a linear tilt of up to ±30 % across it, blurred half the time (σ 0.3–1.2
+//! px) and given read noise (σ up to 4 gray levels).
 
 use super::targets::Labelled;
 use rand::RngExt;
@@ -32,12 +32,7 @@ pub fn apply(
     rng: &mut Pcg64Mcg,
 ) {
     if rng.random_bool(0.5) {
-        for across in [true, false] {
-            mirror(pixels, side, across);
-            for l in boxes.iter_mut().chain(blurred.iter_mut()) {
-                l.box_px = mirrored_box(l.box_px, side, across);
-            }
-        }
+        turn(pixels, side, boxes.iter_mut().chain(blurred.iter_mut()));
     }
     let gamma = rng.random_range(-LOG_GAMMA..LOG_GAMMA).exp();
     let tilt = [rng.random_range(-TILT..TILT), rng.random_range(-TILT..TILT)];
@@ -51,25 +46,14 @@ pub fn apply(
     }
 }
 
-/// Mirrors a `side × side` image left–right (`across`) or top–bottom.
-fn mirror(pixels: &mut [f32], side: usize, across: bool) {
-    if across {
-        pixels.chunks_exact_mut(side).for_each(<[f32]>::reverse);
-    } else {
-        for y in 0..side / 2 {
-            let (top, bottom) = pixels.split_at_mut((side - 1 - y) * side);
-            top[y * side..(y + 1) * side].swap_with_slice(&mut bottom[..side]);
-        }
-    }
-}
-
-/// `[x0, y0, x1, y1]` in a `side`-pixel crop mirrored left–right (`across`) or top–bottom.
-fn mirrored_box([x0, y0, x1, y1]: [f32; 4], side: usize, across: bool) -> [f32; 4] {
+/// Turns a `side × side` image half a turn, and `labels` on it with it.
+fn turn<'a>(pixels: &mut [f32], side: usize, labels: impl Iterator<Item = &'a mut Labelled>) {
+    // Row by row, a half turn reverses the image's samples.
+    pixels.reverse();
     let s = side as f32;
-    if across {
-        [s - x1, y0, s - x0, y1]
-    } else {
-        [x0, s - y1, x1, s - y0]
+    for l in labels {
+        let [x0, y0, x1, y1] = l.box_px;
+        l.box_px = [s - x1, s - y1, s - x0, s - y0];
     }
 }
 
@@ -106,18 +90,21 @@ mod tests {
     use rand::SeedableRng;
 
     #[test]
-    fn mirrors_move_the_pixels_and_their_boxes_together() {
+    fn a_turn_moves_the_pixels_and_their_boxes_together() {
         let side = 4;
         let original: Vec<f32> = (0..16).map(|v| v as f32).collect();
-        for across in [true, false] {
-            let mut p = original.clone();
-            mirror(&mut p, side, across);
-            // The pixel at (1, 0) — box [1, 0, 2, 1] — goes to the mirrored box's corner.
-            let [x0, y0, ..] = mirrored_box([1.0, 0.0, 2.0, 1.0], side, across);
-            assert_eq!(p[y0 as usize * side + x0 as usize], original[1], "{across}");
-            mirror(&mut p, side, across);
-            assert_eq!(p, original, "twice is once undone");
-        }
+        let mut p = original.clone();
+        // The pixel at (1, 0) — box [1, 0, 2, 1] — goes to the turned box's corner.
+        let at = [1.0, 0.0, 2.0, 1.0];
+        let mut label = Labelled {
+            kind: DefectKind::Hole,
+            box_px: at,
+        };
+        turn(&mut p, side, std::iter::once(&mut label));
+        let [x0, y0, ..] = label.box_px;
+        assert_eq!(p[y0 as usize * side + x0 as usize], original[1]);
+        turn(&mut p, side, std::iter::once(&mut label));
+        assert_eq!((p, label.box_px), (original, at), "twice is once undone");
     }
 
     #[test]
