@@ -4,7 +4,7 @@
 //! positions and a small crop of each.
 
 use crate::image::Planes;
-use crate::strip_file::{Segment, StagedSegment};
+use crate::strip_file::{Segment, StripWriter};
 use anyhow::Context;
 use rollfuse_records::{DefectRecord, Records, RollStart, SegmentRecord, Status};
 use std::path::Path;
@@ -36,7 +36,6 @@ pub struct RollKeeper {
     records: Records,
     roll: i64,
     folder: std::path::PathBuf,
-    recorded: usize,
     /// The recorded segments: number, first belt row, rows, file name.
     segments: Vec<(i64, Segment)>,
     /// Defects on the strip whose segment is not recorded yet.
@@ -45,8 +44,6 @@ pub struct RollKeeper {
     found: std::collections::BTreeMap<i64, Vec<DefectRecord>>,
     /// Belt millimetres a camera pixel, until the scale is set.
     mm_per_px: Option<f64>,
-    /// The announced segments' records, by number, until they are recorded.
-    announced: std::collections::BTreeMap<usize, SegmentRecord>,
 }
 
 impl RollKeeper {
@@ -81,12 +78,10 @@ impl RollKeeper {
             records,
             roll,
             folder: crate::files::folder_of(strip).to_path_buf(),
-            recorded: 0,
             segments: Vec::new(),
             waiting: Vec::new(),
             found: Default::default(),
             mm_per_px: keep.mm_per_px,
-            announced: Default::default(),
         })
     }
 
@@ -105,34 +100,22 @@ impl RollKeeper {
         self.roll
     }
 
-    /// Announces `staged` segments, before their files land: the records list each once
-    /// it is recorded, or once it is found whole if the roll is cut off meanwhile.
-    pub fn announce(&mut self, staged: &[StagedSegment]) -> anyhow::Result<()> {
-        for s in staged {
+    /// Lands `writer`'s full segments ([`StripWriter::new_segments`]): each is announced to
+    /// the records before its file is written and recorded once it is, so a roll cut off
+    /// between the two still lists it if it is whole.
+    pub fn land(&mut self, writer: &mut StripWriter) -> anyhow::Result<()> {
+        let mut announced = Vec::new();
+        for s in writer.staged() {
             let seg = s.segment;
             let (seq, first, rows) = (s.number as i64, seg.first_row, seg.rows as i64);
             let record = SegmentRecord::of_bytes(seq, &seg.file, first, rows, s.png);
             self.records.announce_segment(self.roll, &record)?;
-            self.announced.insert(s.number, record);
+            announced.push((record, seg.clone()));
         }
-        Ok(())
-    }
-
-    /// Records `segments` (numbered, whole on disk) not recorded yet.
-    pub fn segments(&mut self, segments: &[(usize, Segment)]) -> anyhow::Result<()> {
-        let from = self.recorded;
-        for (seq, s) in segments.iter().filter(|(n, _)| *n >= from) {
-            let record = match self.announced.remove(seq) {
-                Some(announced) => announced,
-                None => {
-                    let path = self.folder.join(&s.file);
-                    SegmentRecord::of_file(*seq as i64, &path, s.first_row, s.rows as i64)
-                        .with_context(|| format!("cannot read {} to record it", path.display()))?
-                }
-            };
+        writer.new_segments()?;
+        for (record, segment) in announced {
             self.records.add_segment(self.roll, &record, &[])?;
-            self.recorded = seq + 1;
-            self.segments.push((*seq as i64, s.clone()));
+            self.segments.push((record.seq, segment));
         }
         self.place_waiting()
     }

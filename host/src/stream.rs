@@ -381,14 +381,12 @@ impl StreamedStrip {
         self.land(keeper)
     }
 
-    /// Puts the full segments in place, each announced to the records first, and records
-    /// them.
+    /// Puts the full segments in place and records them ([`RollKeeper::land`]).
     fn land(&mut self, keeper: &mut RollKeeper) -> anyhow::Result<()> {
-        let Some(writer) = &mut self.writer else {
-            return Ok(());
-        };
-        keeper.announce(&writer.staged())?;
-        keeper.segments(&writer.new_segments()?)
+        match &mut self.writer {
+            Some(writer) => keeper.land(writer),
+            None => Ok(()),
+        }
     }
 
     /// Writes every tile still held and the strip's index; the strip's segments (none
