@@ -46,8 +46,9 @@ fn measure(fabric: &str, seed: u64) -> Figures {
     f
 }
 
-/// The figures docs/detect.md states, with a little room: a twill, a plain weave and a knit,
-/// each on two rolls.
+/// What anomaly mode promises on a twill, a plain weave and a knit, each on two rolls:
+/// image AUROC at least 0.95, recall at least 0.8 at precision at least 0.7
+/// (docs/detect.md states the measured figures).
 #[test]
 fn a_twill_a_plain_weave_and_a_knit_are_learned_from_clean_frames() {
     for (fabric, seed) in ["twill_2_2", "plain", "jersey"]
@@ -56,12 +57,12 @@ fn a_twill_a_plain_weave_and_a_knit_are_learned_from_clean_frames() {
     {
         let f = measure(fabric, seed);
         assert!(
-            f.auroc >= 0.9,
+            f.auroc >= 0.95,
             "{fabric}, roll {seed}: AUROC {:.3}",
             f.auroc
         );
         assert!(
-            f.recall >= 0.75,
+            f.recall >= 0.8,
             "{fabric}, roll {seed}: recall {:.2}",
             f.recall
         );

@@ -448,3 +448,116 @@ fn speed_varies_each_frames_travel_within_its_bound_and_the_commands_follow() {
     let spread = varied.iter().fold(0f64, |m, s| m.max((s - 1.0).abs()));
     assert!(spread > 0.15, "speed barely varies: {spread}");
 }
+
+/// A defect is called in contact where its frame shows it pressed into the gel: the
+/// texture in and around its box stands well above the bare rows' noise. The roller
+/// presses relative to the roll's tallest point (here a snag's loop), so the cloth touches
+/// over a narrower band than that point does, and a slub standing above the cloth over a
+/// wider one.
+#[test]
+fn a_defect_is_in_contact_only_where_its_frame_shows_it_pressed() {
+    use rollfuse::detect::data::{RollShape, roll_scene};
+    use rollfuse::sim::scene::Object;
+    let shape = RollShape {
+        frames: 60,
+        defects: 6,
+        ..RollShape::STANDARD
+    };
+    let mut scene = roll_scene(2, &shape);
+    scene.object = Object::Textile {
+        fabric: "twill_2_2".into(),
+        defects: 6,
+        scale: 1.0,
+    };
+    scene.sensor.press_depth_mm = 0.35;
+    let sim = Simulator::new(&scene).unwrap();
+    let (w, h) = (scene.sensor.width_px, scene.sensor.height_px);
+    let (mut inside, mut outside) = (Vec::new(), 0);
+    for k in 0..sim.frames() {
+        let frame = sim.frame(k);
+        let band = band_passed(&frame.image.planes[0], w);
+        // The texture in a box as a fraction of the way from the bare rows' (the
+        // frame's first and last tenth, noise alone) to the apex rows'.
+        let rows = |y0: usize, y1: usize| box_energy(&band, w, [0, y0, w, y1]);
+        let bare = (rows(0, h / 10) + rows(h - h / 10, h)) / 2.0;
+        let apex = rows(h / 2 - 10, h / 2 + 10);
+        for d in sim.defects_in(&frame) {
+            // The defect's box widened by half its size each way: a hole shows the
+            // bare belt, the cloth around it its texture.
+            let [x0, y0, x1, y1] = d.box_px;
+            let (dx, dy) = ((x1 - x0) / 2.0, (y1 - y0) / 2.0);
+            let clip = |v: f64, n: usize| v.clamp(0.0, n as f64) as usize;
+            let around = [
+                clip(x0 - dx, w),
+                clip(y0 - dy, h),
+                clip(x1 + dx, w),
+                clip(y1 + dy, h),
+            ];
+            if around[3] < around[1] + 8 {
+                continue;
+            }
+            let seen = (box_energy(&band, w, around) - bare) / (apex - bare);
+            if d.in_contact {
+                inside.push(seen);
+            } else {
+                assert!(
+                    seen <= 0.25,
+                    "frame {k}: a defect at row {:.0} called out of contact shows {seen:.2} of the \
+                     apex's texture around it",
+                    (y0 + y1) / 2.0
+                );
+                outside += 1;
+            }
+        }
+    }
+    // A defect whose centre only grazes the gel (a snag's thin loop, a slub's crown) is
+    // in contact but shows little: most show plainly.
+    let plain = inside.iter().filter(|&&s| s >= 0.25).count();
+    assert!(
+        plain as f64 >= 0.8 * inside.len() as f64 && outside > 10,
+        "{plain} of {} defects in contact show a quarter of the apex's texture; {outside} out \
+         of contact",
+        inside.len()
+    );
+}
+
+/// `img` (`w` wide) band-passed to a yarn's scale: its 5 × 5 box mean less its 21 × 21
+/// box mean (noise and uneven light taken out).
+fn band_passed(img: &[f32], w: usize) -> Vec<f64> {
+    let h = img.len() / w;
+    // Integral image with a zero row and column in front.
+    let mut sum = vec![0f64; (w + 1) * (h + 1)];
+    for y in 0..h {
+        for x in 0..w {
+            sum[(y + 1) * (w + 1) + x + 1] =
+                f64::from(img[y * w + x]) + sum[y * (w + 1) + x + 1] + sum[(y + 1) * (w + 1) + x]
+                    - sum[y * (w + 1) + x];
+        }
+    }
+    let mean = |x: usize, y: usize, r: usize| {
+        let (x0, y0, x1, y1) = (
+            x.saturating_sub(r),
+            y.saturating_sub(r),
+            (x + r + 1).min(w),
+            (y + r + 1).min(h),
+        );
+        let total = sum[y1 * (w + 1) + x1] - sum[y0 * (w + 1) + x1] - sum[y1 * (w + 1) + x0]
+            + sum[y0 * (w + 1) + x0];
+        total / ((x1 - x0) * (y1 - y0)) as f64
+    };
+    (0..h * w)
+        .map(|i| mean(i % w, i / w, 2) - mean(i % w, i / w, 10))
+        .collect()
+}
+
+/// Mean square of `band` (`w` wide) inside `[x0, y0, x1, y1]`.
+fn box_energy(band: &[f64], w: usize, [x0, y0, x1, y1]: [usize; 4]) -> f64 {
+    let (mut total, mut n) = (0.0, 0.0);
+    for y in y0..y1 {
+        for v in &band[y * w + x0..y * w + x1] {
+            total += v * v;
+            n += 1.0;
+        }
+    }
+    total / n
+}

@@ -56,6 +56,9 @@ pub struct StripDefect {
     pub box_mm: [f64; 4],
     /// Bounding box in strip pixels (column and row edges).
     pub box_px: [f64; 4],
+    /// How high what the gel meets at it stands, mm ([`contact_top_mm`]).
+    #[serde(skip)]
+    pub contact_top_mm: f64,
 }
 
 /// A defect as one frame shows it.
@@ -81,6 +84,40 @@ pub struct Simulator {
     sideways_px: Vec<f64>,
     /// Belt height of the gel's apex surface, mm.
     apex_height_mm: f64,
+}
+
+/// How high what the gel meets at a defect stands: the 90th percentile of the belt's
+/// height over the defect's box, or over that box widened by half its size each way if
+/// higher (`box_px` in strip pixels). A slub or a snag's loop stands above the cloth and
+/// touches the gel farther from the apex; a hole is seen where the cloth around it
+/// touches. The roller presses relative to the roll's tallest point, often another
+/// defect, so the cloth elsewhere touches over a narrower band than that point.
+fn contact_top_mm(height_mm: &[f32], width: usize, box_px: [f64; 4]) -> f64 {
+    let [x0, y0, x1, y1] = box_px;
+    let (dx, dy) = ((x1 - x0) / 2.0, (y1 - y0) / 2.0);
+    let own = percentile_90(height_mm, width, box_px);
+    own.max(percentile_90(
+        height_mm,
+        width,
+        [x0 - dx, y0 - dy, x1 + dx, y1 + dy],
+    ))
+}
+
+/// The 90th percentile of `height_mm` (rows of `width`) over `box_px`, clipped to it; 0
+/// for an empty box.
+fn percentile_90(height_mm: &[f32], width: usize, box_px: [f64; 4]) -> f64 {
+    let rows = height_mm.len() / width.max(1);
+    let clip = |v: f64, n: usize| v.clamp(0.0, n as f64) as usize;
+    let (c0, c1) = (clip(box_px[0], width), clip(box_px[2], width));
+    let (r0, r1) = (clip(box_px[1], rows), clip(box_px[3], rows));
+    let mut heights: Vec<f32> = (r0..r1)
+        .flat_map(|r| height_mm[r * width + c0..r * width + c1].iter().copied())
+        .collect();
+    if heights.is_empty() {
+        return 0.0;
+    }
+    let k = heights.len() * 9 / 10;
+    f64::from(*heights.select_nth_unstable_by(k, f32::total_cmp).1)
 }
 
 impl Simulator {
@@ -148,10 +185,12 @@ impl Simulator {
             .map(|d| {
                 let [x0, y0, x1, y1] = d.box_mm;
                 let row = |y: f64| (y - origin_mm) / mmpp;
+                let box_px = [x0 / mmpp, row(y0), x1 / mmpp, row(y1)];
                 StripDefect {
                     kind: d.kind,
                     box_mm: d.box_mm,
-                    box_px: [x0 / mmpp, row(y0), x1 / mmpp, row(y1)],
+                    box_px,
+                    contact_top_mm: contact_top_mm(&height_mm, width, box_px),
                 }
             })
             .collect();
@@ -233,10 +272,15 @@ impl Simulator {
         let s = &self.scene.sensor;
         let (w, h) = (s.width_px as f64, s.height_px as f64);
         let top = self.strip_row_of_top(frame.actual_offset_mm);
-        let half_band = if self.scene.has(Effect::Contact) {
-            (2.0 * s.roller_radius_mm * s.press_depth_mm).sqrt() / s.mm_per_px
-        } else {
-            f64::INFINITY
+        // Where the roller's surface, `apex_height_mm` at the apex and rising by
+        // d²/2R at d from it, stays below the cloth around the defect.
+        let half_band = |d: &StripDefect| {
+            if self.scene.has(Effect::Contact) {
+                let pressed = (d.contact_top_mm - self.apex_height_mm).max(0.0);
+                (2.0 * s.roller_radius_mm * pressed).sqrt() / s.mm_per_px
+            } else {
+                f64::INFINITY
+            }
         };
         // The roller's apex is at the image's middle row (see `strip_row_of_top`).
         let apex = h / 2.0;
@@ -255,7 +299,7 @@ impl Simulator {
                     index,
                     kind: d.kind,
                     box_px: [x0.max(0.0), y0.max(0.0), x1.min(w), y1.min(h)],
-                    in_contact: (centre - apex).abs() < half_band && (0.0..h).contains(&centre),
+                    in_contact: (centre - apex).abs() < half_band(d) && (0.0..h).contains(&centre),
                 })
             })
             .collect()
