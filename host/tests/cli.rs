@@ -1,5 +1,8 @@
 //! The `rollfuse` command line: help, version, unknown commands, and each command's basics.
 
+#[path = "common/docs.rs"]
+mod docs;
+
 use std::process::Command;
 
 fn rollfuse(args: &[&str]) -> std::process::Output {
@@ -315,17 +318,8 @@ fn progress_off_a_terminal_is_plain_lines() {
 /// after `rollfuse` (or `cargo run --release --`), continuation lines joined, comments
 /// dropped; with the file each comes from.
 fn documented_commands() -> Vec<(String, Vec<String>)> {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let mut files = vec![root.join("README.md")];
-    let mut docs: Vec<_> = std::fs::read_dir(root.join("docs"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "md"))
-        .collect();
-    docs.sort();
-    files.extend(docs);
     let mut commands = Vec::new();
-    for file in files {
+    for file in docs::pages() {
         let text = std::fs::read_to_string(&file).unwrap();
         let name = file.file_name().unwrap().to_string_lossy().to_string();
         let mut in_sh = false;

@@ -1,0 +1,310 @@
+//! Every example in the README's and the docs' `sh` blocks, run as written: each file's
+//! blocks in order, in a scratch folder of its own that sees the repository's `host/` and
+//! `models/`, with `rollfuse` (and `cargo run --release --`) meaning the tool under test.
+//! A command must succeed; where the doc shows what the block prints — an `<!-- output -->`
+//! line after it (before the next block or heading) and the fenced block right after that
+//! line — those lines must appear in that order in what it printed, `[..]` matching
+//! anything within a line.
+//!
+//! A block that cannot run here says why on the line before its fence, `<!-- not run:
+//! REASON -->` (a synopsis with placeholders, a USB device, a server that runs until
+//! stopped, a benchmark, a training of many minutes); an unmarked block that does not
+//! run fails this test, so an example cannot drift from the tool unnoticed. Own harness
+//! rather than trycmd: the examples are shell lines (brace expansion, folders made by
+//! the line before) inside prose, and the docs' synopses are checked for names and
+//! options by `host/tests/cli.rs`.
+
+#[path = "common/docs.rs"]
+mod docs;
+
+use docs::{pages, repo};
+use std::path::Path;
+use std::process::Command;
+
+/// One fenced `sh` block of a doc.
+#[derive(Debug)]
+struct Block {
+    /// Where its fence opens, `file:line`.
+    at: String,
+    /// Its commands, continuation lines joined and comments dropped.
+    commands: Vec<String>,
+    /// Why it is not run, from the marker before its fence.
+    not_run: Option<String>,
+    /// What it prints, from an `<!-- output -->` block right after it.
+    output: Option<Vec<String>>,
+}
+
+const NOT_RUN: &str = "<!-- not run:";
+const OUTPUT: &str = "<!-- output -->";
+
+/// The lines of the fenced block whose fence is `lines[open]`, and the index of its
+/// closing fence.
+fn fenced(lines: &[&str], open: usize) -> (Vec<String>, usize) {
+    let close = (open + 1..lines.len())
+        .find(|&i| lines[i].trim_start().starts_with("```"))
+        .unwrap_or(lines.len());
+    let body = lines[open + 1..close]
+        .iter()
+        .map(|l| l.to_string())
+        .collect();
+    (body, close)
+}
+
+/// The shell commands of an `sh` block's lines.
+fn commands(body: &[String]) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut line = String::new();
+    for raw in body {
+        let code = raw.split(" #").next().unwrap_or_default().trim_end();
+        if code.trim_start().starts_with('#') {
+            continue;
+        }
+        line.push_str(code.trim_end_matches('\\'));
+        line.push(' ');
+        if !code.ends_with('\\') {
+            let whole = std::mem::take(&mut line).trim().to_string();
+            if !whole.is_empty() {
+                out.push(whole);
+            }
+        }
+    }
+    out
+}
+
+/// Every `sh` block of `path`.
+fn blocks(path: &Path) -> Vec<Block> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    let name = path.file_name().unwrap().to_string_lossy().to_string();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < lines.len() {
+        let Some(lang) = lines[i].trim_start().strip_prefix("```") else {
+            i += 1;
+            continue;
+        };
+        let (body, close) = fenced(&lines, i);
+        if lang.trim() == "sh" {
+            let before = lines[..i].iter().rev().find(|l| !l.trim().is_empty());
+            let not_run = before
+                .and_then(|l| l.trim().strip_prefix(NOT_RUN))
+                .map(|r| r.trim_end_matches("-->").trim().to_string());
+            // Its output: the marker before the next fence or heading, prose between.
+            let marker = (close + 1..lines.len())
+                .take_while(|&k| {
+                    let l = lines[k].trim_start();
+                    !l.starts_with("```") && !l.starts_with('#')
+                })
+                .find(|&k| lines[k].trim() == OUTPUT);
+            let output = marker
+                .and_then(|m| (m + 1..lines.len()).find(|&k| !lines[k].trim().is_empty()))
+                .filter(|&fence| lines[fence].trim_start().starts_with("```"))
+                .map(|fence| fenced(&lines, fence).0);
+            out.push(Block {
+                at: format!("{name}:{}", i + 1),
+                commands: commands(&body),
+                not_run,
+                output,
+            });
+        }
+        i = close + 1;
+    }
+    out
+}
+
+/// The code spans of `text` and the text before each.
+fn spans(text: &str) -> Vec<(&str, &str)> {
+    let parts: Vec<&str> = text.split('`').collect();
+    (1..parts.len())
+        .step_by(2)
+        .map(|k| (parts[k - 1], parts[k]))
+        .collect()
+}
+
+/// The examples of a table whose last column is `example` (the README's commands), a
+/// block each row: its `cargo run --release --` spans are run, a span after `after` is
+/// run first as a `rollfuse` command (the files it needs), and a span after a colon in
+/// the row's closing parenthesis is what the example prints.
+fn table_examples(path: &Path) -> Vec<Block> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let name = path.file_name().unwrap().to_string_lossy().to_string();
+    let mut out = Vec::new();
+    let mut in_table = false;
+    for (i, line) in text.lines().enumerate() {
+        if !line.starts_with('|') {
+            in_table = false;
+            continue;
+        }
+        if line.trim_end().ends_with("| example |") {
+            in_table = true;
+            continue;
+        }
+        let Some(cell) = line.trim_end().trim_end_matches('|').rsplit(" | ").next() else {
+            continue;
+        };
+        if !in_table || cell.starts_with("---") {
+            continue;
+        }
+        let mut block = Block {
+            at: format!("{name}:{}", i + 1),
+            commands: Vec::new(),
+            not_run: cell
+                .split(NOT_RUN)
+                .nth(1)
+                .map(|r| r.split("-->").next().unwrap_or_default().trim().to_string()),
+            output: None,
+        };
+        for (before, span) in spans(cell) {
+            if span.starts_with("cargo run --release -- ") || span.starts_with("bash ") {
+                block.commands.push(span.to_string());
+            } else if before.trim_end().ends_with("after") {
+                block.commands.push(format!("rollfuse {span}"));
+            } else if before.trim_end().ends_with(':') && !span.starts_with('-') {
+                block.output = Some(vec![format!("[..]{span}[..]")]);
+            }
+        }
+        if !block.commands.is_empty() {
+            out.push(block);
+        }
+    }
+    out
+}
+
+/// Whether `line` matches `pattern`, in which `[..]` matches any run of characters.
+fn matches(pattern: &str, line: &str) -> bool {
+    let pieces: Vec<&str> = pattern.split("[..]").collect();
+    let (first, last) = (pieces[0], pieces[pieces.len() - 1]);
+    if pieces.len() == 1 {
+        return pattern == line;
+    }
+    if !line.starts_with(first) || !line[first.len()..].ends_with(last) {
+        return false;
+    }
+    let mut rest = &line[first.len()..line.len() - last.len()];
+    for piece in &pieces[1..pieces.len() - 1] {
+        match rest.find(piece) {
+            Some(k) => rest = &rest[k + piece.len()..],
+            None => return false,
+        }
+    }
+    true
+}
+
+/// A scratch folder for one doc's examples: the repository's scenes and model seen
+/// where the examples name them, everything they write kept apart.
+fn scratch() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    for shared in ["host", "models"] {
+        std::os::unix::fs::symlink(repo().join(shared), dir.path().join(shared)).unwrap();
+    }
+    dir
+}
+
+/// Runs one command line as a shell would, `rollfuse` being the tool under test. A
+/// `cargo` line other than `cargo run --release --` builds or tests the project, which
+/// the suite running this already does: it is passed over.
+fn run(line: &str, dir: &Path, at: &str) -> String {
+    if line.starts_with("cargo ") && !line.starts_with("cargo run --release -- ") {
+        return String::new();
+    }
+    let line = line.replace("cargo run --release -- ", "rollfuse ");
+    let bin = Path::new(env!("CARGO_BIN_EXE_rollfuse")).parent().unwrap();
+    let path = format!(
+        "{}:{}",
+        bin.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let out = Command::new("bash")
+        .args(["-c", &line])
+        .current_dir(dir)
+        .env("PATH", path)
+        .output()
+        .expect("run bash");
+    let printed = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        out.status.success(),
+        "{at}: `{line}` failed ({}):\n{printed}",
+        out.status
+    );
+    printed
+}
+
+/// Checks that the `expected` lines appear in `printed` in order.
+fn check_output(expected: &[String], printed: &str, at: &str) {
+    let mut lines = printed.lines();
+    for want in expected.iter().filter(|l| !l.trim().is_empty()) {
+        assert!(
+            lines.any(|got| matches(want, got)),
+            "{at}: the doc shows `{want}`, which the commands did not print (in this \
+             order):\n{printed}"
+        );
+    }
+}
+
+#[test]
+fn every_documented_example_runs_as_written() {
+    let (mut ran, mut not_run) = (0, 0);
+    for doc in pages() {
+        let mut blocks = blocks(&doc);
+        blocks.extend(table_examples(&doc));
+        if blocks.iter().all(|b| b.not_run.is_some()) {
+            not_run += blocks.len();
+            continue;
+        }
+        let dir = scratch();
+        for block in &blocks {
+            if let Some(why) = &block.not_run {
+                assert!(
+                    !why.is_empty(),
+                    "{}: say why the block is not run",
+                    block.at
+                );
+                not_run += 1;
+                continue;
+            }
+            let printed: String = block
+                .commands
+                .iter()
+                .map(|c| run(c, dir.path(), &block.at))
+                .collect();
+            if let Some(expected) = &block.output {
+                check_output(expected, &printed, &block.at);
+            }
+            ran += 1;
+        }
+    }
+    eprintln!("{ran} example blocks run, {not_run} marked not run");
+    assert!(ran >= 2, "only {ran} example blocks found to run");
+}
+
+#[test]
+fn the_harness_matches_wildcards_and_reads_markers() {
+    assert!(matches(
+        "49 tiles in [..] s ([..] tiles/s",
+        "49 tiles in 0.01 s (6422 tiles/s"
+    ));
+    assert!(matches("a[..]", "a"));
+    assert!(!matches("49 tiles in [..] s", "50 tiles in 0.01 s"));
+    assert!(!matches("exact", "exact and more"));
+    let dir = tempfile::tempdir().unwrap();
+    let doc = dir.path().join("x.md");
+    std::fs::write(
+        &doc,
+        "<!-- not run: a synopsis -->\n```sh\nrollfuse fuse FRAMES... \\\n  --out OUT # c\n```\n\n\
+         ```sh\n# a comment\nrollfuse eval --out out/eval\n```\nprints\n\n<!-- output -->\n```\nTable II[..]\n```\n",
+    )
+    .unwrap();
+    let b = blocks(&doc);
+    assert_eq!(b.len(), 2);
+    assert_eq!(b[0].not_run.as_deref(), Some("a synopsis"));
+    assert_eq!(b[0].commands, ["rollfuse fuse FRAMES...    --out OUT"]);
+    assert_eq!(b[1].commands, ["rollfuse eval --out out/eval"]);
+    assert_eq!(
+        b[1].output.as_deref(),
+        Some(&["Table II[..]".to_string()][..])
+    );
+}
