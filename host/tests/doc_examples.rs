@@ -4,7 +4,9 @@
 //! A command must succeed; where the doc shows what the block prints — an `<!-- output -->`
 //! line after it (before the next block or heading) and the fenced block right after that
 //! line — those lines must appear in that order in what it printed, `[..]` matching
-//! anything within a line.
+//! anything within a line. A table or block a doc states as a command's result, marked
+//! `<!-- output of: COMMAND -->`, is checked the same way against that command, run where
+//! the marker stands.
 //!
 //! A block that cannot run here says why on the line before its fence, `<!-- not run:
 //! REASON -->` (a synopsis with placeholders, a USB device, a server that runs until
@@ -36,6 +38,7 @@ struct Block {
 
 const NOT_RUN: &str = "<!-- not run:";
 const OUTPUT: &str = "<!-- output -->";
+const OUTPUT_OF: &str = "<!-- output of:";
 
 /// The lines of the fenced block whose fence is `lines[open]`, and the index of its
 /// closing fence.
@@ -79,6 +82,17 @@ fn blocks(path: &Path) -> Vec<Block> {
     let mut out = Vec::new();
     let mut i = 0;
     while i < lines.len() {
+        if let Some(command) = lines[i].trim().strip_prefix(OUTPUT_OF) {
+            let (shown, next) = shown_after(&lines, i);
+            out.push(Block {
+                at: format!("{name}:{}", i + 1),
+                commands: vec![command.trim_end_matches("-->").trim().to_string()],
+                not_run: None,
+                output: Some(shown),
+            });
+            i = next;
+            continue;
+        }
         let Some(lang) = lines[i].trim_start().strip_prefix("```") else {
             i += 1;
             continue;
@@ -110,6 +124,26 @@ fn blocks(path: &Path) -> Vec<Block> {
         i = close + 1;
     }
     out
+}
+
+/// What a doc shows after the marker at `lines[at]`: the fenced block or the Markdown
+/// table that follows it, and the index of the line after that.
+fn shown_after(lines: &[&str], at: usize) -> (Vec<String>, usize) {
+    let start = (at + 1..lines.len())
+        .find(|&k| !lines[k].trim().is_empty())
+        .unwrap_or(lines.len());
+    if lines
+        .get(start)
+        .is_some_and(|l| l.trim_start().starts_with("```"))
+    {
+        let (body, close) = fenced(lines, start);
+        return (body, close + 1);
+    }
+    let end = (start..lines.len())
+        .find(|&k| !lines[k].starts_with('|'))
+        .unwrap_or(lines.len());
+    let table = lines[start..end].iter().map(|l| l.to_string()).collect();
+    (table, end)
 }
 
 /// The code spans of `text` and the text before each.
@@ -295,11 +329,17 @@ fn the_harness_matches_wildcards_and_reads_markers() {
     std::fs::write(
         &doc,
         "<!-- not run: a synopsis -->\n```sh\nrollfuse fuse FRAMES... \\\n  --out OUT # c\n```\n\n\
-         ```sh\n# a comment\nrollfuse eval --out out/eval\n```\nprints\n\n<!-- output -->\n```\nTable II[..]\n```\n",
+         ```sh\n# a comment\nrollfuse eval --out out/eval\n```\nprints\n\n<!-- output -->\n```\nTable II[..]\n```\n\
+         <!-- output of: rollfuse eval --out out/eval -->\n| a | b |\n|---|---|\nprose\n",
     )
     .unwrap();
     let b = blocks(&doc);
-    assert_eq!(b.len(), 2);
+    assert_eq!(b.len(), 3);
+    assert_eq!(b[2].commands, ["rollfuse eval --out out/eval"]);
+    assert_eq!(
+        b[2].output.as_deref(),
+        Some(&["| a | b |".to_string(), "|---|---|".to_string()][..])
+    );
     assert_eq!(b[0].not_run.as_deref(), Some("a synopsis"));
     assert_eq!(b[0].commands, ["rollfuse fuse FRAMES...    --out OUT"]);
     assert_eq!(b[1].commands, ["rollfuse eval --out out/eval"]);

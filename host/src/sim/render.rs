@@ -70,8 +70,9 @@ pub struct FrameDefect {
     pub kind: DefectKind,
     /// Bounding box in the frame's pixels, clipped to the image.
     pub box_px: [f64; 4],
-    /// Whether its centre lies inside the roller's contact band (a frame shows a defect
-    /// sharply only there).
+    /// Whether it, or the cloth around it, presses into the gel at its centre (a frame
+    /// shows a defect sharply only there): its centre within the band where the roller's
+    /// surface stays below [`StripDefect::contact_top_mm`].
     pub in_contact: bool,
 }
 
@@ -273,7 +274,7 @@ impl Simulator {
         let (w, h) = (s.width_px as f64, s.height_px as f64);
         let top = self.strip_row_of_top(frame.actual_offset_mm);
         // Where the roller's surface, `apex_height_mm` at the apex and rising by
-        // d²/2R at d from it, stays below the cloth around the defect.
+        // d²/2R at d from it, stays below what the gel meets at the defect.
         let half_band = |d: &StripDefect| {
             if self.scene.has(Effect::Contact) {
                 let pressed = (d.contact_top_mm - self.apex_height_mm).max(0.0);
