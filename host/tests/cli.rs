@@ -314,47 +314,55 @@ fn progress_off_a_terminal_is_plain_lines() {
     assert_eq!(plain.lines().count(), 4, "{plain}");
 }
 
-/// The `rollfuse` command lines in the README's and docs' `sh` blocks: each as the words
-/// after `rollfuse` (or `cargo run --release --`), continuation lines joined, comments
-/// dropped; with the file each comes from.
+/// The words after `rollfuse` (or `cargo run --release --`) of a command line, skipping
+/// any `VAR=value` before it; `None` for a line of another command.
+fn rollfuse_args(line: &str) -> Option<Vec<String>> {
+    let words: Vec<&str> = line
+        .split_whitespace()
+        .skip_while(|w| w.contains('='))
+        .collect();
+    let start = match words.as_slice() {
+        [first, ..] if *first == "rollfuse" || first.ends_with("/rollfuse") => 1,
+        ["cargo", "run", "--release", "--", ..] => 4,
+        _ => return None,
+    };
+    let args: Vec<String> = words[start..].iter().map(|w| w.to_string()).collect();
+    (!args.is_empty()).then_some(args)
+}
+
+/// The `rollfuse` commands the README and docs show: the lines of their `sh` blocks
+/// (continuation lines joined, comments dropped), the commands their tables are stated as
+/// the output of or measured by (`<!-- output of: … -->`, `<!-- measured by: … -->`), and
+/// those in the prose's code spans; each as its arguments, with the file it comes from.
 fn documented_commands() -> Vec<(String, Vec<String>)> {
     let mut commands = Vec::new();
     for file in docs::pages() {
-        let text = std::fs::read_to_string(&file).unwrap();
-        let name = file.file_name().unwrap().to_string_lossy().to_string();
+        let (name, text) = docs::named_text(&file);
         let mut in_sh = false;
         let mut line = String::new();
+        let mut found = Vec::new();
         for raw in text.lines() {
-            let fence = raw.trim_start().strip_prefix("```");
-            if let Some(lang) = fence {
+            if let Some(lang) = raw.trim_start().strip_prefix("```") {
                 in_sh = !in_sh && lang.trim() == "sh";
                 continue;
             }
             if !in_sh {
+                let stated = ["<!-- output of:", "<!-- measured by:"]
+                    .iter()
+                    .find_map(|m| raw.trim().strip_prefix(m))
+                    .map(|c| c.trim_end_matches("-->"));
+                let spans = raw.split('`').skip(1).step_by(2);
+                found.extend(stated.into_iter().chain(spans).filter_map(rollfuse_args));
                 continue;
             }
             let code = raw.split(" #").next().unwrap_or_default().trim_end();
             line.push_str(code.trim_end_matches('\\'));
             line.push(' ');
-            if code.ends_with('\\') {
-                continue;
-            }
-            let whole = std::mem::take(&mut line);
-            // The command is the line's first word after any VAR=value.
-            let words: Vec<&str> = whole
-                .split_whitespace()
-                .skip_while(|w| w.contains('='))
-                .collect();
-            let start = match words.as_slice() {
-                [first, ..] if *first == "rollfuse" || first.ends_with("/rollfuse") => Some(1),
-                ["cargo", "run", "--release", "--", ..] => Some(4),
-                _ => None,
-            };
-            if let Some(k) = start.filter(|&k| k < words.len()) {
-                let args = words[k..].iter().map(|w| w.to_string()).collect();
-                commands.push((name.clone(), args));
+            if !code.ends_with('\\') {
+                found.extend(rollfuse_args(&std::mem::take(&mut line)));
             }
         }
+        commands.extend(found.into_iter().map(|args| (name.clone(), args)));
     }
     commands
 }
@@ -381,13 +389,16 @@ fn every_documented_command_names_a_subcommand_and_options_the_tool_has() {
         String::from_utf8_lossy(&out.stdout).to_string()
     };
     for (file, args) in &commands {
-        let sub = args[0].as_str();
+        // Options before any subcommand (`rollfuse --max-pixels N …`): the tool's own.
+        let global = args[0].starts_with('-');
+        let sub = if global { "" } else { args[0].as_str() };
+        let words: &[&str] = if global { &[] } else { &[sub] };
         let mut help = helps
             .entry(sub.to_string())
-            .or_insert_with(|| help_of(&[sub], file))
+            .or_insert_with(|| help_of(words, file))
             .clone();
         // A command of commands (`rolls list`): its subcommand's options.
-        let nested = help.contains("\nCommands:") && args.len() > 1;
+        let nested = !global && help.contains("\nCommands:") && args.len() > 1;
         if nested {
             let key = format!("{sub} {}", args[1]);
             help = helps
@@ -395,7 +406,7 @@ fn every_documented_command_names_a_subcommand_and_options_the_tool_has() {
                 .or_insert_with(|| help_of(&[sub, &args[1]], file))
                 .clone();
         }
-        for word in &args[1 + usize::from(nested)..] {
+        for word in &args[usize::from(!global) + usize::from(nested)..] {
             let flag = word.trim_start_matches('[').trim_end_matches(']');
             let flag = flag.split('=').next().unwrap_or_default();
             if !flag.starts_with("--") {
@@ -406,8 +417,9 @@ fn every_documented_command_names_a_subcommand_and_options_the_tool_has() {
                 .any(|w| w == flag);
             assert!(
                 listed,
-                "{file}: `rollfuse {}` — {sub} has no {flag}",
-                args.join(" ")
+                "{file}: `rollfuse {}` — {} has no {flag}",
+                args.join(" "),
+                if global { "rollfuse" } else { sub }
             );
         }
     }

@@ -6,7 +6,9 @@
 //! line — those lines must appear in that order in what it printed, `[..]` matching
 //! anything within a line. A table or block a doc states as a command's result, marked
 //! `<!-- output of: COMMAND -->`, is checked the same way against that command, run where
-//! the marker stands.
+//! the marker stands. Every other table of figures names the command that measures it
+//! (`<!-- measured by: COMMAND -->`) or says why it is not a measurement (`<!-- not
+//! measured: REASON -->`).
 //!
 //! A block that cannot run here says why on the line before its fence, `<!-- not run:
 //! REASON -->` (a synopsis with placeholders, a USB device, a server that runs until
@@ -19,7 +21,7 @@
 #[path = "common/docs.rs"]
 mod docs;
 
-use docs::{pages, repo};
+use docs::{named_text, pages, repo};
 use std::path::Path;
 use std::process::Command;
 
@@ -39,6 +41,12 @@ struct Block {
 const NOT_RUN: &str = "<!-- not run:";
 const OUTPUT: &str = "<!-- output -->";
 const OUTPUT_OF: &str = "<!-- output of:";
+const MEASURED_BY: &str = "<!-- measured by:";
+const NOT_MEASURED: &str = "<!-- not measured:";
+/// Units after a number that make it a measured figure.
+const UNITS: [&str; 9] = [
+    "ms", "s", "µs", "KB", "MB", "GB", "%", "frames/s", "rolls/s",
+];
 
 /// The lines of the fenced block whose fence is `lines[open]`, and the index of its
 /// closing fence.
@@ -76,9 +84,8 @@ fn commands(body: &[String]) -> Vec<String> {
 
 /// Every `sh` block of `path`.
 fn blocks(path: &Path) -> Vec<Block> {
-    let text = std::fs::read_to_string(path).unwrap();
+    let (name, text) = named_text(path);
     let lines: Vec<&str> = text.lines().collect();
-    let name = path.file_name().unwrap().to_string_lossy().to_string();
     let mut out = Vec::new();
     let mut i = 0;
     while i < lines.len() {
@@ -160,8 +167,7 @@ fn spans(text: &str) -> Vec<(&str, &str)> {
 /// run first as a `rollfuse` command (the files it needs), and a span after a colon in
 /// the row's closing parenthesis is what the example prints.
 fn table_examples(path: &Path) -> Vec<Block> {
-    let text = std::fs::read_to_string(path).unwrap();
-    let name = path.file_name().unwrap().to_string_lossy().to_string();
+    let (name, text) = named_text(path);
     let mut out = Vec::new();
     let mut in_table = false;
     for (i, line) in text.lines().enumerate() {
@@ -200,6 +206,58 @@ fn table_examples(path: &Path) -> Vec<Block> {
         if !block.commands.is_empty() {
             out.push(block);
         }
+    }
+    out
+}
+
+/// Whether a table's text states a figure: a decimal, or a number with a unit of time,
+/// size or rate.
+fn holds_figures(text: &str) -> bool {
+    let decimal = text
+        .as_bytes()
+        .windows(3)
+        .any(|w| w[0].is_ascii_digit() && w[1] == b'.' && w[2].is_ascii_digit());
+    let words: Vec<&str> = text
+        .split(|c: char| c.is_whitespace() || c == '|' || c == '(' || c == ')' || c == ',')
+        .filter(|w| !w.is_empty())
+        .collect();
+    let with_unit = words
+        .windows(2)
+        .any(|w| w[0].ends_with(|c: char| c.is_ascii_digit()) && UNITS.contains(&w[1]));
+    let percent = words
+        .iter()
+        .any(|w| w.ends_with('%') && w[..w.len() - 1].ends_with(|c: char| c.is_ascii_digit()));
+    decimal || with_unit || percent
+}
+
+/// Every Markdown table of `path` whose rows state figures, except a table of examples
+/// (run by [`table_examples`]): where it starts (`file:line`) and the marker line before
+/// it, if any (blank lines between allowed).
+fn tables_of_figures(path: &Path) -> Vec<(String, Option<String>)> {
+    let (name, text) = named_text(path);
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < lines.len() {
+        if !lines[i].starts_with('|') {
+            i += 1;
+            continue;
+        }
+        let end = (i..lines.len())
+            .find(|&k| !lines[k].starts_with('|'))
+            .unwrap_or(lines.len());
+        let rows = lines[(i + 2).min(end)..end].join("\n");
+        let examples = lines[i].trim_end().ends_with("| example |");
+        if !examples && holds_figures(&rows) {
+            let marker = lines[..i]
+                .iter()
+                .rev()
+                .find(|l| !l.trim().is_empty())
+                .filter(|l| l.trim_start().starts_with("<!--"))
+                .map(|l| l.trim().to_string());
+            out.push((format!("{name}:{}", i + 1), marker));
+        }
+        i = end;
     }
     out
 }
@@ -310,6 +368,56 @@ fn every_documented_example_runs_as_written() {
     assert!(ran >= 2, "only {ran} example blocks found to run");
 }
 
+/// Every table of figures in the README and docs says where its figures come from: a
+/// command whose output the running test compares (`<!-- output of: COMMAND -->`), the
+/// command that measures them where it cannot run here (`<!-- measured by: COMMAND -->`;
+/// a script it names must exist, a `rollfuse` command's options are checked by
+/// host/tests/cli.rs), or why the table is not a measurement (`<!-- not measured:
+/// REASON -->`: options, limits, a scene file's fields).
+#[test]
+fn every_table_of_figures_says_where_they_come_from() {
+    let (mut tables, mut unsaid) = (0, Vec::new());
+    for doc in pages() {
+        for (at, marker) in tables_of_figures(&doc) {
+            tables += 1;
+            let marker = marker.unwrap_or_default();
+            let said = [OUTPUT_OF, MEASURED_BY, NOT_MEASURED]
+                .iter()
+                .find_map(|m| marker.strip_prefix(m))
+                .map(|r| r.trim_end_matches("-->").trim())
+                .filter(|s| !s.is_empty());
+            match said {
+                Some(command) if marker.starts_with(MEASURED_BY) => {
+                    check_scripts_exist(command, &at)
+                }
+                Some(_) => {}
+                None => unsaid.push(at),
+            }
+        }
+    }
+    assert!(
+        unsaid.is_empty(),
+        "tables of figures need `{OUTPUT_OF} COMMAND -->`, `{MEASURED_BY} COMMAND -->` or \
+         `{NOT_MEASURED} REASON -->` before them: {}",
+        unsaid.join(", ")
+    );
+    assert!(tables >= 10, "only {tables} tables of figures found");
+}
+
+/// Every script `command` runs (`bash FILE`, `python3 FILE`) is in the repository.
+fn check_scripts_exist(command: &str, at: &str) {
+    let words: Vec<&str> = command.split_whitespace().collect();
+    for pair in words.windows(2) {
+        if matches!(pair[0], "bash" | "python3") {
+            assert!(
+                repo().join(pair[1]).is_file(),
+                "{at}: the table is measured by `{command}`, but {} does not exist",
+                pair[1]
+            );
+        }
+    }
+}
+
 #[test]
 fn the_harness_matches_wildcards_and_reads_markers() {
     assert!(matches(
@@ -319,15 +427,28 @@ fn the_harness_matches_wildcards_and_reads_markers() {
     assert!(matches("a[..]", "a"));
     assert!(!matches("49 tiles in [..] s", "50 tiles in 0.01 s"));
     assert!(!matches("exact", "exact and more"));
+    assert!(holds_figures("| a | 0.71 |"));
+    assert!(holds_figures("| a | 12 % |") && holds_figures("| a | 8.0 s |"));
+    assert!(holds_figures("| a | 3 ms |") && holds_figures("| a | 40%, 2 |"));
+    assert!(!holds_figures("| `--levels` | 2 | wavelet levels |"));
     let dir = tempfile::tempdir().unwrap();
     let doc = dir.path().join("x.md");
     std::fs::write(
         &doc,
         "<!-- not run: a synopsis -->\n```sh\nrollfuse fuse FRAMES... \\\n  --out OUT # c\n```\n\n\
          ```sh\n# a comment\nrollfuse eval --out out/eval\n```\nprints\n\n<!-- output -->\n```\nTable II[..]\n```\n\
-         <!-- output of: rollfuse eval --out out/eval -->\n| a | b |\n|---|---|\nprose\n",
+         <!-- output of: rollfuse eval --out out/eval -->\n| a | b |\n|---|---|\nprose\n\n\
+         | a | b |\n|---|---|\n| x | 1.5 |\n\n<!-- measured by: bash x.sh -->\n\n\
+         | a | b |\n|---|---|\n| x | 2 s |\n",
     )
     .unwrap();
+    let figures = tables_of_figures(&doc);
+    assert_eq!(figures.len(), 2, "{figures:?}");
+    assert_eq!(figures[0].1, None);
+    assert_eq!(
+        figures[1].1.as_deref(),
+        Some("<!-- measured by: bash x.sh -->")
+    );
     let b = blocks(&doc);
     assert_eq!(b.len(), 3);
     assert_eq!(b[2].commands, ["rollfuse eval --out out/eval"]);

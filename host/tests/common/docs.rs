@@ -20,3 +20,9 @@ pub fn pages() -> Vec<PathBuf> {
         .chain(docs)
         .collect()
 }
+
+/// A doc's file name (for messages) and its text.
+pub fn named_text(path: &Path) -> (String, String) {
+    let name = path.file_name().unwrap().to_string_lossy().to_string();
+    (name, std::fs::read_to_string(path).unwrap())
+}
