@@ -3,6 +3,7 @@
 
 use crate::fullres::align::Offset;
 use crate::image::Planes;
+use crate::sim::Manifest;
 use anyhow::{Context, bail, ensure};
 use std::path::{Path, PathBuf};
 
@@ -123,36 +124,18 @@ pub fn manifest_path(given: Option<&Path>, frames: &[PathBuf]) -> PathBuf {
     }
 }
 
-/// Commanded belt offsets of `paths` from a simulator manifest, as canvas rows.
+/// Commanded belt offsets of `paths` from a manifest ([`Manifest`]), as canvas rows.
 pub fn motion_offsets(manifest: &Path, paths: &[PathBuf]) -> anyhow::Result<Vec<Offset>> {
-    let text = std::fs::read_to_string(manifest)
-        .with_context(|| format!("cannot read manifest {}", manifest.display()))?;
-    let doc: serde_json::Value = serde_json::from_str(&text)
-        .with_context(|| format!("{} is not valid JSON", manifest.display()))?;
-    let frames = doc["frames"]
-        .as_array()
-        .with_context(|| format!("{}: no `frames` list", manifest.display()))?;
+    let record = Manifest::read(manifest)?;
     paths
         .iter()
         .map(|p| {
             let name = p.file_name().and_then(|n| n.to_str()).unwrap_or_default();
-            let rec = frames
-                .iter()
-                .find(|f| f["file"].as_str() == Some(name))
+            let frame = record
+                .frame(name)
                 .with_context(|| format!("{} is not in {}", p.display(), manifest.display()))?;
-            let row = match &rec["strip_row"] {
-                serde_json::Value::Null => {
-                    anyhow::bail!("{}: frame {name} has no strip_row", manifest.display())
-                }
-                value => value.as_f64().filter(|r| r.is_finite()).with_context(|| {
-                    format!(
-                        "{}: frame {name} has strip_row {value}, not a number",
-                        manifest.display()
-                    )
-                })?,
-            };
             Ok(Offset {
-                dy: row.round() as i64,
+                dy: frame.strip_row.round() as i64,
                 dx: 0,
             })
         })

@@ -88,9 +88,9 @@ impl Options {
 /// so it should hand work elsewhere and return.
 pub trait Watch {
     /// A tile was taken into the strip (the manifest already counts it).
-    fn tile(&mut self, _tile: &protocol::Tile<'_>, _manifest: &Manifest) {}
+    fn tile(&mut self, _tile: &protocol::Tile<'_>, _manifest: &StreamRecord) {}
     /// A message was taken: the manifest's figures (faults, device status) may have moved.
-    fn message(&mut self, _manifest: &Manifest) {}
+    fn message(&mut self, _manifest: &StreamRecord) {}
     /// A command to send to a live device now, if any (e.g. a control on a served page);
     /// asked about once per turn of the session's loop.
     fn command(&mut self) -> Option<Command> {
@@ -184,9 +184,14 @@ pub fn output_files(out: &Path) -> [PathBuf; 3] {
     ]
 }
 
-/// What `manifest.json` holds.
+/// The format a stream's `manifest.json` declares (its `format` field), so that no reader
+/// takes it for the frames manifest `rollfuse simulate` writes ([`crate::sim::Manifest`]).
+pub const STREAM_FORMAT: &str = "rollfuse-stream-1";
+
+/// What a stream records of itself, its folder's `manifest.json` (with `format`:
+/// [`STREAM_FORMAT`]).
 #[derive(Debug, Default, Clone, Serialize)]
-pub struct Manifest {
+pub struct StreamRecord {
     /// Messages received (good or not).
     pub messages: u64,
     /// Bytes received.
@@ -220,6 +225,23 @@ pub struct Manifest {
     pub log: Vec<String>,
     /// Whether the device said it stopped streaming (otherwise the link ended first).
     pub device_stopped: bool,
+}
+
+impl StreamRecord {
+    /// The record as its file holds it: pretty JSON led by `format` ([`STREAM_FORMAT`]).
+    pub fn to_json(&self) -> serde_json::Result<String> {
+        #[derive(Serialize)]
+        struct Tagged<'a> {
+            format: &'static str,
+            #[serde(flatten)]
+            record: &'a StreamRecord,
+        }
+        let tagged = Tagged {
+            format: STREAM_FORMAT,
+            record: self,
+        };
+        Ok(serde_json::to_string_pretty(&tagged)? + "\n")
+    }
 }
 
 /// A configuration the device ran and the tiles it applies to.
@@ -304,7 +326,7 @@ impl StreamedStrip {
         index: u32,
         size: (u16, u16),
         pixels: &[u8],
-        m: &mut Manifest,
+        m: &mut StreamRecord,
     ) -> anyhow::Result<Result<(), Refused>> {
         if *self.size.get_or_insert(size) != size {
             return Ok(Err(Refused::Mismatched));
@@ -332,7 +354,7 @@ impl StreamedStrip {
 
     /// Writes pending tiles in order, declaring missing indices lost while more than
     /// `hold` tiles wait.
-    fn drain(&mut self, m: &mut Manifest, hold: usize) -> anyhow::Result<()> {
+    fn drain(&mut self, m: &mut StreamRecord, hold: usize) -> anyhow::Result<()> {
         while let Some((&lowest, _)) = self.pending.first_key_value() {
             let next = self.next.unwrap_or(lowest);
             if lowest != next {
@@ -394,7 +416,7 @@ impl StreamedStrip {
     /// The last segment is recorded by `keeper`, if the strip is kept in the records.
     fn finish(
         mut self,
-        m: &mut Manifest,
+        m: &mut StreamRecord,
         keeper: Option<&mut RollKeeper>,
     ) -> anyhow::Result<Vec<Segment>> {
         self.drain(m, 0)?;
@@ -429,7 +451,7 @@ pub enum StopReason {
 /// The session's result.
 pub struct Outcome {
     /// What was written to `manifest.json`.
-    pub manifest: Manifest,
+    pub manifest: StreamRecord,
     /// The roll's id in the records, if kept there.
     pub roll: Option<i64>,
     /// The strip's files in the output folder, in belt order (none without a tile).
@@ -459,7 +481,7 @@ fn start_session(
 }
 
 /// The limit (`--tiles`, `--seconds`) the session has reached, if any.
-fn limit_reached(opts: &Options, manifest: &Manifest, started: Instant) -> Option<StopReason> {
+fn limit_reached(opts: &Options, manifest: &StreamRecord, started: Instant) -> Option<StopReason> {
     if opts.max_tiles.is_some_and(|n| manifest.tiles_received >= n) {
         Some(StopReason::TileLimit)
     } else if opts.max_duration.is_some_and(|d| started.elapsed() >= d) {
@@ -525,7 +547,7 @@ fn configured_tile(info: &DeviceInfo, configured: Option<DeviceConfig>) -> Optio
 fn take_tile(
     strip: &mut StreamedStrip,
     tile: &protocol::Tile<'_>,
-    manifest: &mut Manifest,
+    manifest: &mut StreamRecord,
 ) -> anyhow::Result<bool> {
     let size = (tile.width, tile.height);
     let fault = match strip.take(tile.index, size, tile.pixels, manifest)? {
@@ -579,7 +601,7 @@ struct Session<'a> {
     live: bool,
     started: Instant,
     recorder: Option<Recorder>,
-    manifest: Manifest,
+    manifest: StreamRecord,
     manifest_path: PathBuf,
     strip: StreamedStrip,
     /// The roll in the records, if kept there.
@@ -626,7 +648,7 @@ impl<'a> Session<'a> {
             live,
             started,
             recorder,
-            manifest: Manifest::default(),
+            manifest: StreamRecord::default(),
             manifest_path,
             strip: StreamedStrip::new(strip_path, opts.segment_rows, keeper.is_some()),
             keeper,
@@ -959,7 +981,7 @@ pub fn run_watched(
 
 /// The faults of a session as the records count them: the refused messages and link
 /// faults by kind, and the tiles lost.
-fn fault_counts(m: &Manifest) -> Vec<(&'static str, u64)> {
+fn fault_counts(m: &StreamRecord) -> Vec<(&'static str, u64)> {
     let f = &m.faults;
     let lost: u64 = m.gaps.iter().map(|[a, b]| u64::from(b - a) + 1).sum();
     vec![
@@ -982,7 +1004,6 @@ fn fault_counts(m: &Manifest) -> Vec<(&'static str, u64)> {
     ]
 }
 
-fn write_manifest(path: &Path, manifest: &Manifest) -> anyhow::Result<()> {
-    let json = serde_json::to_string_pretty(manifest)? + "\n";
-    crate::files::write_bytes_atomic(path, json.as_bytes())
+fn write_manifest(path: &Path, manifest: &StreamRecord) -> anyhow::Result<()> {
+    crate::files::write_bytes_atomic(path, manifest.to_json()?.as_bytes())
 }

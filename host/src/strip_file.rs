@@ -32,7 +32,7 @@ use std::path::{Path, PathBuf};
 pub const DEFAULT_SEGMENT_ROWS: usize = 4096;
 
 /// One written segment, as the index lists it.
-#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Segment {
     /// File name, beside the index.
     pub file: String,
@@ -89,15 +89,6 @@ pub fn is_segment_name(out: &Path, path: &Path) -> bool {
 /// row of the image's first row, for a lone strip `OUT` (index `STEM.json`) or one of its
 /// segments `STEM.NNNN.EXT`. None when no readable index beside it lists it.
 pub fn first_row_of(image: &Path) -> Option<(PathBuf, i64)> {
-    #[derive(serde::Deserialize)]
-    struct Listed {
-        file: String,
-        first_row: i64,
-    }
-    #[derive(serde::Deserialize)]
-    struct Index {
-        segments: Vec<Listed>,
-    }
     let name = image.file_name()?.to_str()?;
     let stem = image.file_stem()?.to_str()?;
     // `STEM.0003.png` has the stem `STEM.0003`; its index is `STEM.json`.
@@ -106,10 +97,22 @@ pub fn first_row_of(image: &Path) -> Option<(PathBuf, i64)> {
         _ => stem,
     };
     let index = image.with_file_name(format!("{strip_stem}.json"));
-    let text = std::fs::read_to_string(&index).ok()?;
-    let parsed: Index = serde_json::from_str(&text).ok()?;
-    let first = parsed.segments.iter().find(|s| s.file == name)?.first_row;
+    let segments = read_segments(&index).ok()?;
+    let first = segments.iter().find(|s| s.file == name)?.first_row;
     Some((index, first))
+}
+
+/// The segments a strip's index (`STEM.json`) lists, in belt order.
+pub fn read_segments(index: &Path) -> anyhow::Result<Vec<Segment>> {
+    #[derive(serde::Deserialize)]
+    struct Listed {
+        segments: Vec<Segment>,
+    }
+    let text = std::fs::read_to_string(index)
+        .with_context(|| format!("cannot read the strip index {}", index.display()))?;
+    let listed: Listed = serde_json::from_str(&text)
+        .with_context(|| format!("{} is not a strip index", index.display()))?;
+    Ok(listed.segments)
 }
 
 /// Collects rows and writes segments.

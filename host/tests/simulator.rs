@@ -2,7 +2,7 @@
 //! listed, bad scenes are refused with the field named, and runs are deterministic.
 
 use rollfuse::progress::Silent;
-use rollfuse::sim::{Effect, Scene, Simulator, output};
+use rollfuse::sim::{Effect, Manifest, Scene, Simulator, output};
 use std::path::Path;
 
 /// A small scene around `object` (TOML for the `[object]` table) with `effects`.
@@ -396,8 +396,12 @@ text = "AB""#,
     );
     let sim = Simulator::new(&s).unwrap();
     let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
-    output::write(&sim, a.path(), &Silent).unwrap();
+    let written = output::write(&sim, a.path(), &Silent).unwrap();
     output::write(&Simulator::new(&s).unwrap(), b.path(), &Silent).unwrap();
+    // The manifest reads back as written, the scene with it.
+    let read = Manifest::read(&a.path().join("manifest.json")).unwrap();
+    assert_eq!(read, written);
+    assert_eq!(read.scene_file.as_ref(), Some(sim.scene()));
     let mut files: Vec<_> = walk(a.path());
     files.sort();
     assert!(files.len() >= 5 + 4);

@@ -535,12 +535,12 @@ const BAD_LEDS: protocol::Command = protocol::Command::Leds(protocol::LedDuty {
 });
 
 impl stream::Watch for Watcher {
-    fn tile(&mut self, tile: &protocol::Tile<'_>, manifest: &stream::Manifest) {
+    fn tile(&mut self, tile: &protocol::Tile<'_>, manifest: &stream::StreamRecord) {
         assert_eq!(manifest.tiles_received, self.tiles.len() as u64 + 1);
         self.tiles.push((tile.index, tile.pixels.to_vec()));
     }
 
-    fn message(&mut self, manifest: &stream::Manifest) {
+    fn message(&mut self, manifest: &stream::StreamRecord) {
         self.messages += 1;
         assert!(manifest.messages >= self.messages);
     }

@@ -12,7 +12,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rollfuse::progress::Silent;
 use rollfuse::session::{Fusion, Opened, RecordsRequest, Request, open};
-use rollfuse::stream::{Manifest, Outcome, StopReason, Watch, run_watched};
+use rollfuse::stream::{Outcome, StopReason, StreamRecord, Watch, run_watched};
 use rollfuse::strip_file::DEFAULT_SEGMENT_ROWS;
 use rollfuse_core::protocol::{Command, Tile};
 use std::path::PathBuf;
@@ -44,7 +44,7 @@ struct Handoff {
 }
 
 impl Watch for Handoff {
-    fn tile(&mut self, tile: &Tile<'_>, _: &Manifest) {
+    fn tile(&mut self, tile: &Tile<'_>, _: &StreamRecord) {
         let shape = (usize::from(tile.height), usize::from(tile.width));
         let Ok(pixels) = Array2::from_shape_vec(shape, tile.pixels.to_vec()) else {
             return;
@@ -180,7 +180,9 @@ impl Stream {
             .detach(|| session.join())
             .map_err(|_| value_error("the streaming session failed unexpectedly"))?
             .or_py()?;
-        let json = serde_json::to_string(&outcome.manifest)
+        let json = outcome
+            .manifest
+            .to_json()
             .map_err(|e| value_error(format!("manifest: {e}")))?;
         let manifest = py.import("json")?.call_method1("loads", (json,))?;
         self.manifest = Some(manifest.unbind());

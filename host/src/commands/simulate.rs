@@ -38,14 +38,15 @@ pub fn run(args: Args, show: super::bars::Show) -> anyhow::Result<()> {
     }
     let sim = Simulator::new(&scene)?;
     let manifest = output::write(&sim, &args.out, &super::bars::Bars::new(show))?;
+    let effects: Vec<&str> = manifest.effects.iter().map(|e| e.name()).collect();
     println!(
         "{}: {} frames of {}×{} ({}) with [{}] → {}",
         manifest.scene,
         manifest.frames.len(),
-        manifest.image_size[0],
-        manifest.image_size[1],
+        scene.sensor.width_px,
+        scene.sensor.height_px,
         manifest.color,
-        manifest.effects.join(", "),
+        effects.join(", "),
         args.out.display()
     );
     Ok(())

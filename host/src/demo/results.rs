@@ -5,7 +5,7 @@ use super::detection::DetectionDemo;
 use crate::eval::depth::DepthRow;
 use crate::eval::tables::Row;
 use crate::fullres::window::ContactWindow;
-use crate::stream::{Manifest, StopReason};
+use crate::stream::{StopReason, StreamRecord};
 use crate::tradeoff::Measured;
 
 /// One stage's name and wall time.
@@ -45,7 +45,7 @@ pub struct Demo {
     /// The frames shown in the report (indices; written as [`Files::frame`]).
     pub shown_frames: Vec<usize>,
     /// The streaming session's manifest (tiles, bytes, faults, device counters).
-    pub stream: Manifest,
+    pub stream: StreamRecord,
     /// Why the session ended ([`StopReason::DeviceStopped`] when the scene ran out).
     pub stream_stop: StopReason,
     /// The stitched strip's size.

@@ -55,18 +55,15 @@ fn device_strip(scene: &Scene, sim: &Simulator) -> anyhow::Result<(i64, Planes, 
     let opts = crate::stream::Options::into_folder(&tmp);
     let result = (|| {
         crate::stream::run(&mut device, &opts, &crate::progress::Silent)?;
-        let index: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(tmp.join("strip.json"))?)?;
-        let segments = index["segments"].as_array().context("no segments")?;
+        let segments = crate::strip_file::read_segments(&tmp.join("strip.json"))?;
         ensure!(
             segments.len() == 1,
             "the device's strip of {} has {} segments (lost tiles)",
             scene.name,
             segments.len()
         );
-        let first = segments[0]["first_row"].as_i64().context("no first row")?;
-        let file = segments[0]["file"].as_str().context("no file")?;
-        let strip = Planes::load(&tmp.join(file))?;
+        let first = segments[0].first_row;
+        let strip = Planes::load(&tmp.join(&segments[0].file))?;
         // Device rows count from the first frame's top, in downsampled rows.
         let origin = sim.strip_row_of_top(sim.frame(0).offset_mm).round() as i64;
         Ok((origin + first * d as i64, strip.upsampled(d), d))

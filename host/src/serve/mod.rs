@@ -16,7 +16,7 @@ mod roll_view;
 mod routes;
 pub mod state;
 
-use crate::stream::{Manifest, Watch};
+use crate::stream::{StreamRecord, Watch};
 use anyhow::Context;
 use rollfuse_core::protocol::{self, Command};
 pub use state::MAX_REQUESTS;
@@ -195,7 +195,7 @@ impl Server {
     /// streams end, and the server goes on answering until dropped (the kept rows, the
     /// final status; event clients that come later get both and the end; control is
     /// refused). Every event stream open now is sent `end` before the server is gone.
-    pub fn finish(&self, manifest: &Manifest) {
+    pub fn finish(&self, manifest: &StreamRecord) {
         // The detector checks the last rows first, so the page has every box.
         if let Some(mut d) = lock(&self.detector).take() {
             d.finish();
@@ -290,7 +290,7 @@ pub struct LiveWatch {
 
 impl LiveWatch {
     /// Tiles and bytes a second over the last two seconds or so.
-    fn rate(&mut self, m: &Manifest, now: Instant) -> Rate {
+    fn rate(&mut self, m: &StreamRecord, now: Instant) -> Rate {
         self.samples.push_back((now, m.tiles_received, m.bytes));
         while self.samples.len() > 2
             && self
@@ -315,7 +315,7 @@ impl LiveWatch {
 }
 
 impl Watch for LiveWatch {
-    fn tile(&mut self, tile: &protocol::Tile<'_>, _manifest: &Manifest) {
+    fn tile(&mut self, tile: &protocol::Tile<'_>, _manifest: &StreamRecord) {
         let size = (usize::from(tile.width), usize::from(tile.height));
         // The clients' lock is held while the tile is kept and handed out, so a client
         // subscribing meanwhile gets it once (see events::subscribe).
@@ -331,7 +331,7 @@ impl Watch for LiveWatch {
         }
     }
 
-    fn message(&mut self, manifest: &Manifest) {
+    fn message(&mut self, manifest: &StreamRecord) {
         let now = Instant::now();
         if self.last_status.is_some_and(|t| now - t < STATUS_EVERY) {
             return;

@@ -3,7 +3,7 @@
 //! waiting for the device. Every lock is held only to copy or push, never across I/O.
 
 use super::findings::{DetectorStatus, Findings};
-use crate::stream::{Faults, Manifest};
+use crate::stream::{Faults, StreamRecord};
 use rollfuse_core::protocol::{Command, DeviceInfo, StatusCounters};
 use serde::Serialize;
 use std::collections::{BTreeMap, VecDeque};
@@ -196,7 +196,7 @@ pub struct Status {
 
 impl Status {
     /// Takes the session's figures from its manifest.
-    pub fn update(&mut self, m: &Manifest, rate: Rate) {
+    pub fn update(&mut self, m: &StreamRecord, rate: Rate) {
         self.messages = m.messages;
         self.bytes = m.bytes;
         self.tiles = m.tiles_received;

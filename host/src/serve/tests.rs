@@ -4,7 +4,7 @@
 
 use super::state::{Answering, CLIENT_QUEUE, Shared, Status, lock};
 use super::{LiveWatch, events};
-use crate::stream::{Manifest, Watch};
+use crate::stream::{StreamRecord, Watch};
 use rollfuse_core::protocol::Tile;
 use std::io::Write;
 use std::sync::Arc;
@@ -120,7 +120,7 @@ fn tiles_past_a_held_client(shared: &Arc<Shared>, n: u32) -> (LiveWatch, HeldFee
     let mut watch = watcher(shared);
     let feed = held_feed(shared);
     for i in 0..n {
-        watch.tile(&tile(i, &PIXELS), &Manifest::default());
+        watch.tile(&tile(i, &PIXELS), &StreamRecord::default());
     }
     (watch, feed)
 }
@@ -147,7 +147,7 @@ fn a_stuck_client_skips_rows_and_never_holds_up_the_watcher() {
     }
     // Then it goes on from the newest tiles.
     for i in total..total + 10 {
-        watch.tile(&tile(i, &PIXELS), &Manifest::default());
+        watch.tile(&tile(i, &PIXELS), &StreamRecord::default());
     }
     shared.close_clients();
     client.join().unwrap();

@@ -7,14 +7,17 @@
 //! - [`textile`]: the detector's fabrics and their defects.
 //! - [`render`]: the stages — contact, gel, shading, defocus, background, noise, jitter.
 //! - [`output`]: frames, truth and manifest on disk.
+//! - [`manifest`]: `manifest.json`, written and read by one type.
 
 pub mod built_in;
 pub mod font;
+pub mod manifest;
 pub mod object;
 pub mod output;
 pub mod render;
 pub mod scene;
 pub mod textile;
 
+pub use manifest::Manifest;
 pub use render::{Frame, Planes, Simulator, Strip};
 pub use scene::{Effect, Scene};

@@ -2,6 +2,7 @@
 //! `lights.toml` (RGB scenes: the true light file for `rollfuse depth`) and
 //! `manifest.json`.
 
+use super::manifest::{FRAMES_FORMAT, FrameRecord, Manifest, Truth};
 use super::render::{FrameDefect, Planes, Simulator, Strip, StripDefect};
 use super::scene::Object;
 use super::textile;
@@ -11,71 +12,6 @@ use crate::progress::Progress;
 use anyhow::{Context, ensure};
 use serde::Serialize;
 use std::path::Path;
-
-/// What `manifest.json` records of one frame.
-#[derive(Debug, Serialize)]
-pub struct FrameRecord {
-    /// The PNG's file name.
-    pub file: String,
-    /// Commanded belt position of the roller's apex, mm (what the motion system reports).
-    pub offset_mm: f64,
-    /// True belt position (differs with `jitter`), mm.
-    pub actual_offset_mm: f64,
-    /// Commanded position as a strip row of image row 0 (fractional pixels).
-    pub strip_row: f64,
-    /// True position as a strip row of image row 0.
-    pub actual_strip_row: f64,
-    /// How far the belt lay sideways (`wander`): image column `x` shows strip column `x +
-    /// actual_sideways_px`.
-    pub actual_sideways_px: f64,
-    /// The stages that ran.
-    pub stages: Vec<&'static str>,
-}
-
-/// `manifest.json`.
-#[derive(Debug, Serialize)]
-pub struct Manifest {
-    /// Scene name.
-    pub scene: String,
-    /// Seed used.
-    pub seed: u64,
-    /// Effects listed.
-    pub effects: Vec<&'static str>,
-    /// `gray` or `rgb`.
-    pub color: &'static str,
-    /// Image width and height, pixels.
-    pub image_size: [usize; 2],
-    /// Belt mm per pixel.
-    pub mm_per_px: f64,
-    /// The frames.
-    pub frames: Vec<FrameRecord>,
-    /// Ground truth files, relative to the output folder.
-    pub truth: Truth,
-    /// The scene as simulated (defaults filled in).
-    pub scene_file: toml::Value,
-}
-
-/// Where the ground truth is.
-#[derive(Debug, Serialize)]
-pub struct Truth {
-    /// Height map over the strip, mm, float32 `.npy` (rows along the belt).
-    pub height_npy: String,
-    /// The same as a 16-bit PNG, 1 µm per level.
-    pub height_png: String,
-    /// The ideal contact image over the strip (the MS-SSIM reference).
-    pub ideal_png: String,
-    /// Strip size: [width, rows].
-    pub strip_size: [usize; 2],
-    /// Belt position of strip row 0, mm.
-    pub strip_origin_mm: f64,
-    /// Region masks (name → file), 255 inside.
-    pub regions: Vec<(String, String)>,
-    /// Up to six frames across the roll, side by side.
-    pub contact_sheet_png: String,
-    /// A textile's fabric and defects ([`DefectsTruth`]); absent for other objects.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub defects_json: Option<String>,
-}
 
 /// `truth/defects.json`: what the detector should find.
 #[derive(Debug, Serialize)]
@@ -276,7 +212,7 @@ pub fn write(sim: &Simulator, out: &Path, progress: &dyn Progress) -> anyhow::Re
             strip_row: sim.strip_row_of_top(f.offset_mm),
             actual_strip_row: sim.strip_row_of_top(f.actual_offset_mm),
             actual_sideways_px: f.sideways_px,
-            stages: f.stages.iter().map(|e| e.name()).collect(),
+            stages: f.stages.clone(),
         });
         progress.advance_to(k as u64 + 1);
     }
@@ -297,18 +233,20 @@ pub fn write(sim: &Simulator, out: &Path, progress: &dyn Progress) -> anyhow::Re
         batch.add_bytes(&out.join("lights.toml"), lights.to_toml()?.as_bytes())?;
     }
     let manifest = Manifest {
+        format: FRAMES_FORMAT.to_string(),
         scene: scene.name.clone(),
         seed: scene.seed,
-        effects: scene.effects.iter().map(|e| e.name()).collect(),
+        effects: scene.effects.clone(),
         color: if scene.has(super::Effect::Rgb) {
             "rgb"
         } else {
             "gray"
-        },
-        image_size: [scene.sensor.width_px, scene.sensor.height_px],
-        mm_per_px: mmpp,
+        }
+        .to_string(),
+        image_size: Some([scene.sensor.width_px, scene.sensor.height_px]),
+        mm_per_px: Some(mmpp),
         frames,
-        truth: Truth {
+        truth: Some(Truth {
             height_npy: "truth/height.npy".into(),
             height_png: "truth/height.png".into(),
             ideal_png: "truth/ideal.png".into(),
@@ -317,8 +255,8 @@ pub fn write(sim: &Simulator, out: &Path, progress: &dyn Progress) -> anyhow::Re
             regions,
             contact_sheet_png: "contact_sheet.png".into(),
             defects_json,
-        },
-        scene_file: toml::Value::try_from(scene).context("cannot record the scene")?,
+        }),
+        scene_file: Some(scene.clone()),
     };
     let json = serde_json::to_string_pretty(&manifest)?;
     batch.add_bytes(&out.join("manifest.json"), (json + "\n").as_bytes())?;

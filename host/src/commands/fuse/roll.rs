@@ -13,6 +13,7 @@ use crate::fullres::strip::{Placing, StripOptions, StripReport, WindowChoice, fu
 use crate::fullres::window::{Geometry, WindowSource};
 use crate::image::Planes;
 use crate::progress::Progress;
+use crate::sim::Manifest;
 use crate::strip_file::{Segment, StripWriter};
 use anyhow::bail;
 use rollfuse_core::FuseConfig;
@@ -25,22 +26,16 @@ const DECODE_AHEAD: usize = 4;
 /// The roller geometry recorded in a simulator manifest, if the manifest is there and its
 /// frames are `width × height`.
 fn manifest_geometry(manifest: &Path, (width, height): (u32, u32)) -> Option<Geometry> {
-    let text = std::fs::read_to_string(manifest).ok()?;
-    let doc: serde_json::Value = serde_json::from_str(&text).ok()?;
-    let size = doc["image_size"].as_array()?;
-    if size.len() != 2
-        || size[0].as_u64() != Some(u64::from(width))
-        || size[1].as_u64() != Some(u64::from(height))
-    {
+    let roller = Manifest::read(manifest).ok()?.roller()?;
+    if roller.image_size != [width as usize, height as usize] {
         return None;
     }
-    let sensor = &doc["scene_file"]["sensor"];
     // The apex is the middle row, as the simulator renders it (`Sensor::roller_geometry`);
     // the focal row is where the camera focuses, not where the roller touches.
     Some(Geometry {
-        roller_radius_mm: sensor["roller_radius_mm"].as_f64()?,
-        press_depth_mm: sensor["press_depth_mm"].as_f64()?,
-        mm_per_px: sensor["mm_per_px"].as_f64()?,
+        roller_radius_mm: roller.radius_mm,
+        press_depth_mm: roller.press_depth_mm,
+        mm_per_px: roller.mm_per_px,
         apex_row: f64::from(height) / 2.0,
     })
 }
