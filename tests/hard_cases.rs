@@ -4,7 +4,7 @@
 use proptest::prelude::*;
 use rollfuse::fullres::align::{TemplateParams, match_frames};
 use rollfuse::fullres::{Placed, Precision, fuse_mosaic};
-use rollfuse::image::Planes;
+use rollfuse::image::{PixelLimit, Planes};
 use rollfuse_core::fusion::{CyclicBuffers, LlWeight, U8Pair, U8Work, fuse_scratch_len, fuse_u8};
 use rollfuse_core::{CyclicFuser, Dims, Error, FuseConfig, LlWeighting, Wavelet, float};
 
@@ -266,7 +266,13 @@ fn the_largest_images_are_refused_before_allocating() {
             at: far,
         },
     ];
-    let err = fuse_mosaic(&frames, &FuseConfig::default(), Precision::F32).unwrap_err();
+    let err = fuse_mosaic(
+        &frames,
+        &FuseConfig::default(),
+        Precision::F32,
+        PixelLimit::default(),
+    )
+    .unwrap_err();
     assert!(err.to_string().contains("larger than"), "{err}");
 }
 

@@ -2,7 +2,7 @@
 //! limit, and where their motion record says each one lies on the belt.
 
 use crate::fullres::align::Offset;
-use crate::image::Planes;
+use crate::image::{PixelLimit, Planes};
 use crate::sim::Manifest;
 use anyhow::{Context, bail, ensure};
 use std::path::{Path, PathBuf};
@@ -59,10 +59,10 @@ pub fn refuse_overwriting_inputs(
     crate::files::refuse_overwriting(outputs, &inputs)
 }
 
-/// Loads every frame, checking they agree in size and colour.
-pub fn load(paths: &[PathBuf]) -> anyhow::Result<Vec<Planes>> {
-    // Held together, the frames share the pixel limit: checked from their headers first.
-    let limit = crate::image::max_pixels();
+/// Loads every frame, checking they agree in size and colour; held together, they share
+/// `max` (checked from their headers before any is decoded).
+pub fn load(paths: &[PathBuf], max: PixelLimit) -> anyhow::Result<Vec<Planes>> {
+    let limit = max.pixels();
     let mut pixels = 0u64;
     for p in paths {
         let (w, h) = crate::image::dimensions(p)?;
@@ -84,7 +84,7 @@ pub fn load(paths: &[PathBuf]) -> anyhow::Result<Vec<Planes>> {
     );
     let frames: Vec<Planes> = paths
         .iter()
-        .map(|p| Planes::load(p))
+        .map(|p| Planes::load(p, max))
         .collect::<anyhow::Result<_>>()?;
     if let Some(first) = frames.first() {
         for (p, f) in paths.iter().zip(&frames) {

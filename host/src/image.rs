@@ -3,23 +3,39 @@
 use crate::files::{PngLayout, write_png};
 use anyhow::{Context, bail, ensure};
 use std::path::Path;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// The largest image read by default, pixels: 32 Mi (e.g. 640 × 52 000 rows), at most
 /// 384 MiB as three planes of `f32`. `rollfuse --max-pixels` sets another.
 pub const DEFAULT_MAX_PIXELS: u64 = 32 << 20;
 
-static MAX_PIXELS: AtomicU64 = AtomicU64::new(DEFAULT_MAX_PIXELS);
+/// The largest image read or built (a canvas of frames), pixels: an image over it is
+/// refused from its header before it is decoded, a canvas before it is allocated. The
+/// command line's `--max-pixels`, Python's `max_pixels`; [`DEFAULT_MAX_PIXELS`] by
+/// default.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PixelLimit(pub u64);
 
-/// Sets the largest image read or built (a canvas of frames), pixels, for the whole
-/// process.
-pub fn set_max_pixels(pixels: u64) {
-    MAX_PIXELS.store(pixels, Ordering::Relaxed);
+impl Default for PixelLimit {
+    fn default() -> Self {
+        Self(DEFAULT_MAX_PIXELS)
+    }
 }
 
-/// The largest image read or built, pixels.
-pub fn max_pixels() -> u64 {
-    MAX_PIXELS.load(Ordering::Relaxed)
+impl PixelLimit {
+    /// The limit for images a command renders itself, from scenes the simulator has
+    /// checked (the demo's and `eval`'s frames and strips): the default, whatever
+    /// `--max-pixels` says of the images a command is given.
+    pub const RENDERED: PixelLimit = PixelLimit(DEFAULT_MAX_PIXELS);
+
+    /// The limit, pixels.
+    pub fn pixels(self) -> u64 {
+        self.0
+    }
+
+    /// Whether `pixels` fit.
+    pub fn admits(self, pixels: u64) -> bool {
+        pixels <= self.0
+    }
 }
 
 /// An image file's width and height, from its header alone.
@@ -33,10 +49,10 @@ pub fn dimensions(path: &Path) -> anyhow::Result<(u32, u32)> {
 
 /// Reads `path`'s header, refusing an image over the pixel limit before anything is
 /// decoded or allocated.
-fn open_within_limit(path: &Path) -> anyhow::Result<image::DynamicImage> {
+fn open_within_limit(path: &Path, limit: PixelLimit) -> anyhow::Result<image::DynamicImage> {
     let (w, h) = dimensions(path)?;
     let pixels = u64::from(w) * u64::from(h);
-    let limit = max_pixels();
+    let limit = limit.pixels();
     ensure!(
         pixels <= limit,
         "image {} is {w}×{h} = {pixels} pixels, over the limit of {limit} (--max-pixels)",
@@ -177,10 +193,10 @@ impl Planes {
     }
 
     /// Reads a PNG (or any format the `image` crate was built with): 8- or 16-bit, gray or
-    /// RGB (an alpha channel is dropped; gray+alpha reads as gray). An image over the pixel
-    /// limit ([`set_max_pixels`]) is refused from its header, before it is decoded.
-    pub fn load(path: &Path) -> anyhow::Result<Self> {
-        let img = open_within_limit(path)?;
+    /// RGB (an alpha channel is dropped; gray+alpha reads as gray). An image over `limit`
+    /// is refused from its header, before it is decoded.
+    pub fn load(path: &Path, limit: PixelLimit) -> anyhow::Result<Self> {
+        let img = open_within_limit(path, limit)?;
         let (w, h) = (img.width() as usize, img.height() as usize);
         let color = img.color();
         let planes = match (
@@ -275,5 +291,30 @@ impl Planes {
             (self.width, self.height),
             layout,
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_caller_s_limit_is_its_own() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.png");
+        let image = Planes {
+            width: 8,
+            height: 4,
+            planes: vec![vec![7.0; 32]],
+        };
+        image.save_png(&path).unwrap();
+        // Two limits in one process: no setting left behind by the other.
+        let refused = Planes::load(&path, PixelLimit(31)).unwrap_err();
+        assert!(
+            format!("{refused:#}").contains("over the limit of 31"),
+            "{refused:#}"
+        );
+        assert_eq!(Planes::load(&path, PixelLimit(32)).unwrap(), image);
+        assert_eq!(Planes::load(&path, PixelLimit::default()).unwrap(), image);
     }
 }

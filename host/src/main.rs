@@ -12,8 +12,9 @@ use std::time::Duration;
 #[derive(Parser)]
 #[command(name = "rollfuse", version, about)]
 struct Cli {
-    /// The largest image any command reads, pixels; larger ones are refused from their
-    /// header before anything is decoded.
+    /// The largest image a command reads from the files it is given, or builds from them
+    /// (a canvas of frames), pixels; larger ones are refused from their header before
+    /// anything is decoded.
     #[arg(long, global = true, default_value_t = rollfuse::image::DEFAULT_MAX_PIXELS)]
     max_pixels: u64,
     /// How progress on long work is shown: a bar on a terminal and plain lines elsewhere
@@ -105,7 +106,7 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(code) => return code,
     };
-    rollfuse::image::set_max_pixels(cli.max_pixels);
+    let limit = rollfuse::image::PixelLimit(cli.max_pixels);
     let show = Show {
         mode: cli.progress,
         every: Duration::from_secs(cli.progress_every),
@@ -113,16 +114,16 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Demo(args) => demo::run(args, show),
         Command::Simulate(args) => simulate::run(args, show),
-        Command::Fuse(args) => fuse::run(args, show),
-        Command::Splice(args) => splice::run(args),
-        Command::Metrics(args) => metrics::run(args),
+        Command::Fuse(args) => fuse::run(args, show, limit),
+        Command::Splice(args) => splice::run(args, limit),
+        Command::Metrics(args) => metrics::run(args, limit),
         Command::Eval(args) => eval::run(args, show),
         Command::Tradeoff(args) => tradeoff::run(args, show),
-        Command::Depth(args) => depth::run(args),
-        Command::Calibrate(args) => depth::calibrate_run(args),
-        Command::Train(args) => detect::train_run(args, show),
-        Command::Detect(args) => detect::run(args),
-        Command::FitNormal(args) => detect::fit_normal_run(args),
+        Command::Depth(args) => depth::run(args, limit),
+        Command::Calibrate(args) => depth::calibrate_run(args, limit),
+        Command::Train(args) => detect::train_run(args, show, limit),
+        Command::Detect(args) => detect::run(args, limit),
+        Command::FitNormal(args) => detect::fit_normal_run(args, limit),
         Command::Stream(args) => stream::run(args, show),
         Command::Devices => stream::devices(),
         Command::Rolls(args) => rolls::run(args),

@@ -3,7 +3,7 @@
 //! ([`RollKeeper`]), and defects found on a recorded strip's segments with their belt
 //! positions and a small crop of each.
 
-use crate::image::Planes;
+use crate::image::{PixelLimit, Planes};
 use crate::strip_file::{Segment, StripWriter};
 use anyhow::Context;
 use rollfuse_records::{DefectRecord, Records, RollStart, SegmentRecord, Status};
@@ -136,7 +136,8 @@ impl RollKeeper {
             let Some((_, segment)) = self.segments.iter().find(|(n, _)| *n == seq) else {
                 continue;
             };
-            let image = Planes::load(&self.folder.join(&segment.file))?;
+            // The roll's own segment, as its strip writer wrote it.
+            let image = Planes::load(&self.folder.join(&segment.file), PixelLimit::default())?;
             let list = self.found.entry(seq).or_default();
             list.extend(on_segment(&boxes, segment, &image));
             self.records.replace_defects(self.roll, seq, list)?;
@@ -178,7 +179,8 @@ pub fn record_late_defects(target: &str, roll: i64, found: Vec<StripBox>) -> any
         let Some((_, segment)) = segments.iter().find(|(n, _)| *n == seq) else {
             continue;
         };
-        let image = Planes::load(&folder.join(&segment.file))?;
+        // The roll's own segment, as its strip writer wrote it.
+        let image = Planes::load(&folder.join(&segment.file), PixelLimit::default())?;
         let mut list: Vec<DefectRecord> = (record.defect_list.iter())
             .filter(|d| d.segment_seq == Some(seq))
             .cloned()

@@ -195,7 +195,7 @@ fn palette_png(path: &std::path::Path, w: u32, h: u32, v: impl Fn(u32, u32) -> u
 /// Each error names the input at fault and what to do.
 #[test]
 fn errors_name_the_input_at_fault() {
-    use rollfuse::image::Planes;
+    use rollfuse::image::{PixelLimit, Planes};
     let tmp = tempfile::tempdir().unwrap();
     let at = |name: &str| tmp.path().join(name);
     let textured = |w: usize, h: usize| Planes {
@@ -211,7 +211,13 @@ fn errors_name_the_input_at_fault() {
     palette_png(&at("palette.png"), 64, 48, |x, y| {
         ((x * 37 + y * 11) % 251) as u8
     });
-    assert_eq!(Planes::load(&at("palette.png")).unwrap().planes.len(), 1);
+    assert_eq!(
+        Planes::load(&at("palette.png"), PixelLimit::default())
+            .unwrap()
+            .planes
+            .len(),
+        1
+    );
     textured(64, 48).save_png(&at("gray.png")).unwrap();
     let out = rollfuse(&[
         "fuse",

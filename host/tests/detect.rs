@@ -6,7 +6,7 @@ use burn::tensor::Device;
 use rollfuse::detect::model::{About, save};
 use rollfuse::detect::net::{Net, Widths};
 use rollfuse::detect::{Detector, data};
-use rollfuse::image::Planes;
+use rollfuse::image::{PixelLimit, Planes};
 use std::path::Path;
 mod common;
 
@@ -50,7 +50,7 @@ fn a_saved_model_loads_and_detects_the_same() {
     let tmp = tempfile::tempdir().unwrap();
     let model = tmp.path().join("m.safetensors");
     tiny_model(&model, TINY);
-    let img = Planes::load(&frame(tmp.path())).unwrap();
+    let img = Planes::load(&frame(tmp.path()), PixelLimit::default()).unwrap();
     let a = Detector::load(&model).unwrap().detect(&img).unwrap();
     let b = Detector::load(&model).unwrap().detect(&img).unwrap();
     assert_eq!(a.probabilities, b.probabilities);
@@ -93,14 +93,14 @@ fn detect_writes_json_and_drawings_and_keeps_its_inputs() {
     assert_eq!(p.len(), 17);
     assert!(p["twill_2_2"].as_f64().unwrap() >= 0.0);
     assert!(v[0]["defects"].is_array());
-    let drawn = Planes::load(&draw.join("frame_detect.png")).unwrap();
+    let drawn = Planes::load(&draw.join("frame_detect.png"), PixelLimit::default()).unwrap();
     assert_eq!(
         (drawn.width, drawn.height, drawn.planes.len()),
         (320, 240, 3)
     );
     // Upsampled first, boxes still in the image's own pixels.
     let half = tmp.path().join("half.png");
-    let small = Planes::load(&img).unwrap();
+    let small = Planes::load(&img, PixelLimit::default()).unwrap();
     let (w, h) = (small.width / 2, small.height / 2);
     Planes {
         width: w,
@@ -445,10 +445,10 @@ fn the_built_in_model_tells_cloth_it_knows_from_what_is_not_cloth() {
         env!("CARGO_MANIFEST_DIR"),
         "/tests/fixtures/roll-narrow-contact"
     ));
-    let not_cloth = [10, 20, 30]
-        .map(|k| sim.frame(k).image)
-        .into_iter()
-        .chain(["frame_050.png", "frame_150.png"].map(|f| Planes::load(&fixture.join(f)).unwrap()));
+    let not_cloth = [10, 20, 30].map(|k| sim.frame(k).image).into_iter().chain(
+        ["frame_050.png", "frame_150.png"]
+            .map(|f| Planes::load(&fixture.join(f), PixelLimit::default()).unwrap()),
+    );
     for (k, image) in not_cloth.enumerate() {
         let d = detector.detect(&image).unwrap();
         assert_eq!(

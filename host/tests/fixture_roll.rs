@@ -6,7 +6,7 @@
 #[path = "common/strip_score.rs"]
 mod strip_score;
 
-use rollfuse::image::Planes;
+use rollfuse::image::{PixelLimit, Planes};
 use std::path::Path;
 use std::process::Command;
 
@@ -53,8 +53,8 @@ fn the_fixture_roll_is_placed_from_its_frames_alone() {
         .collect();
     let glyphs: Vec<strip_score::Glyph> =
         serde_json::from_value(json(&fixture().join("glyphs.json"))).unwrap();
-    let strip = Planes::load(&out).unwrap();
-    let ideal = Planes::load(&fixture().join("ideal.png")).unwrap();
+    let strip = Planes::load(&out, PixelLimit::default()).unwrap();
+    let ideal = Planes::load(&fixture().join("ideal.png"), PixelLimit::default()).unwrap();
     let apex = 120.0;
     let verdict = strip_score::judge(
         &strip,

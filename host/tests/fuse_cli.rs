@@ -212,10 +212,13 @@ fn metrics_prints_ie_and_ms_ssim_and_refuses_mismatched_references() {
 fn parallel_and_single_threaded_fusion_give_identical_bytes() {
     use rollfuse::fullres::align::Offset;
     use rollfuse::fullres::{Placed, Precision, fuse_mosaic};
-    use rollfuse::image::Planes;
+    use rollfuse::image::{PixelLimit, Planes};
     let tmp = tempfile::tempdir().unwrap();
     let frames = simulate(tmp.path(), "spheres", 3);
-    let images: Vec<Planes> = frames.iter().map(|p| Planes::load(p).unwrap()).collect();
+    let images: Vec<Planes> = frames
+        .iter()
+        .map(|p| Planes::load(p, PixelLimit::default()).unwrap())
+        .collect();
     let placed: Vec<Placed> = images
         .iter()
         .enumerate()
@@ -236,7 +239,7 @@ fn parallel_and_single_threaded_fusion_give_identical_bytes() {
             .num_threads(threads)
             .build()
             .unwrap();
-        pool.install(|| fuse_mosaic(placed, &cfg, Precision::F32).unwrap())
+        pool.install(|| fuse_mosaic(placed, &cfg, Precision::F32, PixelLimit::default()).unwrap())
     };
     let (one, many) = (run(&placed, 1), run(&placed, 3));
     assert_eq!(one.planes.len(), 3, "RGB is fused per channel");

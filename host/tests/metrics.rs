@@ -4,7 +4,7 @@
 use rollfuse::eval::metrics::{
     Gray, entropy, ms_ssim, ms_ssim_scales, population_std, strip_ranges,
 };
-use rollfuse::image::Planes;
+use rollfuse::image::{PixelLimit, Planes};
 use serde_json::Value;
 use std::path::Path;
 
@@ -13,6 +13,7 @@ fn load(name: &str) -> Planes {
         &Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("tests/vectors/metrics")
             .join(name),
+        PixelLimit::default(),
     )
     .unwrap()
 }

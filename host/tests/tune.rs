@@ -7,6 +7,7 @@ use rollfuse::detect::labels::{LabelledImage, read_coco, read_labels};
 use rollfuse::detect::targets::{MIN_IOU, Tally, tally};
 use rollfuse::detect::tune::{TuneOptions, tune};
 use rollfuse::detect::{Detector, model};
+use rollfuse::image::PixelLimit;
 use std::path::Path;
 mod common;
 
@@ -140,14 +141,14 @@ fn train_fine_tunes_on_a_coco_file_from_the_command_line() {
     let labels = tmp.path().join("labels.json");
     write_coco(&images, tmp.path(), &labels);
     // What was written reads back the same.
-    let read = read_coco(&labels, tmp.path()).unwrap();
+    let read = read_coco(&labels, tmp.path(), PixelLimit::default()).unwrap();
     assert_eq!(read.len(), images.len());
     assert_eq!(read[0].boxes, images[0].boxes);
 
     // The same labels as YOLO text files read back the same boxes.
     let yolo = tmp.path().join("yolo");
     write_yolo(&images, &yolo);
-    let from_yolo = read_labels(&yolo, tmp.path()).unwrap();
+    let from_yolo = read_labels(&yolo, tmp.path(), PixelLimit::default()).unwrap();
     assert_eq!(from_yolo.len(), images.len());
     for (a, b) in from_yolo.iter().zip(&images) {
         assert_eq!(a.boxes.len(), b.boxes.len());

@@ -30,10 +30,12 @@ def fuse(
     precision: Precision = "f32",
     ll_weighting: LlWeighting = "paper",
     out_dtype: OutDtype = "float32",
+    max_pixels: int = 33554432,
 ) -> Tuple[npt.NDArray[Any], npt.NDArray[np.float64]]:
     """Fuses frames into one image as ``rollfuse fuse --mode mosaic``; returns
     (image, offsets), offsets (N, 2) rows and columns, NaN for frames left out. A whole
-    roll is ``fuse_roll``'s."""
+    roll is ``fuse_roll``'s. A canvas over ``max_pixels`` (``--max-pixels``) is refused
+    before it is allocated."""
 
 class Geometry(TypedDict, total=False):
     roller_radius_mm: float

@@ -9,7 +9,7 @@ use pyo3::exceptions::PyRuntimeWarning;
 use pyo3::prelude::*;
 use rollfuse::fullres::align::{Aligned, Offset, TemplateParams, align_chain};
 use rollfuse::fullres::{FrameSource, Precision, fuse_mosaic_from, fuse_mosaic_mut};
-use rollfuse::image::Planes;
+use rollfuse::image::{DEFAULT_MAX_PIXELS, PixelLimit, Planes};
 use rollfuse::names::Named;
 use rollfuse::progress::Silent;
 use rollfuse_core::{FuseConfig, SaliencyNorm};
@@ -27,6 +27,8 @@ pub struct Settings {
     pub precision: Precision,
     /// What the image comes back as.
     pub out: OutDtype,
+    /// The largest canvas built (`fuse`'s `max_pixels`).
+    pub limit: PixelLimit,
 }
 
 impl Settings {
@@ -53,6 +55,7 @@ impl Settings {
             cfg,
             precision: choice("precision", precision)?,
             out: OutDtype::parse(out_dtype)?,
+            limit: PixelLimit::default(),
         })
     }
 }
@@ -162,7 +165,7 @@ fn fuse_views(
         views.len()
     );
     let frames = Frames::new(views, "frames")?;
-    let (cfg, precision) = (&settings.cfg, settings.precision);
+    let (cfg, precision, limit) = (&settings.cfg, settings.precision, settings.limit);
     let offsets = match placement {
         Placement::Template(params) => return fuse_by_template(&frames, params, settings),
         Placement::None => vec![Offset { dy: 0, dx: 0 }; frames.frames()],
@@ -176,7 +179,7 @@ fn fuse_views(
             given.clone()
         }
     };
-    let fused = fuse_mosaic_from(&frames, &offsets, cfg, precision)?;
+    let fused = fuse_mosaic_from(&frames, &offsets, cfg, precision, limit)?;
     let placed = Placed {
         offsets: offsets.into_iter().map(Ok).collect(),
         warnings: Vec::new(),
@@ -203,7 +206,7 @@ fn fuse_by_template(
         kept.len(),
         placed.warnings.join("; ")
     );
-    let fused = fuse_mosaic_mut(&mut kept, &settings.cfg, settings.precision)?;
+    let fused = fuse_mosaic_mut(&mut kept, &settings.cfg, settings.precision, settings.limit)?;
     Ok((fused, placed))
 }
 
@@ -238,10 +241,13 @@ fn warn_all(py: Python<'_>, warnings: &[String]) -> PyResult<()> {
 /// uint16 with `out_dtype`, rounded as the command line's PNGs), shape (H', W') or
 /// (H', W', 3) covering every frame placed; and an (N, 2) float64 array of each frame's
 /// (rows, columns) offset on that canvas before its origin shift, NaN where left out.
+/// max_pixels: the largest canvas built, pixels (the command line's --max-pixels): offsets
+///     that would span more are refused before anything is allocated.
 #[pyfunction]
 #[pyo3(signature = (frames, *, wavelet="db2", levels=1, align="template", offsets=None,
     template_rows=(1.0 / 3.0, 2.0 / 3.0), max_shift=None, min_score=None, ablation="none",
-    precision="f32", ll_weighting="paper", out_dtype="float32"))]
+    precision="f32", ll_weighting="paper", out_dtype="float32",
+    max_pixels=DEFAULT_MAX_PIXELS))]
 pub fn fuse(
     py: Python<'_>,
     frames: &Bound<'_, PyAny>,
@@ -256,15 +262,19 @@ pub fn fuse(
     precision: &str,
     ll_weighting: &str,
     out_dtype: &str,
+    max_pixels: u64,
 ) -> PyResult<(Py<PyAny>, Py<PyAny>)> {
-    let settings = Settings::new(
-        wavelet,
-        levels,
-        ablation,
-        precision,
-        ll_weighting,
-        out_dtype,
-    )?;
+    let settings = Settings {
+        limit: PixelLimit(max_pixels),
+        ..Settings::new(
+            wavelet,
+            levels,
+            ablation,
+            precision,
+            ll_weighting,
+            out_dtype,
+        )?
+    };
     let placement = placement(align, offsets, template_rows, max_shift, min_score)?;
     let stack = Stack::new(frames, "frames")?;
     let views = stack.views();

@@ -146,6 +146,8 @@ def test_fuse_pair_is_one_fuse_step(simulated):
         (lambda f: rollfuse.fuse(np.where(f > 100, np.nan, f.astype(np.float32))), "not finite"),
         (lambda f: rollfuse.fuse(f[:, :, :, None].repeat(2, axis=3)), r"\(H, W\) or \(H, W, 3\)"),
         (lambda f: rollfuse.fuse_pair(f[0], f[1, :10]), "one size"),
+        # A canvas over the caller's limit, refused before it is allocated.
+        (lambda f: rollfuse.fuse(f, align="none", max_pixels=1000), "larger than the limit of 1000"),
     ],
 )
 def test_bad_input_raises_value_error(simulated, call, message):
@@ -161,3 +163,13 @@ def test_the_fused_canvas_covers_every_frame(simulated):
         img, offsets = rollfuse.fuse(frames, align="offsets", offsets=np.array([[0, 0], [10, 3], [20, 6], [30, 9], [40, 12]]))
     assert img.shape == (frames.shape[1] + 40, frames.shape[2] + 12)
     assert offsets.tolist() == [[0, 0], [10, 3], [20, 6], [30, 9], [40, 12]]
+
+
+def test_max_pixels_bounds_the_canvas_not_the_frames(simulated):
+    frames = np.stack([read_png(p) for p in simulated("letters", 5)["paths"]])
+    h, w = frames.shape[1:3]
+    offsets = np.array([[0, 0], [10, 0], [20, 0], [30, 0], [40, 0]])
+    img, _ = rollfuse.fuse(frames, align="offsets", offsets=offsets, max_pixels=(h + 40) * w)
+    assert img.shape == (h + 40, w)
+    with pytest.raises(ValueError, match="larger than the limit"):
+        rollfuse.fuse(frames, align="offsets", offsets=offsets, max_pixels=(h + 40) * w - 1)

@@ -6,7 +6,7 @@ use crate::depth::calibrate::{Circle, calibrate};
 use crate::depth::lights::Lights;
 use crate::depth::{output, reconstruct};
 use crate::files::{Batch, NewFolder};
-use crate::image::Planes;
+use crate::image::{PixelLimit, Planes};
 use anyhow::{Context, bail};
 use std::path::{Path, PathBuf};
 
@@ -50,8 +50,19 @@ fn with_ext(stem: &Path, ext: &str) -> PathBuf {
     PathBuf::from(s)
 }
 
-/// Runs `rollfuse depth`.
-pub fn run(args: Args) -> anyhow::Result<()> {
+/// The image and, if one is given, the background image, each read within `limit`.
+fn load_with_background(
+    image: &Path,
+    background: Option<&Path>,
+    limit: PixelLimit,
+) -> anyhow::Result<(Planes, Option<Planes>)> {
+    let image = Planes::load(image, limit)?;
+    let background = background.map(|b| Planes::load(b, limit)).transpose()?;
+    Ok((image, background))
+}
+
+/// Runs `rollfuse depth`, reading images within `limit`.
+pub fn run(args: Args, limit: PixelLimit) -> anyhow::Result<()> {
     let outputs: Vec<PathBuf> = DEPTH_EXTENSIONS[..2]
         .iter()
         .chain(args.ply.then_some(&DEPTH_EXTENSIONS[2]))
@@ -69,8 +80,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let _folder = NewFolder::for_file(&outputs[0])?;
     let lights = Lights::load(&args.lights)?;
-    let image = Planes::load(&args.image)?;
-    let background = args.background.as_deref().map(Planes::load).transpose()?;
+    let (image, background) = load_with_background(&args.image, args.background.as_deref(), limit)?;
     let started = std::time::Instant::now();
     let depth = reconstruct(&image, background.as_ref(), &lights)
         .with_context(|| format!("depth of {}", args.image.display()))?;
@@ -120,8 +130,8 @@ pub struct CalibrateArgs {
     pub out: PathBuf,
 }
 
-/// Runs `rollfuse calibrate`.
-pub fn calibrate_run(args: CalibrateArgs) -> anyhow::Result<()> {
+/// Runs `rollfuse calibrate`, reading images within `limit`.
+pub fn calibrate_run(args: CalibrateArgs, limit: PixelLimit) -> anyhow::Result<()> {
     let mut inputs = vec![("input image", args.image.as_path())];
     inputs.extend(args.background.as_deref().map(|b| ("background", b)));
     crate::files::refuse_overwriting(&[&args.out], &inputs)?;
@@ -134,8 +144,7 @@ pub fn calibrate_run(args: CalibrateArgs) -> anyhow::Result<()> {
         }
         Some(c) => bail!("--circle must be x,y,r with r > 0, got {c:?}"),
     };
-    let image = Planes::load(&args.image)?;
-    let background = args.background.as_deref().map(Planes::load).transpose()?;
+    let (image, background) = load_with_background(&args.image, args.background.as_deref(), limit)?;
     let (lights, disc) = calibrate(
         &image,
         background.as_ref(),

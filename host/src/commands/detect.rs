@@ -10,7 +10,7 @@ use crate::detect::train::{TrainOptions, train};
 use crate::detect::tune::{TuneOptions, tune};
 use crate::detect::{Detection, Detector, UNKNOWN_FABRIC, model};
 use crate::files::{Batch, NewFolder, PngLayout, add_png};
-use crate::image::Planes;
+use crate::image::{PixelLimit, Planes};
 use anyhow::Context;
 use rollfuse_records::Records;
 use std::path::{Path, PathBuf};
@@ -67,8 +67,9 @@ pub struct TrainArgs {
     pub validation: f64,
 }
 
-/// Runs `rollfuse train`, showing progress as `show` says.
-pub fn train_run(args: TrainArgs, show: Show) -> anyhow::Result<()> {
+/// Runs `rollfuse train`, showing progress as `show` says; labelled images are read
+/// within `limit`.
+pub fn train_run(args: TrainArgs, show: Show, limit: PixelLimit) -> anyhow::Result<()> {
     super::check_writable(&args.out)?;
     anyhow::ensure!(
         args.out.extension().is_some_and(|e| e == "safetensors"),
@@ -83,7 +84,7 @@ pub fn train_run(args: TrainArgs, show: Show) -> anyhow::Result<()> {
     let _folder = NewFolder::for_file(&args.out)?;
     let started = std::time::Instant::now();
     let done = match (&args.images, &args.labels) {
-        (Some(images), Some(labels)) => tune_run(&args, images, labels, show)?,
+        (Some(images), Some(labels)) => tune_run(&args, images, labels, limit, show)?,
         _ => train_on_rolls(&args, show)?,
     };
     println!(
@@ -161,7 +162,13 @@ fn train_on_rolls(args: &TrainArgs, show: Show) -> anyhow::Result<String> {
 
 /// Fine-tunes a model on the user's labelled images and writes it; what was measured, in
 /// words.
-fn tune_run(args: &TrainArgs, images: &Path, labels: &Path, show: Show) -> anyhow::Result<String> {
+fn tune_run(
+    args: &TrainArgs,
+    images: &Path,
+    labels: &Path,
+    limit: PixelLimit,
+    show: Show,
+) -> anyhow::Result<String> {
     let opts = TuneOptions {
         steps: args.steps.unwrap_or(TuneOptions::default().steps),
         batch: args.batch.unwrap_or(TuneOptions::default().batch),
@@ -169,7 +176,7 @@ fn tune_run(args: &TrainArgs, images: &Path, labels: &Path, show: Show) -> anyho
         validation: args.validation,
         ..TuneOptions::default()
     };
-    let labelled = read_labels(labels, images)?;
+    let labelled = read_labels(labels, images, limit)?;
     let start = match &args.from {
         Some(path) => model::load(path)?,
         None => model::built_in()?,
@@ -296,8 +303,8 @@ struct ImageResult<'a> {
     probabilities: std::collections::BTreeMap<&'a str, f32>,
 }
 
-/// Runs `rollfuse detect`.
-pub fn run(args: Args) -> anyhow::Result<()> {
+/// Runs `rollfuse detect`, reading images within `limit`.
+pub fn run(args: Args, limit: PixelLimit) -> anyhow::Result<()> {
     args.threshold
         .map(crate::detect::check_threshold)
         .transpose()?;
@@ -337,14 +344,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .map(super::rolls::open)
         .transpose()?;
     if let Some(normal) = &args.normal {
-        return anomalies_run(&args, normal, &drawn, records.as_mut());
+        return anomalies_run(&args, normal, limit, &drawn, records.as_mut());
     }
     let mut detector = Detector::load_or_built_in(args.model.as_deref())?;
     detector.threshold = args.threshold.unwrap_or(detector.threshold);
     let mut batch = Batch::new();
     let mut results = Vec::new();
     for (k, path) in args.images.iter().enumerate() {
-        let image = Planes::load(path)?;
+        let image = Planes::load(path, limit)?;
         let d = detector
             .detect_at_scale(&image, args.upsample.into())
             .with_context(|| format!("{}", path.display()))?;
@@ -451,8 +458,8 @@ pub struct FitNormalArgs {
     pub every_row_alike: bool,
 }
 
-/// Runs `rollfuse fit-normal`.
-pub fn fit_normal_run(args: FitNormalArgs) -> anyhow::Result<()> {
+/// Runs `rollfuse fit-normal`, reading images within `limit`.
+pub fn fit_normal_run(args: FitNormalArgs, limit: PixelLimit) -> anyhow::Result<()> {
     let inputs: Vec<(&str, &Path)> = args
         .images
         .iter()
@@ -465,7 +472,7 @@ pub fn fit_normal_run(args: FitNormalArgs) -> anyhow::Result<()> {
     let images: Vec<Planes> = args
         .images
         .iter()
-        .map(|p| Planes::load(p))
+        .map(|p| Planes::load(p, limit))
         .collect::<anyhow::Result<_>>()?;
     let model = if args.every_row_alike {
         NormalModel::fit_every_row_alike(&images)?
@@ -513,6 +520,7 @@ struct AnomalyDefect {
 fn anomalies_run(
     args: &Args,
     normal: &Path,
+    limit: PixelLimit,
     drawn: &[PathBuf],
     mut records: Option<&mut Records>,
 ) -> anyhow::Result<()> {
@@ -520,7 +528,7 @@ fn anomalies_run(
     let mut batch = Batch::new();
     let mut results = Vec::new();
     for (k, path) in args.images.iter().enumerate() {
-        let image = Planes::load(path)?;
+        let image = Planes::load(path, limit)?;
         let a = model
             .detect(&image)
             .with_context(|| format!("{}", path.display()))?;

@@ -2,7 +2,7 @@
 
 use crate::eval::metrics::StripAxis;
 pub use crate::eval::report::{Report, measure};
-use crate::image::Planes;
+use crate::image::{PixelLimit, Planes};
 use anyhow::ensure;
 use std::path::PathBuf;
 
@@ -33,10 +33,10 @@ pub struct Args {
 }
 
 /// Runs the command.
-pub fn run(args: Args) -> anyhow::Result<()> {
-    let image = Planes::load(&args.image)?;
+pub fn run(args: Args, limit: PixelLimit) -> anyhow::Result<()> {
+    let image = Planes::load(&args.image, limit)?;
     let reference = match args.reference.as_deref() {
-        Some(path) => Some(cut_to_image(Planes::load(path)?, &image, &args)?),
+        Some(path) => Some(cut_to_image(Planes::load(path, limit)?, &image, &args)?),
         None => None,
     };
     let report = measure(&image, reference.as_ref(), args.strips, args.axis)?;

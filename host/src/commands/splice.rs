@@ -4,6 +4,7 @@
 use super::check_writable;
 use crate::frames::{self, manifest_path, motion_offsets, refuse_overwriting_inputs};
 use crate::fullres::{Placed, splice};
+use crate::image::PixelLimit;
 use anyhow::bail;
 use std::path::PathBuf;
 
@@ -24,8 +25,8 @@ pub struct Args {
     pub blend: usize,
 }
 
-/// Runs the command.
-pub fn run(args: Args) -> anyhow::Result<()> {
+/// Runs the command, reading and building images within `limit`.
+pub fn run(args: Args, limit: PixelLimit) -> anyhow::Result<()> {
     if args.frames.len() < 2 {
         bail!(
             "splicing needs at least two frames, got {}",
@@ -36,7 +37,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     check_writable(&args.out)?;
     refuse_overwriting_inputs(&[&args.out], &args.frames, args.manifest.as_deref())?;
     let _folder = crate::files::NewFolder::for_file(&args.out)?;
-    let frames = frames::load(&args.frames)?;
+    let frames = frames::load(&args.frames, limit)?;
     let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
     let offsets = motion_offsets(&manifest, &args.frames)?;
     let placed: Vec<Placed> = frames
@@ -44,7 +45,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .zip(offsets)
         .map(|(image, at)| Placed { image, at })
         .collect();
-    let out = splice(&placed, args.blend)?;
+    let out = splice(&placed, args.blend, limit)?;
     out.save_png(&args.out)?;
     super::side_files::remove_others(&args.out, &[])?;
     println!(

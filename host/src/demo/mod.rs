@@ -34,7 +34,7 @@ use crate::fullres::align::Offset;
 use crate::fullres::roll::StripInMemory;
 use crate::fullres::strip::{StripOptions, fuse_strip};
 use crate::fullres::{Placed, Precision, fuse_mosaic};
-use crate::image::Planes;
+use crate::image::{PixelLimit, Planes};
 use crate::link::sim::SimDevice;
 use crate::progress::{Progress, Silent};
 use crate::sim::{Scene, built_in};
@@ -146,7 +146,7 @@ fn stream_device(letters: &Scene, out: &Path) -> Timed<(Outcome, Planes)> {
         ..stream::Options::into_folder(&out.join("stream"))
     };
     let streamed = stream::run(&mut device, &session, &Silent)?;
-    let strip = Planes::load(&out.join(Files::STRIP))?;
+    let strip = Planes::load(&out.join(Files::STRIP), PixelLimit::RENDERED)?;
     let m = &streamed.manifest;
     let what = format!(
         "{} tiles, {} bytes in {} messages through the virtual device",
@@ -350,7 +350,12 @@ fn fuse_full_resolution(
         four.len() == 4,
         "the frames around the middle one could not all be aligned"
     );
-    let around = fuse_mosaic(&four, &FuseConfig::default(), Precision::F32)?;
+    let around = fuse_mosaic(
+        &four,
+        &FuseConfig::default(),
+        Precision::F32,
+        PixelLimit::RENDERED,
+    )?;
     let middle = &four[1];
     let top = four.iter().map(|p| p.at.dy).min().unwrap_or(0);
     let left = four.iter().map(|p| p.at.dx).min().unwrap_or(0);

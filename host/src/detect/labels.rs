@@ -17,7 +17,7 @@
 
 use super::check_input;
 use super::targets::Labelled;
-use crate::image::Planes;
+use crate::image::{PixelLimit, Planes};
 use crate::sim::textile::DefectKind;
 use anyhow::{Context, bail, ensure};
 use serde::Deserialize;
@@ -75,17 +75,26 @@ struct CocoCategory {
 }
 
 /// Reads `labels` — a COCO file, or a folder of YOLO labels — and the images it labels,
-/// found in the folder `images`.
-pub fn read_labels(labels: &Path, images: &Path) -> anyhow::Result<Vec<LabelledImage>> {
+/// found in the folder `images`, each within `limit`.
+pub fn read_labels(
+    labels: &Path,
+    images: &Path,
+    limit: PixelLimit,
+) -> anyhow::Result<Vec<LabelledImage>> {
     if labels.is_dir() {
-        read_yolo(labels, images)
+        read_yolo(labels, images, limit)
     } else {
-        read_coco(labels, images)
+        read_coco(labels, images, limit)
     }
 }
 
-/// Reads the COCO file `labels` and the images it lists, found under `images`.
-pub fn read_coco(labels: &Path, images: &Path) -> anyhow::Result<Vec<LabelledImage>> {
+/// Reads the COCO file `labels` and the images it lists, found under `images`, each
+/// within `limit`.
+pub fn read_coco(
+    labels: &Path,
+    images: &Path,
+    limit: PixelLimit,
+) -> anyhow::Result<Vec<LabelledImage>> {
     let shown = labels.display();
     let size = std::fs::metadata(labels)
         .with_context(|| format!("cannot read labels {shown}"))?
@@ -142,7 +151,7 @@ pub fn read_coco(labels: &Path, images: &Path) -> anyhow::Result<Vec<LabelledIma
         .iter()
         .map(|i| {
             let boxes = boxes.remove(&i.id).unwrap_or_default();
-            let loaded = load(i, boxes, images)?;
+            let loaded = load(i, boxes, images, limit)?;
             count_pixels(&mut pixels, &loaded.image, labels)?;
             Ok(loaded)
         })
@@ -189,10 +198,16 @@ fn kind_named(name: &str) -> anyhow::Result<DefectKind> {
 }
 
 /// Loads one listed image and checks its boxes against it.
-fn load(i: &CocoImage, boxes: Vec<Labelled>, dir: &Path) -> anyhow::Result<LabelledImage> {
+fn load(
+    i: &CocoImage,
+    boxes: Vec<Labelled>,
+    dir: &Path,
+    limit: PixelLimit,
+) -> anyhow::Result<LabelledImage> {
     let path = dir.join(&i.file_name);
     let shown = path.display();
-    let image = Planes::load(&path).with_context(|| format!("image {} of the labels", i.id))?;
+    let image =
+        Planes::load(&path, limit).with_context(|| format!("image {} of the labels", i.id))?;
     check_input(&image).with_context(|| shown.to_string())?;
     let (w, h) = (image.width, image.height);
     if let (Some(lw), Some(lh)) = (i.width, i.height)
@@ -218,15 +233,20 @@ fn load(i: &CocoImage, boxes: Vec<Labelled>, dir: &Path) -> anyhow::Result<Label
     Ok(LabelledImage { image, boxes })
 }
 
-/// Reads the YOLO labels in the folder `labels` for the PNG images of the folder `images`.
-pub fn read_yolo(labels: &Path, images: &Path) -> anyhow::Result<Vec<LabelledImage>> {
+/// Reads the YOLO labels in the folder `labels` for the PNG images of the folder `images`,
+/// each within `limit`.
+pub fn read_yolo(
+    labels: &Path,
+    images: &Path,
+    limit: PixelLimit,
+) -> anyhow::Result<Vec<LabelledImage>> {
     let kinds = yolo_classes(labels)?;
     let paths = png_files(images)?;
     let (mut pixels, mut labelled) = (0usize, 0usize);
     let mut out = Vec::with_capacity(paths.len());
     for path in paths {
         let shown = path.display();
-        let image = Planes::load(&path)?;
+        let image = Planes::load(&path, limit)?;
         check_input(&image).with_context(|| shown.to_string())?;
         count_pixels(&mut pixels, &image, labels)?;
         // `frame.v2.png` → `frame.v2.txt`: the stem whole, whatever dots it holds.
@@ -401,7 +421,11 @@ mod tests {
 
     fn read(json: &str) -> anyhow::Result<Vec<LabelledImage>> {
         let dir = folder(json);
-        read_coco(&dir.path().join("labels.json"), dir.path())
+        read_coco(
+            &dir.path().join("labels.json"),
+            dir.path(),
+            PixelLimit::default(),
+        )
     }
 
     #[test]
@@ -494,7 +518,7 @@ mod tests {
         std::fs::create_dir(&labels).unwrap();
         std::fs::write(labels.join("classes.txt"), classes).unwrap();
         std::fs::write(labels.join("a.txt"), a).unwrap();
-        read_labels(&labels, dir.path())
+        read_labels(&labels, dir.path(), PixelLimit::default())
     }
 
     #[test]
@@ -524,7 +548,7 @@ mod tests {
         std::fs::write(labels.join("roll.v2.txt"), "0 0.5 0.5 0.25 0.25\n").unwrap();
         // Not this image's labels: read, it would be refused.
         std::fs::write(labels.join("roll.txt"), "not a box\n").unwrap();
-        let images = read_labels(&labels, dir.path()).unwrap();
+        let images = read_labels(&labels, dir.path(), PixelLimit::default()).unwrap();
         let boxes: Vec<usize> = images.iter().map(|i| i.boxes.len()).collect();
         assert_eq!(boxes, [0, 0, 1], "a.png, b.png, roll.v2.png");
     }
@@ -551,10 +575,16 @@ mod tests {
         }
         // No class file, and no label file for any image.
         let dir = folder("{}");
-        let e = format!("{:#}", read_labels(dir.path(), dir.path()).unwrap_err());
+        let e = format!(
+            "{:#}",
+            read_labels(dir.path(), dir.path(), PixelLimit::default()).unwrap_err()
+        );
         assert!(e.contains("name no classes"), "{e}");
         std::fs::write(dir.path().join("obj.names"), "hole\n").unwrap();
-        let e = format!("{:#}", read_labels(dir.path(), dir.path()).unwrap_err());
+        let e = format!(
+            "{:#}",
+            read_labels(dir.path(), dir.path(), PixelLimit::default()).unwrap_err()
+        );
         assert!(e.contains("no image of"), "{e}");
     }
 }

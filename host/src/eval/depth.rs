@@ -23,7 +23,7 @@ use crate::depth::lights::Lights;
 use crate::depth::{DepthMap, reconstruct};
 use crate::fullres::align::Offset;
 use crate::fullres::{Placed, Precision, fuse_mosaic};
-use crate::image::Planes;
+use crate::image::{PixelLimit, Planes};
 use crate::sim::Scene;
 use anyhow::{Context, ensure};
 use rollfuse_core::FuseConfig;
@@ -164,7 +164,12 @@ fn fused_over(acq: &Acquisition, frames: &[usize], m: usize, h: usize) -> anyhow
             },
         })
         .collect();
-    let out = fuse_mosaic(&placed, &FuseConfig::default(), Precision::F32)?;
+    let out = fuse_mosaic(
+        &placed,
+        &FuseConfig::default(),
+        Precision::F32,
+        PixelLimit::RENDERED,
+    )?;
     let first = frames.iter().map(|&k| acq.rows[k]).min().unwrap_or(0);
     crop_rows(&out, (acq.rows[m] - first) as usize, h)
 }

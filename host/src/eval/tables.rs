@@ -10,7 +10,7 @@ use super::report::{Report, measure};
 use crate::eval::metrics::StripAxis;
 use crate::fullres::align::Offset;
 use crate::fullres::{Placed, Precision, fuse_mosaic, splice};
-use crate::image::Planes;
+use crate::image::{PixelLimit, Planes};
 use crate::sim::{Scene, Simulator};
 use anyhow::{Context, ensure};
 use rollfuse_core::{Ablation, FuseConfig, LlWeighting};
@@ -119,7 +119,9 @@ pub(crate) fn evaluate_acquired(
         let top = acq.rows[first..=last].iter().min().copied().unwrap_or(0);
         crop_rows(&out, (acq.rows[m] - top) as usize, h)
     };
-    let fuse = |cfg: FuseConfig| move |p: &[Placed]| fuse_mosaic(p, &cfg, Precision::F32);
+    let fuse = |cfg: FuseConfig| {
+        move |p: &[Placed]| fuse_mosaic(p, &cfg, Precision::F32, PixelLimit::RENDERED)
+    };
     let row = |method: &str, img: &Planes| -> anyhow::Result<Row> {
         Ok(Row {
             scene: scene.name.clone(),
@@ -143,7 +145,7 @@ pub(crate) fn evaluate_acquired(
     )?);
     rows.push(row(
         "time splicing (6 frames)",
-        &over(m - 2, m + 3, &|p| splice(p, 4))?,
+        &over(m - 2, m + 3, &|p| splice(p, 4, PixelLimit::RENDERED))?,
     )?);
     for (name, ablation) in [
         ("ablation: no wavelet (4)", Ablation::NoWavelet),

@@ -14,7 +14,7 @@ pub mod roll;
 pub mod strip;
 pub mod window;
 
-use crate::image::Planes;
+use crate::image::{PixelLimit, Planes};
 use align::Offset;
 use anyhow::{bail, ensure};
 use rayon::prelude::*;
@@ -42,9 +42,13 @@ pub struct Placed<'a> {
 }
 
 /// The canvas covering every frame: its origin (smallest offsets) and size, refused when
-/// larger than the pixel limit ([`crate::image::max_pixels`]): a wrong offset in a
-/// manifest is an error, not gigabytes allocated.
-fn canvas(offsets: &[Offset], w: usize, h: usize) -> anyhow::Result<(i64, i64, usize, usize)> {
+/// larger than `limit`: a wrong offset in a manifest is an error, not gigabytes allocated.
+fn canvas(
+    offsets: &[Offset],
+    w: usize,
+    h: usize,
+    limit: PixelLimit,
+) -> anyhow::Result<(i64, i64, usize, usize)> {
     let span = |f: fn(&Offset) -> i64| {
         let (lo, hi) = offsets
             .iter()
@@ -59,11 +63,12 @@ fn canvas(offsets: &[Offset], w: usize, h: usize) -> anyhow::Result<(i64, i64, u
         _ => bail!("frame offsets span more than the canvas can hold"),
     };
     let (cw, ch) = (dx.saturating_add(w), dy.saturating_add(h));
-    let limit = crate::image::max_pixels();
     ensure!(
         cw.checked_mul(ch)
-            .is_some_and(|n| u64::try_from(n).is_ok_and(|n| n <= limit)),
-        "a canvas of {cw}×{ch} pixels is larger than the limit of {limit} (--max-pixels): are the offsets right?"
+            .is_some_and(|n| u64::try_from(n).is_ok_and(|n| limit.admits(n))),
+        "a canvas of {cw}×{ch} pixels is larger than the limit of {} (--max-pixels; \
+         Python's max_pixels): are the offsets right?",
+        limit.pixels()
     );
     Ok((min_x, min_y, cw, ch))
 }
@@ -74,7 +79,7 @@ fn canvas(offsets: &[Offset], w: usize, h: usize) -> anyhow::Result<(i64, i64, u
 ///
 /// ```
 /// use rollfuse::fullres::{Placed, Precision, align::Offset, fuse_mosaic};
-/// use rollfuse::image::Planes;
+/// use rollfuse::image::{PixelLimit, Planes};
 /// use rollfuse_core::FuseConfig;
 ///
 /// // Two 64×48 gray frames of a ramp, the second 16 rows further along.
@@ -88,7 +93,7 @@ fn canvas(offsets: &[Offset], w: usize, h: usize) -> anyhow::Result<(i64, i64, u
 ///     Placed { image: &a, at: Offset { dy: 0, dx: 0 } },
 ///     Placed { image: &b, at: Offset { dy: 16, dx: 0 } },
 /// ];
-/// let mosaic = fuse_mosaic(&frames, &FuseConfig::default(), Precision::F32)?;
+/// let mosaic = fuse_mosaic(&frames, &FuseConfig::default(), Precision::F32, PixelLimit::default())?;
 /// assert_eq!((mosaic.width, mosaic.height), (64, 64));
 /// // Where only one frame lies, the mosaic is that frame.
 /// assert_eq!(mosaic.planes[0][..64], a.planes[0][..64]);
@@ -98,12 +103,13 @@ pub fn fuse_mosaic(
     frames: &[Placed],
     cfg: &FuseConfig,
     precision: Precision,
+    limit: PixelLimit,
 ) -> anyhow::Result<Planes> {
     let frames = frames
         .iter()
         .map(|f| (FrameRef::Kept(f.image), f.at))
         .collect();
-    fuse_frames(frames, cfg, precision)
+    fuse_frames(frames, cfg, precision, limit)
 }
 
 /// [`fuse_mosaic`] that may work in the frames: each frame's planes serve as the fuse
@@ -116,12 +122,13 @@ pub fn fuse_mosaic_mut(
     frames: &mut [(Planes, Offset)],
     cfg: &FuseConfig,
     precision: Precision,
+    limit: PixelLimit,
 ) -> anyhow::Result<Planes> {
     let frames = frames
         .iter_mut()
         .map(|(image, at)| (FrameRef::Spent(image), *at))
         .collect();
-    fuse_frames(frames, cfg, precision)
+    fuse_frames(frames, cfg, precision, limit)
 }
 
 /// A frame, or a plane of one, that fusion must leave as it is, or may overwrite.
@@ -162,6 +169,7 @@ pub fn fuse_mosaic_from(
     offsets: &[Offset],
     cfg: &FuseConfig,
     precision: Precision,
+    limit: PixelLimit,
 ) -> anyhow::Result<Planes> {
     ensure!(
         offsets.len() == source.frames(),
@@ -178,13 +186,14 @@ pub fn fuse_mosaic_from(
                 .collect()
         })
         .collect();
-    fuse_planes(per_channel, offsets, (w, h), cfg, precision)
+    fuse_planes(per_channel, offsets, (w, h), cfg, precision, limit)
 }
 
 fn fuse_frames(
     frames: Vec<(FrameRef<Planes>, Offset)>,
     cfg: &FuseConfig,
     precision: Precision,
+    limit: PixelLimit,
 ) -> anyhow::Result<Planes> {
     let Some((first, _)) = frames.first() else {
         bail!("no frames to fuse");
@@ -224,7 +233,7 @@ fn fuse_frames(
             }
         }
     }
-    fuse_planes(per_channel, &offsets, (w, h), cfg, precision)
+    fuse_planes(per_channel, &offsets, (w, h), cfg, precision, limit)
 }
 
 /// One channel of one frame, as fusion gets it.
@@ -244,9 +253,10 @@ fn fuse_planes(
     (w, h): (usize, usize),
     cfg: &FuseConfig,
     precision: Precision,
+    limit: PixelLimit,
 ) -> anyhow::Result<Planes> {
     Dims::new(w, h)?.check_levels(cfg.levels)?;
-    let (min_x, min_y, cw, ch) = canvas(offsets, w, h)?;
+    let (min_x, min_y, cw, ch) = canvas(offsets, w, h, limit)?;
     let starts: Vec<usize> = offsets
         .iter()
         .map(|at| (at.dy - min_y) as usize * cw + (at.dx - min_x) as usize)
@@ -471,7 +481,7 @@ impl Fuser {
 /// frame whose centre row (the roller's apex) is nearest to it, and neighbouring frames'
 /// strips are blended linearly over `blend` rows either side of each seam. Columns are
 /// not shifted. All frames must agree in size and channels, as for [`fuse_mosaic`].
-pub fn splice(frames: &[Placed], blend: usize) -> anyhow::Result<Planes> {
+pub fn splice(frames: &[Placed], blend: usize, limit: PixelLimit) -> anyhow::Result<Planes> {
     ensure!(!frames.is_empty(), "no frames to splice");
     let first = frames[0].image;
     let (w, h, channels) = (first.width, first.height, first.planes.len());
@@ -482,7 +492,7 @@ pub fn splice(frames: &[Placed], blend: usize) -> anyhow::Result<Planes> {
         );
     }
     let offsets: Vec<Offset> = frames.iter().map(|f| f.at).collect();
-    let (_, min_y, _, ch) = canvas(&offsets, w, h)?;
+    let (_, min_y, _, ch) = canvas(&offsets, w, h, limit)?;
     // Apex rows on the canvas, in canvas order.
     let mut apexes: Vec<(f64, usize)> = frames
         .iter()
@@ -607,17 +617,22 @@ mod tests {
                         .map(|(image, o)| Placed { image, at: at(o) })
                         .collect();
                     let cfg = FuseConfig::default();
-                    let kept = fuse_mosaic(&placed, &cfg, precision).unwrap();
+                    let kept =
+                        fuse_mosaic(&placed, &cfg, precision, PixelLimit::default()).unwrap();
                     let mut spent: Vec<(Planes, Offset)> =
                         frames.iter().cloned().zip(offsets.iter().map(at)).collect();
-                    let worked = fuse_mosaic_mut(&mut spent, &cfg, precision).unwrap();
+                    let worked =
+                        fuse_mosaic_mut(&mut spent, &cfg, precision, PixelLimit::default())
+                            .unwrap();
                     assert_eq!(
                         kept, worked,
                         "{offsets:?}, {channels} channels, {precision:?}"
                     );
                     let source = Frames(&frames);
                     let offsets: Vec<Offset> = offsets.iter().map(at).collect();
-                    let read = fuse_mosaic_from(&source, &offsets, &cfg, precision).unwrap();
+                    let read =
+                        fuse_mosaic_from(&source, &offsets, &cfg, precision, PixelLimit::default())
+                            .unwrap();
                     assert_eq!(
                         kept, read,
                         "{offsets:?}, {channels} channels, {precision:?}"
@@ -632,19 +647,35 @@ mod tests {
     #[test]
     fn no_frames_and_mixed_frames_are_refused() {
         let cfg = FuseConfig::default();
-        let err = fuse_mosaic_mut(&mut [], &cfg, Precision::F32).unwrap_err();
+        let err =
+            fuse_mosaic_mut(&mut [], &cfg, Precision::F32, PixelLimit::default()).unwrap_err();
         assert_eq!(err.to_string(), "no frames to fuse");
         let origin = Offset { dy: 0, dx: 0 };
         let mut mixed = vec![(frame(8, 8, 1, 0), origin), (frame(8, 8, 3, 1), origin)];
-        let err = fuse_mosaic_mut(&mut mixed, &cfg, Precision::F32).unwrap_err();
+        let err =
+            fuse_mosaic_mut(&mut mixed, &cfg, Precision::F32, PixelLimit::default()).unwrap_err();
         assert!(err.to_string().contains("mix of gray and RGB"), "{err}");
         // Refused before any work: the frames are as they were.
         assert_eq!(mixed[0].0, frame(8, 8, 1, 0));
         assert_eq!(mixed[1].0, frame(8, 8, 3, 1));
         let one = [frame(8, 8, 1, 0)];
-        let err = fuse_mosaic_from(&Frames(&one), &[], &cfg, Precision::F32).unwrap_err();
+        let err = fuse_mosaic_from(
+            &Frames(&one),
+            &[],
+            &cfg,
+            Precision::F32,
+            PixelLimit::default(),
+        )
+        .unwrap_err();
         assert_eq!(err.to_string(), "0 offsets for 1 frames");
-        let err = fuse_mosaic_from(&Frames(&[]), &[], &cfg, Precision::F32).unwrap_err();
+        let err = fuse_mosaic_from(
+            &Frames(&[]),
+            &[],
+            &cfg,
+            Precision::F32,
+            PixelLimit::default(),
+        )
+        .unwrap_err();
         assert_eq!(err.to_string(), "no frames to fuse");
     }
 }

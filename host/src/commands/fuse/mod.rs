@@ -11,7 +11,7 @@ pub use args::{AlignArg, Args, ModeArg, OutBits};
 use crate::commands::bars::Show;
 use crate::frames::{self, manifest_path, motion_offsets};
 use crate::fullres::register::Tracker;
-use crate::image::Planes;
+use crate::image::{PixelLimit, Planes};
 use anyhow::bail;
 use rollfuse_core::{FuseConfig, SaliencyNorm};
 
@@ -26,7 +26,7 @@ enum Plan {
 }
 
 /// Runs the command, showing progress as `show` says.
-pub fn run(mut args: Args, show: Show) -> anyhow::Result<()> {
+pub fn run(mut args: Args, show: Show, limit: PixelLimit) -> anyhow::Result<()> {
     args.frames = frames::expand(&args.frames)?;
     if args.frames.len() < 2 {
         bail!(
@@ -71,7 +71,7 @@ pub fn run(mut args: Args, show: Show) -> anyhow::Result<()> {
         norm: SaliencyNorm::Local,
         ll_weighting: args.ll_weighting,
     };
-    let (plan, why) = plan(&args)?;
+    let (plan, why) = plan(&args, limit)?;
     if args.mode == ModeArg::Auto {
         println!("mode: {why}");
     }
@@ -81,8 +81,8 @@ pub fn run(mut args: Args, show: Show) -> anyhow::Result<()> {
         );
     }
     match plan {
-        Plan::Mosaic(frames) => mosaic::run(&args, frames, &cfg, show),
-        Plan::Roll(loaded) => roll::run(&args, loaded, &cfg, show),
+        Plan::Mosaic(frames) => mosaic::run(&args, frames, &cfg, show, limit),
+        Plan::Roll(loaded) => roll::run(&args, loaded, &cfg, show, limit),
     }
 }
 
@@ -97,11 +97,13 @@ fn check_reaches(args: &Args) -> anyhow::Result<()> {
 
 /// Chooses roll or mosaic (`--mode auto`: a roll when the frames span more than a frame
 /// height along the belt, so they cannot all see one object), with the reason in words.
-fn plan(args: &Args) -> anyhow::Result<(Plan, &'static str)> {
+fn plan(args: &Args, limit: PixelLimit) -> anyhow::Result<(Plan, &'static str)> {
     let auto = match (args.mode, args.align) {
-        (ModeArg::Mosaic, _) => return Ok((Plan::Mosaic(frames::load(&args.frames)?), "mosaic")),
+        (ModeArg::Mosaic, _) => {
+            return Ok((Plan::Mosaic(frames::load(&args.frames, limit)?), "mosaic"));
+        }
         (ModeArg::Auto, AlignArg::None) => {
-            let frames = frames::load(&args.frames)?;
+            let frames = frames::load(&args.frames, limit)?;
             return Ok((
                 Plan::Mosaic(frames),
                 "mosaic (--align none places no frame)",
@@ -126,13 +128,13 @@ fn plan(args: &Args) -> anyhow::Result<(Plan, &'static str)> {
         return Ok(if span(&mut offsets.iter().map(|o| o.dy as f64)) >= h {
             (Plan::Roll(None), ROLL)
         } else {
-            (Plan::Mosaic(frames::load(&args.frames)?), MOSAIC)
+            (Plan::Mosaic(frames::load(&args.frames, limit)?), MOSAIC)
         });
     }
     if args.frames.len() > AUTO_LOAD_FRAMES {
         return Ok((Plan::Roll(None), "roll (more than 64 frames)"));
     }
-    let frames = frames::load(&args.frames)?;
+    let frames = frames::load(&args.frames, limit)?;
     let params = args.track_params(frames[0].height);
     let rows: Vec<f64> = Tracker::place_all(&frames, params)
         .0

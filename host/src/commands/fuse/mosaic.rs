@@ -8,7 +8,7 @@ use crate::commands::side_files::{self, Side};
 use crate::frames::{manifest_path, motion_offsets, refuse_overwriting_inputs};
 use crate::fullres::align::{Aligned, Match, Offset, TemplateParams, align_chain};
 use crate::fullres::fuse_mosaic_mut;
-use crate::image::Planes;
+use crate::image::{PixelLimit, Planes};
 use anyhow::bail;
 use rollfuse_core::FuseConfig;
 use std::path::{Path, PathBuf};
@@ -36,7 +36,13 @@ struct Skipped<'a> {
 }
 
 /// Fuses every frame over its whole footprint into one image (a few frames of one object).
-pub fn run(args: &Args, frames: Vec<Planes>, cfg: &FuseConfig, show: Show) -> anyhow::Result<()> {
+pub fn run(
+    args: &Args,
+    frames: Vec<Planes>,
+    cfg: &FuseConfig,
+    show: Show,
+    limit: PixelLimit,
+) -> anyhow::Result<()> {
     let offsets_path = Side::Offsets.path(&args.out);
     check_writable(&args.out)?;
     check_writable(&offsets_path)?;
@@ -59,7 +65,7 @@ pub fn run(args: &Args, frames: Vec<Planes>, cfg: &FuseConfig, show: Show) -> an
         .filter_map(|(k, at)| Some((frames.get_mut(k)?.take()?, at)))
         .collect();
     let started = std::time::Instant::now();
-    let fused = fuse_mosaic_mut(&mut placed, cfg, args.precision)?;
+    let fused = fuse_mosaic_mut(&mut placed, cfg, args.precision, limit)?;
     let took = started.elapsed().as_secs_f64();
     fused.save_png_bits(&args.out, args.out_bits.bits())?;
     let json = serde_json::to_string_pretty(&record)? + "\n";

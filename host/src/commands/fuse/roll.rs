@@ -11,7 +11,7 @@ use crate::fullres::register::{Placement, Summary};
 use crate::fullres::roll::{Bands, StripSink};
 use crate::fullres::strip::{Placing, StripOptions, StripReport, WindowChoice, fuse_strip};
 use crate::fullres::window::{Geometry, WindowSource};
-use crate::image::Planes;
+use crate::image::{PixelLimit, Planes};
 use crate::progress::Progress;
 use crate::sim::Manifest;
 use crate::strip_file::{Segment, StripWriter};
@@ -59,6 +59,7 @@ pub fn run(
     loaded: Option<Vec<Planes>>,
     cfg: &FuseConfig,
     show: Show,
+    limit: PixelLimit,
 ) -> anyhow::Result<()> {
     let out = &args.out;
     let csv_path = Side::FramesCsv.path(out);
@@ -99,7 +100,7 @@ pub fn run(
             args.segment_rows,
         )
     };
-    let (writer, report) = fuse_files(files, loaded, &opts, make_sink, on_frame)?;
+    let (writer, report) = fuse_files(files, loaded, limit, &opts, make_sink, on_frame)?;
     bars.finish();
     let took = started.elapsed().as_secs_f64();
     let details = Details {
@@ -250,10 +251,12 @@ fn strip_options(args: &Args, cfg: &FuseConfig) -> anyhow::Result<StripOptions> 
     })
 }
 
-/// Fuses `files` (already `loaded`, or decoded on a second thread as fusion goes).
+/// Fuses `files` (already `loaded`, or decoded on a second thread as fusion goes, each
+/// within `limit`).
 fn fuse_files<S: StripSink>(
     files: &[PathBuf],
     loaded: Option<Vec<Planes>>,
+    limit: PixelLimit,
     opts: &StripOptions,
     make_sink: impl FnOnce(usize, usize) -> anyhow::Result<S>,
     on_frame: impl FnMut(&Placement) -> anyhow::Result<()>,
@@ -265,7 +268,7 @@ fn fuse_files<S: StripSink>(
             let (tx, rx) = sync_channel(DECODE_AHEAD);
             scope.spawn(move || {
                 for path in files {
-                    let frame = Planes::load(path);
+                    let frame = Planes::load(path, limit);
                     let failed = frame.is_err();
                     if tx.send(frame).is_err() || failed {
                         break;
