@@ -185,7 +185,7 @@ pub fn output_files(out: &Path) -> [PathBuf; 3] {
 }
 
 /// The format a stream's `manifest.json` declares (its `format` field), so that no reader
-/// takes it for the frames manifest `rollfuse simulate` writes ([`crate::sim::Manifest`]).
+/// takes it for the frames manifest `rollfuse simulate` writes (`sim::Manifest`).
 pub const STREAM_FORMAT: &str = "rollfuse-stream-1";
 
 /// What a stream records of itself, its folder's `manifest.json` (with `format`:

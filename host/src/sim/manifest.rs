@@ -3,9 +3,8 @@
 //!
 //! A motion system may write the `frames` list alone, each frame's `file` and `strip_row`
 //! (its commanded position as the strip row of its top row); everything else is then
-//! absent and the `format` empty. A stream's `manifest.json` is another record
-//! ([`crate::stream::StreamRecord`], format [`crate::stream::STREAM_FORMAT`]) and is
-//! refused here by name.
+//! absent and the `format` empty. A file of another format — a stream's `manifest.json`
+//! (`rollfuse-stream-1`), or one a later version wrote — is refused naming its format.
 
 use super::scene::{Effect, Scene};
 use anyhow::{Context, bail};
@@ -111,7 +110,7 @@ pub struct Roller {
 
 impl Manifest {
     /// Reads `path`: a manifest of this format or a motion system's `frames` list. Another
-    /// format, a stream's record, or a field of the wrong type is refused naming the file.
+    /// format (a stream's record) or a field of the wrong type is refused naming the file.
     pub fn read(path: &Path) -> anyhow::Result<Self> {
         #[derive(Deserialize)]
         struct Tag {
@@ -124,13 +123,9 @@ impl Manifest {
             .with_context(|| format!("{} is not a JSON object", path.display()))?;
         match tag.format.as_str() {
             "" | FRAMES_FORMAT => {}
-            crate::stream::STREAM_FORMAT => bail!(
-                "{} is a stream's record (rollfuse stream), not a manifest of frames",
-                path.display()
-            ),
             other => bail!(
-                "{} is a manifest of format {other}; this rollfuse reads {FRAMES_FORMAT} \
-                 (or a motion system's `frames` list)",
+                "{} is of format {other}, not a manifest of frames ({FRAMES_FORMAT}, or a \
+                 motion system's `frames` list)",
                 path.display()
             ),
         }
@@ -178,13 +173,14 @@ mod tests {
     #[test]
     fn other_records_and_formats_are_refused_by_name() {
         let stream = read(r#"{"format": "rollfuse-stream-1", "messages": 3}"#).unwrap_err();
+        let said = format!("{stream:#}");
         assert!(
-            format!("{stream:#}").contains("is a stream's record"),
-            "{stream:#}"
+            said.contains("of format rollfuse-stream-1, not a manifest of frames"),
+            "{said}"
         );
         let newer = read(r#"{"format": "rollfuse-frames-9", "frames": []}"#).unwrap_err();
         assert!(
-            format!("{newer:#}").contains("format rollfuse-frames-9"),
+            format!("{newer:#}").contains("of format rollfuse-frames-9"),
             "{newer:#}"
         );
         let typo = read(r#"{"frames": [{"file": "a.png", "strip_row": "NaN"}]}"#).unwrap_err();
