@@ -8,8 +8,8 @@
 //! `#![no_std]`, no allocation, and no panics on any input: bad sizes and parameters come
 //! back as [`Error`] values. Buffers are the caller's. No `unsafe` either, but for two
 //! units: on x86-64 hosts a hot loop's AVX2 or AVX-512 copy, run where the CPU has that
-//! unit ([`simd`]); on Arm cores with the DSP extension the one-instruction operations on
-//! two 16-bit lanes ([`lanes`]). Every other target forbids `unsafe`.
+//! unit (`simd`); on Arm cores with the DSP extension the one-instruction operations on
+//! two 16-bit lanes (`lanes`). Every other target forbids `unsafe`.
 //!
 //! # Layers
 //!
@@ -25,9 +25,10 @@
 //!   model) and the device's command handling.
 //! - [`protocol`]: the messages of the USB link, their framing, CRC and limits.
 //! - [`motion`]: the roller's trapezoidal step profile and frame triggers.
-//! - [`lanes`]: two 16-bit samples a word and the Cortex-M7's DSP instructions on them.
-//! - [`simd`]: the run-time choice between baseline, AVX2 and AVX-512 copies of the hot
-//!   loops.
+//! - `lanes` (crate-private; public with the `internals` feature): two 16-bit samples a
+//!   word and the Cortex-M7's DSP instructions on them.
+//! - `simd` (likewise): the run-time choice between baseline, AVX2 and AVX-512 copies of
+//!   the hot loops.
 #![no_std]
 #![cfg_attr(not(any(target_arch = "x86_64", rollfuse_dsp)), forbid(unsafe_code))]
 #![cfg_attr(any(target_arch = "x86_64", rollfuse_dsp), deny(unsafe_code))]
@@ -41,14 +42,24 @@ pub mod device;
 pub mod error;
 pub mod fusion;
 pub mod geometry;
+// The lane and vector-unit machinery is the core's own; `internals` shows it to the
+// Cortex-M7 bench and the kernel benchmarks, which use items the core does not.
+#[cfg(feature = "internals")]
 pub mod lanes;
+#[cfg(not(feature = "internals"))]
+#[allow(dead_code)]
+pub(crate) mod lanes;
 pub mod lifting;
 mod limits;
 pub mod motion;
 mod packed;
 pub mod protocol;
 pub mod saliency;
+#[cfg(feature = "internals")]
 pub mod simd;
+#[cfg(not(feature = "internals"))]
+#[allow(dead_code)]
+pub(crate) mod simd;
 
 pub use error::Error;
 /// The float fusion paths, where the host has always found them.

@@ -166,7 +166,7 @@ pub(crate) struct ByteImages<'i> {
 /// Where a fuse step starts ([`fuse_generic`]): at level 1 on the images themselves
 /// (with their level-1 `|∇²I|` maxima where the checks found them, and the 8-bit images
 /// to read, where given), or at a deeper level on the LL bands of a level fused
-/// elsewhere ([`lanes`]).
+/// elsewhere (`lanes`).
 pub(crate) struct StepStart<'i, T> {
     /// The level whose input the step's images are.
     pub level: u8,

@@ -164,7 +164,7 @@ impl Lift for i32 {
 
 /// Two samples a word in 16-bit lanes ([`I16x2`]), each product by a Q16 constant and
 /// rounded down on its own (what `SMULWB`/`SMLAWB` give): level 1 of the 8-bit fuse
-/// step, two samples an instruction on the Cortex-M7 ([`lanes`]). The column
+/// step, two samples an instruction on the Cortex-M7 (`lanes`). The column
 /// sweeps run on whole rows of such words through the generic code (two columns a word);
 /// a word holding one sample in both lanes is the scalar version of the same arithmetic.
 /// Every value of that level fits a lane (`docs/numerics.md`), so nothing is saturated.
