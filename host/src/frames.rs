@@ -69,7 +69,7 @@ pub fn load(paths: &[PathBuf], max: PixelLimit) -> anyhow::Result<Vec<Planes>> {
         let one = u64::from(w) * u64::from(h);
         // One frame over the limit: no mode holds fewer than one frame.
         ensure!(
-            one <= limit,
+            max.admits(one),
             "frame {} is {w}×{h} = {one} pixels, over the limit of {limit}: raise --max-pixels \
              to at least {one} to read it",
             p.display()
@@ -77,7 +77,7 @@ pub fn load(paths: &[PathBuf], max: PixelLimit) -> anyhow::Result<Vec<Planes>> {
         pixels = pixels.saturating_add(one);
     }
     ensure!(
-        pixels <= limit,
+        max.admits(pixels),
         "{} frames of {pixels} pixels in all are over the limit of {limit} held at once \
          (--max-pixels): fuse a long sequence as a roll (--mode roll), which holds a few",
         paths.len()

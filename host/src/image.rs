@@ -52,11 +52,11 @@ pub fn dimensions(path: &Path) -> anyhow::Result<(u32, u32)> {
 fn open_within_limit(path: &Path, limit: PixelLimit) -> anyhow::Result<image::DynamicImage> {
     let (w, h) = dimensions(path)?;
     let pixels = u64::from(w) * u64::from(h);
-    let limit = limit.pixels();
     ensure!(
-        pixels <= limit,
-        "image {} is {w}×{h} = {pixels} pixels, over the limit of {limit} (--max-pixels)",
-        path.display()
+        limit.admits(pixels),
+        "image {} is {w}×{h} = {pixels} pixels, over the limit of {} (--max-pixels)",
+        path.display(),
+        limit.pixels()
     );
     image::ImageReader::open(path)
         .and_then(|r| r.with_guessed_format())
