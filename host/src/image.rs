@@ -22,10 +22,11 @@ impl Default for PixelLimit {
 }
 
 impl PixelLimit {
-    /// The limit for images a command renders itself, from scenes the simulator has
-    /// checked (the demo's and `eval`'s frames and strips): the default, whatever
-    /// `--max-pixels` says of the images a command is given.
-    pub const RENDERED: PixelLimit = PixelLimit(DEFAULT_MAX_PIXELS);
+    /// The limit for images the tool made itself — frames and strips the demo and `eval`
+    /// render from scenes the simulator has checked, a recorded roll's own strip
+    /// segments: the default, whatever `--max-pixels` says of the images a command is
+    /// given.
+    pub const OWN: PixelLimit = PixelLimit(DEFAULT_MAX_PIXELS);
 
     /// The limit, pixels.
     pub fn pixels(self) -> u64 {

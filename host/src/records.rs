@@ -136,8 +136,7 @@ impl RollKeeper {
             let Some((_, segment)) = self.segments.iter().find(|(n, _)| *n == seq) else {
                 continue;
             };
-            // The roll's own segment, as its strip writer wrote it.
-            let image = Planes::load(&self.folder.join(&segment.file), PixelLimit::default())?;
+            let image = Planes::load(&self.folder.join(&segment.file), PixelLimit::OWN)?;
             let list = self.found.entry(seq).or_default();
             list.extend(on_segment(&boxes, segment, &image));
             self.records.replace_defects(self.roll, seq, list)?;
@@ -179,8 +178,7 @@ pub fn record_late_defects(target: &str, roll: i64, found: Vec<StripBox>) -> any
         let Some((_, segment)) = segments.iter().find(|(n, _)| *n == seq) else {
             continue;
         };
-        // The roll's own segment, as its strip writer wrote it.
-        let image = Planes::load(&folder.join(&segment.file), PixelLimit::default())?;
+        let image = Planes::load(&folder.join(&segment.file), PixelLimit::OWN)?;
         let mut list: Vec<DefectRecord> = (record.defect_list.iter())
             .filter(|d| d.segment_seq == Some(seq))
             .cloned()

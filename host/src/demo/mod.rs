@@ -146,7 +146,7 @@ fn stream_device(letters: &Scene, out: &Path) -> Timed<(Outcome, Planes)> {
         ..stream::Options::into_folder(&out.join("stream"))
     };
     let streamed = stream::run(&mut device, &session, &Silent)?;
-    let strip = Planes::load(&out.join(Files::STRIP), PixelLimit::RENDERED)?;
+    let strip = Planes::load(&out.join(Files::STRIP), PixelLimit::OWN)?;
     let m = &streamed.manifest;
     let what = format!(
         "{} tiles, {} bytes in {} messages through the virtual device",
@@ -354,7 +354,7 @@ fn fuse_full_resolution(
         &four,
         &FuseConfig::default(),
         Precision::F32,
-        PixelLimit::RENDERED,
+        PixelLimit::OWN,
     )?;
     let middle = &four[1];
     let top = four.iter().map(|p| p.at.dy).min().unwrap_or(0);

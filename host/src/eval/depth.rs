@@ -168,7 +168,7 @@ fn fused_over(acq: &Acquisition, frames: &[usize], m: usize, h: usize) -> anyhow
         &placed,
         &FuseConfig::default(),
         Precision::F32,
-        PixelLimit::RENDERED,
+        PixelLimit::OWN,
     )?;
     let first = frames.iter().map(|&k| acq.rows[k]).min().unwrap_or(0);
     crop_rows(&out, (acq.rows[m] - first) as usize, h)

@@ -63,7 +63,7 @@ fn device_strip(scene: &Scene, sim: &Simulator) -> anyhow::Result<(i64, Planes, 
             segments.len()
         );
         let first = segments[0].first_row;
-        let strip = Planes::load(&tmp.join(&segments[0].file), PixelLimit::RENDERED)?;
+        let strip = Planes::load(&tmp.join(&segments[0].file), PixelLimit::OWN)?;
         // Device rows count from the first frame's top, in downsampled rows.
         let origin = sim.strip_row_of_top(sim.frame(0).offset_mm).round() as i64;
         Ok((origin + first * d as i64, strip.upsampled(d), d))
@@ -98,7 +98,7 @@ pub fn evaluate_roll(scene: &Scene, strips: usize) -> anyhow::Result<Vec<Row>> {
             at: Offset { dy, dx: 0 },
         })
         .collect();
-    let spliced = splice(&placed, 4, PixelLimit::RENDERED)?;
+    let spliced = splice(&placed, 4, PixelLimit::OWN)?;
     let splice_first = acq.rows.iter().copied().min().unwrap_or(0);
     let (device_first, device, d) = device_strip(&scene, &sim)?;
     // Rows every strip and the ideal cover.

@@ -119,9 +119,8 @@ pub(crate) fn evaluate_acquired(
         let top = acq.rows[first..=last].iter().min().copied().unwrap_or(0);
         crop_rows(&out, (acq.rows[m] - top) as usize, h)
     };
-    let fuse = |cfg: FuseConfig| {
-        move |p: &[Placed]| fuse_mosaic(p, &cfg, Precision::F32, PixelLimit::RENDERED)
-    };
+    let fuse =
+        |cfg: FuseConfig| move |p: &[Placed]| fuse_mosaic(p, &cfg, Precision::F32, PixelLimit::OWN);
     let row = |method: &str, img: &Planes| -> anyhow::Result<Row> {
         Ok(Row {
             scene: scene.name.clone(),
@@ -145,7 +144,7 @@ pub(crate) fn evaluate_acquired(
     )?);
     rows.push(row(
         "time splicing (6 frames)",
-        &over(m - 2, m + 3, &|p| splice(p, 4, PixelLimit::RENDERED))?,
+        &over(m - 2, m + 3, &|p| splice(p, 4, PixelLimit::OWN))?,
     )?);
     for (name, ablation) in [
         ("ablation: no wavelet (4)", Ablation::NoWavelet),
