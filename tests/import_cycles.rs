@@ -21,6 +21,12 @@ type ModPath = Vec<String>;
 /// The workspace's crates whose files are checked: each source folder with its root file.
 const CRATES: &[(&str, &str)] = &[
     ("shared/src", "lib.rs"),
+    ("host/io/src", "lib.rs"),
+    ("host/fullres/src", "lib.rs"),
+    ("host/depth/src", "lib.rs"),
+    ("host/sim/src", "lib.rs"),
+    ("host/detect/src", "lib.rs"),
+    ("host/link/src", "lib.rs"),
     ("host/src", "lib.rs"),
     ("host/records/src", "lib.rs"),
     ("firmware/src", "lib.rs"),

@@ -28,25 +28,22 @@
 //! - [`records`]: what the commands put in the inspection records ([`rollfuse_records`]).
 
 pub use rollfuse_core as core;
+pub use rollfuse_depth as depth;
+pub use rollfuse_detect as detect;
+pub use rollfuse_fullres as fullres;
+pub use rollfuse_fullres::strip_file;
+pub use rollfuse_io::{files, font, image, npy, progress};
+pub use rollfuse_link as link;
+pub use rollfuse_link::pipeline_memory;
+pub use rollfuse_sim as sim;
 
 pub mod commands;
 pub mod demo;
-pub mod depth;
-pub mod detect;
 pub mod eval;
-pub mod files;
 pub mod frames;
-pub mod fullres;
-pub mod image;
-pub mod link;
 pub mod names;
-pub mod npy;
-pub mod pipeline_memory;
-pub mod progress;
 pub mod records;
 pub mod serve;
 pub mod session;
-pub mod sim;
 pub mod stream;
-pub mod strip_file;
 pub mod tradeoff;
