@@ -28,6 +28,8 @@ const CRATES: &[(&str, &str)] = &[
     ("host/detect/src", "lib.rs"),
     ("host/link/src", "lib.rs"),
     ("host/src", "lib.rs"),
+    // The `rollfuse` binary: its `commands` modules.
+    ("host/src", "main.rs"),
     ("host/records/src", "lib.rs"),
     ("firmware/src", "lib.rs"),
     // The board's binary: its `mcu` modules.

@@ -84,7 +84,7 @@ pub fn load(paths: &[PathBuf], max: PixelLimit) -> anyhow::Result<Vec<Planes>> {
     );
     let frames: Vec<Planes> = paths
         .iter()
-        .map(|p| Planes::load(p, max))
+        .map(|p| Ok(Planes::load(p, max)?))
         .collect::<anyhow::Result<_>>()?;
     if let Some(first) = frames.first() {
         for (p, f) in paths.iter().zip(&frames) {

@@ -21,7 +21,6 @@
 //! - [`stream`]: a streaming session — tiles received, checked and stitched into a strip.
 //! - [`tradeoff`]: what each device configuration buys in accuracy and costs in time.
 //! - [`demo`]: the whole system end to end, and its HTML report.
-//! - [`commands`]: the `rollfuse` subcommands.
 //! - [`names`]: the names of settings' values, as the command line and Python take them.
 //! - [`npy`]: NumPy array files.
 //! - [`progress`]: how long work reports its progress ([`progress::Progress`]).
@@ -37,7 +36,6 @@ pub use rollfuse_link as link;
 pub use rollfuse_link::pipeline_memory;
 pub use rollfuse_sim as sim;
 
-pub mod commands;
 pub mod demo;
 pub mod eval;
 pub mod frames;

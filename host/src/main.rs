@@ -1,8 +1,10 @@
 //! `rollfuse`: the command-line tool of the rollfuse tactile sensor module.
 
+mod commands;
+
 use clap::{Parser, Subcommand};
-use rollfuse::commands::bars::{Mode, Show};
-use rollfuse::commands::{
+use commands::bars::{Mode, Show};
+use commands::{
     demo, depth, detect, eval, fuse, metrics, rolls, simulate, splice, stream, tradeoff,
 };
 use std::process::ExitCode;
@@ -132,8 +134,8 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
-            match e.downcast_ref::<rollfuse::commands::Untrusted>() {
-                Some(_) => ExitCode::from(rollfuse::commands::Untrusted::EXIT_CODE),
+            match e.downcast_ref::<commands::Untrusted>() {
+                Some(_) => ExitCode::from(commands::Untrusted::EXIT_CODE),
                 None => ExitCode::FAILURE,
             }
         }

@@ -301,6 +301,42 @@ fn sixteen_bit_output_holds_the_eight_bit_result_and_its_fractions() {
 }
 
 #[test]
+fn a_mosaic_written_as_npy_holds_the_values_the_png_rounds() {
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = simulate(tmp.path(), "dots", 3);
+    let (png, npy) = (tmp.path().join("a.png"), tmp.path().join("a.npy"));
+    for out in [&png, &npy] {
+        let run = fuse(&args(&frames, &["--out", out.to_str().unwrap()]));
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+    }
+    let eight = image::open(&png).unwrap().to_luma8();
+    let bytes = std::fs::read(&npy).unwrap();
+    let shape = format!("'shape': ({}, {})", eight.height(), eight.width());
+    assert!(String::from_utf8_lossy(&bytes[..128]).contains(&shape));
+    let values: Vec<f32> = bytes[bytes.len() - 4 * eight.len()..]
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+        .collect();
+    assert!(
+        values.iter().any(|v| v.fract() != 0.0),
+        "the values unrounded"
+    );
+    for (v, p) in values.iter().zip(eight.pixels()) {
+        assert_eq!(v.round().clamp(0.0, 255.0) as u8, p[0]);
+    }
+    // A roll's strip grows in PNG segments: refused before any work.
+    let err = fails(&args(
+        &frames,
+        &["--out", npy.to_str().unwrap(), "--mode", "roll"],
+    ));
+    assert!(err.contains("PNG segments"), "{err}");
+}
+
+#[test]
 fn sixteen_bit_frames_fuse_like_their_eight_bit_scaling() {
     let tmp = tempfile::tempdir().unwrap();
     let frames = simulate(tmp.path(), "dots", 2);

@@ -1,5 +1,6 @@
 //! The host's layers: the library's modules do not reach into the command line. Only
-//! `host/src/commands/` and `host/src/main.rs` may name `crate::commands`.
+//! `host/src/commands/` and `host/src/main.rs` (the `rollfuse` binary, which declares the
+//! commands) may name `crate::commands`, and only they may use clap.
 
 use std::path::Path;
 
@@ -26,6 +27,42 @@ fn no_library_module_imports_the_commands() {
         .filter(|p| {
             let text = std::fs::read_to_string(p).unwrap();
             text.contains("crate::commands") || text.contains("rollfuse::commands")
+        })
+        .map(|p| p.display().to_string())
+        .collect();
+    assert!(offenders.is_empty(), "{offenders:?}");
+}
+
+/// clap is the command line's: no other source file of the workspace — the library, the
+/// crates beneath it, the core, the firmware, the Python package — uses it.
+#[test]
+fn only_the_command_line_uses_clap() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
+    let commands = root.join("host/src/commands");
+    let main = root.join("host/src/main.rs");
+    let mut files = Vec::new();
+    for dir in [
+        "host/src",
+        "host/io/src",
+        "host/fullres/src",
+        "host/depth/src",
+        "host/sim/src",
+        "host/detect/src",
+        "host/link/src",
+        "host/records/src",
+        "shared/src",
+        "firmware/src",
+        "python/src",
+    ] {
+        sources(&root.join(dir), &mut files);
+    }
+    assert!(files.len() > 100, "found the sources");
+    let offenders: Vec<String> = files
+        .iter()
+        .filter(|p| !p.starts_with(&commands) && **p != main)
+        .filter(|p| {
+            let text = std::fs::read_to_string(p).unwrap();
+            text.contains("clap::") || text.contains("use clap")
         })
         .map(|p| p.display().to_string())
         .collect();

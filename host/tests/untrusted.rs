@@ -156,7 +156,7 @@ fn scene_values_that_would_overflow_are_refused_and_a_scene_without_contact_is_s
 }
 
 #[test]
-fn an_image_output_not_named_png_is_refused_before_any_work_and_touches_nothing() {
+fn an_image_output_of_no_known_format_is_refused_before_any_work_and_touches_nothing() {
     let tmp = tempfile::tempdir().unwrap();
     let (_, frames) = letters_frames(tmp.path(), 3);
     for command in ["fuse", "splice"] {
@@ -167,7 +167,7 @@ fn an_image_output_not_named_png_is_refused_before_any_work_and_touches_nothing(
             .chain(frames.iter().map(String::as_str))
             .chain(["--out", out.to_str().unwrap()])
             .collect();
-        fails_saying(&args, "images are written as PNG; name the file .png");
+        fails_saying(&args, "images are written as .png or .npy files");
         assert_eq!(std::fs::read(&out).unwrap(), b"precious");
         assert!(!tmp.path().join("precious.offsets.json").exists());
     }

@@ -1,8 +1,8 @@
 //! Images on the host: planes of `f32` gray levels, loaded from and saved to PNG.
 
 use crate::files::{PngLayout, write_png};
-use anyhow::{Context, bail, ensure};
-use std::path::Path;
+use anyhow::ensure;
+use std::path::{Path, PathBuf};
 
 /// The largest image read by default, pixels: 32 Mi (e.g. 640 × 52 000 rows), at most
 /// 384 MiB as three planes of `f32`. `rollfuse --max-pixels` sets another.
@@ -39,31 +39,147 @@ impl PixelLimit {
     }
 }
 
+/// Why an image could not be read: the operating system's fault ([`ReadError::Io`]) told
+/// apart from the file's ([`ReadError::Decode`], [`ReadError::OverLimit`],
+/// [`ReadError::Empty`]).
+#[derive(Debug)]
+pub enum ReadError {
+    /// The file could not be opened or read: missing, not allowed, a device fault.
+    Io {
+        /// The image's path.
+        path: PathBuf,
+        /// What the operating system said.
+        source: std::io::Error,
+    },
+    /// Not an image this build reads, or its data is damaged.
+    Decode {
+        /// The image's path.
+        path: PathBuf,
+        /// What the decoder said.
+        source: ::image::ImageError,
+    },
+    /// Its header gives more pixels than the limit: refused before it is decoded.
+    OverLimit {
+        /// The image's path.
+        path: PathBuf,
+        /// Its width and height, pixels.
+        size: (u32, u32),
+        /// The limit it is over.
+        limit: PixelLimit,
+    },
+    /// It has no pixels.
+    Empty {
+        /// The image's path.
+        path: PathBuf,
+    },
+}
+
+impl std::fmt::Display for ReadError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Io { path, .. } | Self::Decode { path, .. } => {
+                write!(f, "cannot read image {}", path.display())
+            }
+            Self::OverLimit {
+                path,
+                size: (w, h),
+                limit,
+            } => write!(
+                f,
+                "image {} is {w}×{h} = {} pixels, over the limit of {} (--max-pixels)",
+                path.display(),
+                u64::from(*w) * u64::from(*h),
+                limit.pixels()
+            ),
+            Self::Empty { path } => write!(f, "image {} is empty", path.display()),
+        }
+    }
+}
+
+impl std::error::Error for ReadError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Self::Io { source, .. } => Some(source),
+            Self::Decode { source, .. } => Some(source),
+            Self::OverLimit { .. } | Self::Empty { .. } => None,
+        }
+    }
+}
+
+impl ReadError {
+    /// The decoder's error about `path`, an I/O error kept as one.
+    fn of(path: &Path, e: ::image::ImageError) -> Self {
+        let path = path.to_path_buf();
+        match e {
+            ::image::ImageError::IoError(source) => Self::Io { path, source },
+            source => Self::Decode { path, source },
+        }
+    }
+}
+
 /// An image file's width and height, from its header alone.
-pub fn dimensions(path: &Path) -> anyhow::Result<(u32, u32)> {
-    image::ImageReader::open(path)
+pub fn dimensions(path: &Path) -> Result<(u32, u32), ReadError> {
+    ::image::ImageReader::open(path)
         .and_then(|r| r.with_guessed_format())
-        .map_err(image::ImageError::IoError)
+        .map_err(::image::ImageError::IoError)
         .and_then(|r| r.into_dimensions())
-        .with_context(|| format!("cannot read image {}", path.display()))
+        .map_err(|e| ReadError::of(path, e))
 }
 
 /// Reads `path`'s header, refusing an image over the pixel limit before anything is
 /// decoded or allocated.
-fn open_within_limit(path: &Path, limit: PixelLimit) -> anyhow::Result<image::DynamicImage> {
+fn open_within_limit(path: &Path, limit: PixelLimit) -> Result<::image::DynamicImage, ReadError> {
     let (w, h) = dimensions(path)?;
-    let pixels = u64::from(w) * u64::from(h);
-    ensure!(
-        limit.admits(pixels),
-        "image {} is {w}×{h} = {pixels} pixels, over the limit of {} (--max-pixels)",
-        path.display(),
-        limit.pixels()
-    );
-    image::ImageReader::open(path)
+    if !limit.admits(u64::from(w) * u64::from(h)) {
+        return Err(ReadError::OverLimit {
+            path: path.to_path_buf(),
+            size: (w, h),
+            limit,
+        });
+    }
+    ::image::ImageReader::open(path)
         .and_then(|r| r.with_guessed_format())
-        .map_err(image::ImageError::IoError)
+        .map_err(::image::ImageError::IoError)
         .and_then(|r| r.decode())
-        .with_context(|| format!("cannot read image {}", path.display()))
+        .map_err(|e| ReadError::of(path, e))
+}
+
+/// The formats images are written in, chosen by the output's extension. A new format is a
+/// value here, its extension in [`ImageFormat::EXTENSIONS`] and its writer in
+/// [`Planes::save`]; every command that writes one image takes it from there.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ImageFormat {
+    /// PNG, 8 or 16 bits a sample, gray or RGB.
+    Png,
+    /// A NumPy array of `f32` on the 8-bit scale, the fused values unrounded: rows ×
+    /// columns (gray) or rows × columns × 3 (RGB).
+    Npy,
+}
+
+impl ImageFormat {
+    /// Each format's file extension.
+    pub const EXTENSIONS: &'static [(&'static str, ImageFormat)] =
+        &[("png", ImageFormat::Png), ("npy", ImageFormat::Npy)];
+
+    /// The format `target`'s extension names (any case), or an error that lists them.
+    pub fn of(target: &Path) -> anyhow::Result<Self> {
+        let ext = target.extension().and_then(|e| e.to_str()).unwrap_or("");
+        Self::EXTENSIONS
+            .iter()
+            .find(|(name, _)| name.eq_ignore_ascii_case(ext))
+            .map(|&(_, format)| format)
+            .ok_or_else(|| {
+                let names: Vec<String> = Self::EXTENSIONS
+                    .iter()
+                    .map(|(n, _)| format!(".{n}"))
+                    .collect();
+                anyhow::anyhow!(
+                    "{}: images are written as {} files; name it with one of those",
+                    target.display(),
+                    names.join(" or ")
+                )
+            })
+    }
 }
 
 /// Whether `path` is a PNG whose pixels are palette indices (colour type 3 in its header).
@@ -196,7 +312,7 @@ impl Planes {
     /// Reads a PNG (or any format the `image` crate was built with): 8- or 16-bit, gray or
     /// RGB (an alpha channel is dropped; gray+alpha reads as gray). An image over `limit`
     /// is refused from its header, before it is decoded.
-    pub fn load(path: &Path, limit: PixelLimit) -> anyhow::Result<Self> {
+    pub fn load(path: &Path, limit: PixelLimit) -> Result<Self, ReadError> {
         let img = open_within_limit(path, limit)?;
         let (w, h) = (img.width() as usize, img.height() as usize);
         let color = img.color();
@@ -244,7 +360,9 @@ impl Planes {
             }
         };
         if w == 0 || h == 0 {
-            bail!("image {} is empty", path.display());
+            return Err(ReadError::Empty {
+                path: path.to_path_buf(),
+            });
         }
         Ok(Self {
             width: w,
@@ -275,6 +393,28 @@ impl Planes {
             _ => self.to_u16().iter().flat_map(|v| v.to_ne_bytes()).collect(),
         };
         write_png(path, &bytes, (self.width, self.height), layout)
+    }
+
+    /// Saves in the format `path`'s extension names ([`ImageFormat::of`]), whole or not at
+    /// all: a PNG of `png_bits` (8 or 16) a sample, or a NumPy array of the values as they
+    /// are.
+    pub fn save(&self, path: &Path, png_bits: u8) -> anyhow::Result<()> {
+        match ImageFormat::of(path)? {
+            ImageFormat::Png => self.save_png_bits(path, png_bits),
+            ImageFormat::Npy => crate::files::write_bytes_atomic(path, &self.to_npy()?),
+        }
+    }
+
+    /// The image as `.npy` bytes: rows × columns, or rows × columns × 3 interleaved.
+    fn to_npy(&self) -> anyhow::Result<Vec<u8>> {
+        let (w, h, c) = (self.width, self.height, self.planes.len());
+        if c == 1 {
+            return crate::npy::encode_f32(&self.planes[0], h, w);
+        }
+        let interleaved: Vec<f32> = (0..w * h)
+            .flat_map(|i| self.planes.iter().map(move |p| p[i]))
+            .collect();
+        crate::npy::encode_f32_shaped(&interleaved, &[h, w, c])
     }
 
     /// Saves as an 8-bit gray or RGB PNG, whole or not at all.
@@ -317,5 +457,68 @@ mod tests {
         );
         assert_eq!(Planes::load(&path, PixelLimit(32)).unwrap(), image);
         assert_eq!(Planes::load(&path, PixelLimit::default()).unwrap(), image);
+    }
+
+    #[test]
+    fn a_read_error_says_whose_fault_it_is() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = Planes::load(&dir.path().join("none.png"), PixelLimit::default());
+        assert!(matches!(missing, Err(ReadError::Io { source, .. })
+            if source.kind() == std::io::ErrorKind::NotFound));
+        let junk = dir.path().join("junk.png");
+        std::fs::write(&junk, b"\x89PNG\r\n\x1a\nnot really").unwrap();
+        let damaged = Planes::load(&junk, PixelLimit::default()).unwrap_err();
+        assert!(matches!(damaged, ReadError::Decode { .. }), "{damaged:?}");
+        assert!(
+            format!("{:#}", anyhow::Error::from(damaged)).starts_with("cannot read image "),
+            "the message names the file, then the decoder's reason"
+        );
+        let image = Planes {
+            width: 3,
+            height: 2,
+            planes: vec![vec![1.0; 6]],
+        };
+        let path = dir.path().join("a.png");
+        image.save_png(&path).unwrap();
+        let over = Planes::load(&path, PixelLimit(5)).unwrap_err();
+        assert!(
+            matches!(over, ReadError::OverLimit { size: (3, 2), .. }),
+            "{over:?}"
+        );
+    }
+
+    #[test]
+    fn the_extension_names_the_format_and_npy_keeps_the_values() {
+        let dir = tempfile::tempdir().unwrap();
+        assert_eq!(
+            ImageFormat::of(Path::new("a.PNG")).unwrap(),
+            ImageFormat::Png
+        );
+        assert_eq!(
+            ImageFormat::of(Path::new("a.npy")).unwrap(),
+            ImageFormat::Npy
+        );
+        let refused = ImageFormat::of(Path::new("a.tif")).unwrap_err().to_string();
+        assert!(refused.contains(".png or .npy"), "{refused}");
+        let rgb = Planes {
+            width: 2,
+            height: 1,
+            planes: vec![vec![0.25, 1.0], vec![2.0, 3.0], vec![4.0, 255.5]],
+        };
+        let path = dir.path().join("rgb.npy");
+        rgb.save(&path, 8).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert!(String::from_utf8_lossy(&bytes[..128]).contains("'shape': (1, 2, 3)"));
+        let values: Vec<f32> = bytes[bytes.len() - 24..]
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+            .collect();
+        assert_eq!(values, [0.25, 2.0, 4.0, 1.0, 3.0, 255.5]);
+        assert!(rgb.save(&dir.path().join("rgb.tif"), 8).is_err());
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            1,
+            "nothing else written"
+        );
     }
 }

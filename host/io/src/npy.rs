@@ -4,13 +4,24 @@ use std::io::Write;
 
 /// Encodes a row-major `rows × cols` array of `f32` as `.npy` bytes (little-endian `<f4`).
 pub fn encode_f32(data: &[f32], rows: usize, cols: usize) -> anyhow::Result<Vec<u8>> {
+    encode_f32_shaped(data, &[rows, cols])
+}
+
+/// Encodes a row-major (C-order) array of `f32` of any `shape` as `.npy` bytes.
+pub fn encode_f32_shaped(data: &[f32], shape: &[usize]) -> anyhow::Result<Vec<u8>> {
+    let dims: Vec<String> = shape.iter().map(usize::to_string).collect();
     anyhow::ensure!(
-        data.len() == rows * cols,
-        "npy: {} values do not make a {rows}×{cols} array",
-        data.len()
+        data.len() == shape.iter().product::<usize>(),
+        "npy: {} values do not make a {} array",
+        data.len(),
+        dims.join("×")
     );
-    let mut header =
-        format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({rows}, {cols}), }}");
+    // A tuple of one needs its comma: (5,).
+    let tuple = match dims.as_slice() {
+        [one] => format!("({one},)"),
+        _ => format!("({})", dims.join(", ")),
+    };
+    let mut header = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {tuple}, }}");
     // Magic (6) + version (2) + length (2) + header + '\n' is padded to a multiple of 64.
     let total = 10 + header.len() + 1;
     header.push_str(&" ".repeat(total.next_multiple_of(64) - total));
@@ -41,5 +52,9 @@ mod tests {
         assert_eq!(data.len(), 24);
         assert_eq!(f32::from_le_bytes(data[4..8].try_into().unwrap()), 2.5);
         assert!(encode_f32(&[1.0], 2, 3).is_err());
+        let cube = encode_f32_shaped(&[0.0; 12], &[2, 2, 3]).unwrap();
+        assert!(String::from_utf8_lossy(&cube).contains("'shape': (2, 2, 3)"));
+        let line = encode_f32_shaped(&[0.0; 5], &[5]).unwrap();
+        assert!(String::from_utf8_lossy(&line).contains("'shape': (5,)"));
     }
 }

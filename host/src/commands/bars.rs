@@ -1,9 +1,9 @@
-//! Progress on the command line, the command line's side of [`crate::progress::Progress`]:
+//! Progress on the command line, the command line's side of [`rollfuse::progress::Progress`]:
 //! a bar on a terminal; elsewhere (a log, a pipe, a service) a plain line every so often
 //! while a stage runs, and one when a stage that printed any ends.
 
-use crate::progress::Progress;
 use indicatif::{ProgressBar, ProgressStyle};
+use rollfuse::progress::Progress;
 use std::io::{IsTerminal, Write};
 use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};

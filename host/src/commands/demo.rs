@@ -1,6 +1,6 @@
 //! `rollfuse demo`: the whole system on simulated data, and `report.html`.
 
-use crate::demo::{self, Files, Options};
+use rollfuse::demo::{self, Files, Options};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -28,7 +28,7 @@ pub fn run(args: Args, show: super::bars::Show) -> anyhow::Result<()> {
     let mut inputs = vec![("bench CSV", args.bench.as_path())];
     inputs.extend(args.letters.as_deref().map(|p| ("letters scene", p)));
     inputs.extend(args.spheres.as_deref().map(|p| ("spheres scene", p)));
-    crate::files::refuse_inside(&args.out, &inputs)?;
+    rollfuse::files::refuse_inside(&args.out, &inputs)?;
     if !args.bench.exists() {
         eprintln!(
             "note: no MCU bench results at {}: the trade-off shows host time only \
@@ -39,7 +39,7 @@ pub fn run(args: Args, show: super::bars::Show) -> anyhow::Result<()> {
     let started = Instant::now();
     let bars = super::bars::Bars::new(show);
     // The report's folder is replaced whole: a failed run leaves the last report as it was.
-    let result = crate::files::replace_folder(&args.out, |staging| {
+    let result = rollfuse::files::replace_folder(&args.out, |staging| {
         let opts = Options {
             out: staging.to_path_buf(),
             letters: args.letters.clone(),
@@ -65,7 +65,7 @@ pub fn run(args: Args, show: super::bars::Show) -> anyhow::Result<()> {
             100.0 * (fused.report.ie_std - single.report.ie_std) / single.report.ie_std,
         );
     }
-    if let Some(rec) = crate::tradeoff::report::recommended(&d.tradeoff) {
+    if let Some(rec) = rollfuse::tradeoff::report::recommended(&d.tradeoff) {
         println!(
             "recommended device configuration: {} ({:.2} dB)",
             rec.setup.label(),

@@ -2,12 +2,12 @@
 //! light file they need.
 
 use super::check_writable;
-use crate::depth::calibrate::{Circle, calibrate};
-use crate::depth::lights::Lights;
-use crate::depth::{output, reconstruct};
-use crate::files::{Batch, NewFolder};
-use crate::image::{PixelLimit, Planes};
 use anyhow::{Context, bail};
+use rollfuse::depth::calibrate::{Circle, calibrate};
+use rollfuse::depth::lights::Lights;
+use rollfuse::depth::{output, reconstruct};
+use rollfuse::files::{Batch, NewFolder};
+use rollfuse::image::{PixelLimit, Planes};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `rollfuse depth`.
@@ -74,7 +74,7 @@ pub fn run(args: Args, limit: PixelLimit) -> anyhow::Result<()> {
     ];
     inputs.extend(args.background.as_deref().map(|b| ("background", b)));
     let targets: Vec<&Path> = outputs.iter().map(PathBuf::as_path).collect();
-    crate::files::refuse_overwriting(&targets, &inputs)?;
+    rollfuse::files::refuse_overwriting(&targets, &inputs)?;
     for o in &outputs {
         check_writable(o)?;
     }
@@ -134,7 +134,7 @@ pub struct CalibrateArgs {
 pub fn calibrate_run(args: CalibrateArgs, limit: PixelLimit) -> anyhow::Result<()> {
     let mut inputs = vec![("input image", args.image.as_path())];
     inputs.extend(args.background.as_deref().map(|b| ("background", b)));
-    crate::files::refuse_overwriting(&[&args.out], &inputs)?;
+    rollfuse::files::refuse_overwriting(&[&args.out], &inputs)?;
     check_writable(&args.out)?;
     let _folder = NewFolder::for_file(&args.out)?;
     let circle = match args.circle.as_deref() {

@@ -2,16 +2,16 @@
 //! detector run on images (frames, fused images, strips).
 
 use super::bars::{Bars, Show};
-use crate::detect::anomaly::NormalModel;
-use crate::detect::draw::{draw, outline};
-use crate::detect::labels::read_labels;
-use crate::detect::targets::MIN_IOU;
-use crate::detect::train::{TrainOptions, train};
-use crate::detect::tune::{TuneOptions, tune};
-use crate::detect::{Detection, Detector, UNKNOWN_FABRIC, model};
-use crate::files::{Batch, NewFolder, PngLayout, add_png};
-use crate::image::{PixelLimit, Planes};
 use anyhow::Context;
+use rollfuse::detect::anomaly::NormalModel;
+use rollfuse::detect::draw::{draw, outline};
+use rollfuse::detect::labels::read_labels;
+use rollfuse::detect::targets::MIN_IOU;
+use rollfuse::detect::train::{TrainOptions, train};
+use rollfuse::detect::tune::{TuneOptions, tune};
+use rollfuse::detect::{Detection, Detector, UNKNOWN_FABRIC, model};
+use rollfuse::files::{Batch, NewFolder, PngLayout, add_png};
+use rollfuse::image::{PixelLimit, Planes};
 use rollfuse_records::Records;
 use std::path::{Path, PathBuf};
 
@@ -33,7 +33,7 @@ pub struct TrainArgs {
     /// How the simulated rolls are drawn: `standard` (the simulator's own look) or
     /// `varied` (lights, gel, defocus and noise drawn for each roll; see docs/detect.md).
     #[arg(long, default_value = "standard", conflicts_with = "images")]
-    pub style: crate::detect::data::Style,
+    pub style: rollfuse::detect::data::Style,
     /// Give each training crop a random look: half turned, its tone, light, blur and noise
     /// changed (see docs/detect.md).
     #[arg(long, conflicts_with = "images")]
@@ -80,7 +80,7 @@ pub fn train_run(args: TrainArgs, show: Show, limit: PixelLimit) -> anyhow::Resu
         .into_iter()
         .filter_map(|(what, path)| Some((what, path.as_deref()?)))
         .collect();
-    crate::files::refuse_overwriting(&[args.out.as_path()], &inputs)?;
+    rollfuse::files::refuse_overwriting(&[args.out.as_path()], &inputs)?;
     let _folder = NewFolder::for_file(&args.out)?;
     let started = std::time::Instant::now();
     let done = match (&args.images, &args.labels) {
@@ -141,7 +141,7 @@ fn train_on_rolls(args: &TrainArgs, show: Show) -> anyhow::Result<String> {
     }
     // Kept on the terminal: the loss the training ended at stays readable.
     args.threshold
-        .map(crate::detect::check_threshold)
+        .map(rollfuse::detect::check_threshold)
         .transpose()?;
     let (net, mut about, report) = train(&opts, start.map(|s| s.0), &made_by, &Bars::kept(show))?;
     about.threshold = args.threshold;
@@ -281,7 +281,7 @@ fn record_found<'a>(
     };
     let defects: Vec<_> = found
         .map(|(kind, score, box_px)| {
-            crate::records::defect(kind, score, box_px, image, segment.first_row)
+            rollfuse::records::defect(kind, score, box_px, image, segment.first_row)
         })
         .collect();
     records.replace_defects(roll, segment.seq, &defects)?;
@@ -306,7 +306,7 @@ struct ImageResult<'a> {
 /// Runs `rollfuse detect`, reading images within `limit`.
 pub fn run(args: Args, limit: PixelLimit) -> anyhow::Result<()> {
     args.threshold
-        .map(crate::detect::check_threshold)
+        .map(rollfuse::detect::check_threshold)
         .transpose()?;
     let drawn: Vec<PathBuf> = match &args.draw {
         Some(dir) => args
@@ -317,7 +317,7 @@ pub fn run(args: Args, limit: PixelLimit) -> anyhow::Result<()> {
         None => Vec::new(),
     };
     let mut outputs: Vec<&Path> = drawn.iter().map(PathBuf::as_path).collect();
-    crate::files::refuse_duplicate_outputs(&outputs, "two images of one file name drawn")?;
+    rollfuse::files::refuse_duplicate_outputs(&outputs, "two images of one file name drawn")?;
     outputs.extend(args.json.as_deref());
     let mut inputs: Vec<(&str, &Path)> = args
         .images
@@ -327,7 +327,7 @@ pub fn run(args: Args, limit: PixelLimit) -> anyhow::Result<()> {
     inputs.extend(args.model.as_deref().map(|m| ("model", m)));
     inputs.extend(args.normal.as_deref().map(|m| ("normal model", m)));
     inputs.extend(args.records.as_deref().and_then(super::rolls::records_file));
-    crate::files::refuse_overwriting(&outputs, &inputs)?;
+    rollfuse::files::refuse_overwriting(&outputs, &inputs)?;
     // Before any work: an output that cannot be written is said first, not after the
     // results; folders made for the outputs go again if the command fails before using them.
     let mut made = Vec::new();
@@ -465,14 +465,14 @@ pub fn fit_normal_run(args: FitNormalArgs, limit: PixelLimit) -> anyhow::Result<
         .iter()
         .map(|i| ("input image", i.as_path()))
         .collect();
-    crate::files::refuse_overwriting(&[args.out.as_path()], &inputs)?;
+    rollfuse::files::refuse_overwriting(&[args.out.as_path()], &inputs)?;
     super::check_writable(&args.out)?;
     let _folder = NewFolder::for_file(&args.out)?;
     let started = std::time::Instant::now();
     let images: Vec<Planes> = args
         .images
         .iter()
-        .map(|p| Planes::load(p, limit))
+        .map(|p| Ok(Planes::load(p, limit)?))
         .collect::<anyhow::Result<_>>()?;
     let model = if args.every_row_alike {
         NormalModel::fit_every_row_alike(&images)?
@@ -544,7 +544,7 @@ fn anomalies_run(
             counted(&regions, "region")
         );
         let found = a.regions.iter();
-        let found = found.map(|r| (crate::detect::anomaly::KIND, r.score, r.box_px));
+        let found = found.map(|r| (rollfuse::detect::anomaly::KIND, r.score, r.box_px));
         record_found(records.as_deref_mut(), path, &image, found)?;
         if let Some(out) = drawn.get(k) {
             let (w, h, rgb) = outline(&image, a.regions.iter().map(|r| (r.box_px, ANOMALY_COLOUR)));
@@ -557,7 +557,7 @@ fn anomalies_run(
                 .regions
                 .iter()
                 .map(|r| AnomalyDefect {
-                    kind: crate::detect::anomaly::KIND,
+                    kind: rollfuse::detect::anomaly::KIND,
                     score: r.score,
                     box_px: r.box_px,
                 })

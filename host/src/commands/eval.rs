@@ -1,11 +1,11 @@
 //! `rollfuse eval`: Tables II and III on the simulated standardized samples.
 
 use super::bars::{Bars, Show};
-use crate::eval::depth;
-use crate::eval::tables::{csv, evaluate_scene, markdown};
-use crate::files::Batch;
-use crate::progress::Progress;
-use crate::sim::{Scene, built_in};
+use rollfuse::eval::depth;
+use rollfuse::eval::tables::{csv, evaluate_scene, markdown};
+use rollfuse::files::Batch;
+use rollfuse::progress::Progress;
+use rollfuse::sim::{Scene, built_in};
 
 use rollfuse_core::FuseConfig;
 use std::path::PathBuf;
@@ -48,7 +48,7 @@ pub struct Args {
         requires = "detect",
         conflicts_with = "normal"
     )]
-    pub style: crate::detect::data::Style,
+    pub style: rollfuse::detect::data::Style,
     /// With --detect: the heatmap score a detection needs, 0..1, as `detect --threshold`
     /// [default: the model's own].
     #[arg(long, requires = "detect", conflicts_with = "normal")]
@@ -74,12 +74,12 @@ pub fn scenes_or(paths: &[PathBuf], names: &[&str]) -> anyhow::Result<Vec<Scene>
 fn run_depth(args: &Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.scene.len() <= 1, "--depth takes one scene");
     let scene = built_in::scene_or(args.scene.first().map(PathBuf::as_path), "spheres")?;
-    let _folder = crate::files::NewFolder::create(&args.out)?;
+    let _folder = rollfuse::files::NewFolder::create(&args.out)?;
     let rows = depth::evaluate_depth(&scene)?;
     let mut batch = Batch::new();
     for (r, name) in rows.iter().zip(["single", "fused3", "fused2"]) {
         let path = args.out.join(format!("depth_{name}.png"));
-        crate::depth::output::write_png(&r.depth, &mut batch, &path)?;
+        rollfuse::depth::output::write_png(&r.depth, &mut batch, &path)?;
     }
     let md = depth::markdown(&rows);
     batch.add_bytes(&args.out.join("depth.csv"), depth::csv(&rows).as_bytes())?;
@@ -101,12 +101,12 @@ fn run_roll(args: &Args, show: Show) -> anyhow::Result<()> {
     bars.start("rolling", Some(loaded.len() as u64), "scenes");
     let mut rows = Vec::new();
     for (k, scene) in loaded.iter().enumerate() {
-        rows.extend(crate::eval::roll::evaluate_roll(scene, 10)?);
+        rows.extend(rollfuse::eval::roll::evaluate_roll(scene, 10)?);
         bars.advance_to(k as u64 + 1);
     }
     bars.finish();
-    let _folder = crate::files::NewFolder::create(&args.out)?;
-    let md = crate::eval::roll::markdown(&rows);
+    let _folder = rollfuse::files::NewFolder::create(&args.out)?;
+    let md = rollfuse::eval::roll::markdown(&rows);
     let mut batch = Batch::new();
     batch.add_bytes(&args.out.join("roll.csv"), csv(&rows).as_bytes())?;
     batch.add_bytes(&args.out.join("roll.md"), md.as_bytes())?;
@@ -118,9 +118,9 @@ fn run_roll(args: &Args, show: Show) -> anyhow::Result<()> {
 
 /// Runs `rollfuse eval --detect --normal`.
 fn run_anomaly(args: &Args, show: Show) -> anyhow::Result<()> {
-    use crate::eval::anomaly::{evaluate_anomaly, markdown};
+    use rollfuse::eval::anomaly::{evaluate_anomaly, markdown};
     let rows = evaluate_anomaly(args.rolls, &Bars::new(show))?;
-    let _folder = crate::files::NewFolder::create(&args.out)?;
+    let _folder = rollfuse::files::NewFolder::create(&args.out)?;
     let md = format!(
         "Anomaly mode on held-out rolls: {}\n\n{}",
         held_out(args.rolls),
@@ -131,7 +131,7 @@ fn run_anomaly(args: &Args, show: Show) -> anyhow::Result<()> {
 
 /// `rolls` held-out rolls and their seeds, as the tables' headers say them.
 fn held_out(rolls: usize) -> String {
-    let first = crate::eval::detect::EVAL_SEEDS;
+    let first = rollfuse::eval::detect::EVAL_SEEDS;
     format!("{rolls} (seeds {first}..{})", first + rolls as u64)
 }
 
@@ -156,18 +156,18 @@ fn write_table(
 
 /// Runs `rollfuse eval --detect`.
 fn run_detect(args: &Args, show: Show) -> anyhow::Result<()> {
-    use crate::eval::detect::{evaluate_detect, markdown};
+    use rollfuse::eval::detect::{evaluate_detect, markdown};
     if args.normal {
         return run_anomaly(args, show);
     }
     args.threshold
-        .map(crate::detect::check_threshold)
+        .map(rollfuse::detect::check_threshold)
         .transpose()?;
-    let mut detector = crate::detect::Detector::load_or_built_in(args.model.as_deref())?;
+    let mut detector = rollfuse::detect::Detector::load_or_built_in(args.model.as_deref())?;
     detector.threshold = args.threshold.unwrap_or(detector.threshold);
-    let shape = crate::detect::data::RollShape::STANDARD;
+    let shape = rollfuse::detect::data::RollShape::STANDARD;
     let rows = evaluate_detect(&detector, args.rolls, &shape, args.style, &Bars::new(show))?;
-    let _folder = crate::files::NewFolder::create(&args.out)?;
+    let _folder = rollfuse::files::NewFolder::create(&args.out)?;
     let md = format!(
         "Held-out rolls: {}, drawn in the {} style, model: {}, threshold {}\n\n{}",
         held_out(args.rolls),
@@ -193,7 +193,7 @@ pub fn run(args: Args, show: Show) -> anyhow::Result<()> {
         return run_roll(&args, show);
     }
     let scenes = scenes_or(&args.scene, &SAMPLES)?;
-    let _folder = crate::files::NewFolder::create(&args.out)?;
+    let _folder = rollfuse::files::NewFolder::create(&args.out)?;
     let bars = Bars::new(show);
     bars.start("evaluating", Some(scenes.len() as u64), "scenes");
     let mut rows = Vec::new();

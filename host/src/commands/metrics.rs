@@ -1,9 +1,9 @@
 //! `rollfuse metrics`: IE, MS-SSIM against a reference, and their regional spread.
 
-use crate::eval::metrics::StripAxis;
-pub use crate::eval::report::{Report, measure};
-use crate::image::{PixelLimit, Planes};
 use anyhow::ensure;
+use rollfuse::eval::metrics::StripAxis;
+use rollfuse::eval::report::measure;
+use rollfuse::image::{PixelLimit, Planes};
 use std::path::PathBuf;
 
 /// Arguments of `rollfuse metrics`.
@@ -60,7 +60,7 @@ fn cut_to_image(reference: Planes, image: &Planes, args: &Args) -> anyhow::Resul
     let first = match args.reference_rows {
         Some(row) => row,
         None if same_size => return Ok(reference),
-        None => match crate::strip_file::first_row_of(&args.image) {
+        None => match rollfuse::strip_file::first_row_of(&args.image) {
             Some((index, row)) => {
                 let row = usize::try_from(row).map_err(|_| {
                     anyhow::anyhow!(

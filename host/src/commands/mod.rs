@@ -14,7 +14,7 @@ pub mod splice;
 pub mod stream;
 pub mod tradeoff;
 
-use crate::names::Named;
+use rollfuse::names::Named;
 
 /// A command wrote its output, but the output rests on evidence it cannot trust (a
 /// roll's placement with the belt lost, say): the process exits with
@@ -46,4 +46,4 @@ pub fn named<T: Named>() -> impl clap::builder::TypedValueParser<Value = T> {
         .try_map(|name| T::from_name(&name).ok_or("not one of the possible values"))
 }
 
-pub use crate::files::check_writable;
+pub use rollfuse::files::check_writable;

@@ -1,8 +1,8 @@
 //! `rollfuse rolls`: the inspection records read back — the rolls of a line, one roll's
 //! record, and its roll map (docs/records.md).
 
-use crate::files::Batch;
 use anyhow::{Context, ensure};
+use rollfuse::files::Batch;
 use rollfuse_records::{Filter, Records, Roll, RollSummary, map};
 use std::path::{Path, PathBuf};
 
@@ -263,14 +263,14 @@ fn write_map(a: MapArgs) -> anyhow::Result<()> {
     );
     let csv_path = a.out.with_extension("csv");
     for p in [&a.out, &csv_path] {
-        crate::files::check_writable(p)?;
+        rollfuse::files::check_writable(p)?;
     }
     let inputs: Vec<_> = records_file(&a.records).into_iter().collect();
-    crate::files::refuse_overwriting(&[&a.out, &csv_path], &inputs)?;
+    rollfuse::files::refuse_overwriting(&[&a.out, &csv_path], &inputs)?;
     let roll = open(&a.records)?.roll(a.id)?;
     let svg = map::svg(&roll, a.width).map_err(anyhow::Error::msg)?;
     let csv = map::csv(&roll).map_err(anyhow::Error::msg)?;
-    let _folder = crate::files::NewFolder::for_file(&a.out)?;
+    let _folder = rollfuse::files::NewFolder::for_file(&a.out)?;
     let mut batch = Batch::new();
     batch.add_bytes(&a.out, svg.as_bytes())?;
     batch.add_bytes(&csv_path, csv.as_bytes())?;

@@ -6,7 +6,7 @@
 //! A file is removed only if it is what the tool writes under that name (by its first
 //! bytes): a user's own `STEM.json` of other content is left alone.
 
-use crate::strip_file::StripWriter;
+use rollfuse::strip_file::StripWriter;
 use std::path::{Path, PathBuf};
 
 /// A kind of file written beside `OUT`.
@@ -68,7 +68,7 @@ pub fn remove_others(out: &Path, written: &[Side]) -> anyhow::Result<()> {
         if side == Side::Strip {
             stale.extend(StripWriter::segments_on_disk(out, 0));
         }
-        crate::files::remove_stale(stale)?;
+        rollfuse::files::remove_stale(stale)?;
     }
     Ok(())
 }

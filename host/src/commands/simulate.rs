@@ -1,7 +1,7 @@
 //! `rollfuse simulate`: render a scene's frames, ground truth and manifest.
 
-use crate::sim::{Scene, Simulator, output};
 use anyhow::Context;
+use rollfuse::sim::{Scene, Simulator, output};
 use std::path::PathBuf;
 
 /// Arguments of `rollfuse simulate`.

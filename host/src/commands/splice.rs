@@ -2,10 +2,10 @@
 //! seams blended).
 
 use super::check_writable;
-use crate::frames::{self, manifest_path, motion_offsets, refuse_overwriting_inputs};
-use crate::fullres::{Placed, splice};
-use crate::image::PixelLimit;
 use anyhow::bail;
+use rollfuse::frames::{self, manifest_path, motion_offsets, refuse_overwriting_inputs};
+use rollfuse::fullres::{Placed, splice};
+use rollfuse::image::PixelLimit;
 use std::path::PathBuf;
 
 /// Arguments of `rollfuse splice`.
@@ -14,7 +14,7 @@ pub struct Args {
     /// The frames, in acquisition order.
     #[arg(required = true)]
     pub frames: Vec<PathBuf>,
-    /// The spliced image (8-bit PNG).
+    /// The spliced image: an 8-bit PNG, or .npy (f32, the values unrounded).
     #[arg(long)]
     pub out: PathBuf,
     /// The acquisition's manifest (default: manifest.json beside the first frame).
@@ -33,10 +33,10 @@ pub fn run(args: Args, limit: PixelLimit) -> anyhow::Result<()> {
             args.frames.len()
         );
     }
-    crate::files::require_png_name(&args.out)?;
+    rollfuse::image::ImageFormat::of(&args.out)?;
     check_writable(&args.out)?;
     refuse_overwriting_inputs(&[&args.out], &args.frames, args.manifest.as_deref())?;
-    let _folder = crate::files::NewFolder::for_file(&args.out)?;
+    let _folder = rollfuse::files::NewFolder::for_file(&args.out)?;
     let frames = frames::load(&args.frames, limit)?;
     let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
     let offsets = motion_offsets(&manifest, &args.frames)?;
@@ -46,7 +46,7 @@ pub fn run(args: Args, limit: PixelLimit) -> anyhow::Result<()> {
         .map(|(image, at)| Placed { image, at })
         .collect();
     let out = splice(&placed, args.blend, limit)?;
-    out.save_png(&args.out)?;
+    out.save(&args.out, 8)?;
     super::side_files::remove_others(&args.out, &[])?;
     println!(
         "spliced {} frames ({}×{}) → {}",

@@ -2,12 +2,12 @@
 //! virtual device, or a recording) into a strip.
 
 use super::named;
-use crate::link::usb;
-use crate::names::Named;
-use crate::serve;
-use crate::session::{self, Fusion, Opened, Request};
-use crate::stream::{self, StopReason};
 use anyhow::bail;
+use rollfuse::link::usb;
+use rollfuse::names::Named;
+use rollfuse::serve;
+use rollfuse::session::{self, Fusion, Opened, Request};
+use rollfuse::stream::{self, StopReason};
 use rollfuse_core::protocol::{DeviceConfig, NormMode, WaveletId};
 use std::path::PathBuf;
 
@@ -109,7 +109,7 @@ pub struct Args {
     #[arg(long, requires = "serve")]
     pub keep_serving: bool,
     /// Most rows per strip segment (a longer strip is written as numbered segments).
-    #[arg(long, default_value_t = crate::strip_file::DEFAULT_SEGMENT_ROWS)]
+    #[arg(long, default_value_t = rollfuse::strip_file::DEFAULT_SEGMENT_ROWS)]
     pub segment_rows: usize,
     /// Where the roll is kept in the inspection records: each segment as soon as it is
     /// whole on disk.
@@ -183,7 +183,7 @@ pub fn run(args: Args, show: super::bars::Show) -> anyhow::Result<()> {
             // The detector's last windows are checked as the server finishes.
             if let (Some(roll), Some(target)) = (outcome.roll, &args.record_to.records) {
                 let late = server.take_unrecorded_defects();
-                crate::records::record_late_defects(target, roll, late)?;
+                rollfuse::records::record_late_defects(target, roll, late)?;
             }
             outcome
         }
@@ -216,7 +216,7 @@ fn print_defects(d: &serve::findings::DetectorStatus) {
         .iter()
         .map(|(k, n)| match (k.as_str(), *n) {
             (_, 1) => format!("1 {k}"),
-            (crate::detect::anomaly::KIND, n) => format!("{n} anomalies"),
+            (rollfuse::detect::anomaly::KIND, n) => format!("{n} anomalies"),
             (_, n) => format!("{n} {k}s"),
         })
         .collect();
@@ -246,7 +246,7 @@ fn print_defects(d: &serve::findings::DetectorStatus) {
         match d.fabric.as_deref() {
             None if d.anomaly_mode => "not named (anomaly mode)".to_string(),
             None => "not known".to_string(),
-            Some(crate::detect::UNKNOWN_FABRIC) => format!(
+            Some(rollfuse::detect::UNKNOWN_FABRIC) => format!(
                 "unknown ({} of {} rows unlike every fabric the model knows)",
                 d.unknown_rows, d.rows_checked
             ),
@@ -260,10 +260,10 @@ fn print_defects(d: &serve::findings::DetectorStatus) {
 fn live_model(args: &Args) -> anyhow::Result<serve::detect::LiveModel> {
     use serve::detect::LiveModel;
     let Some(path) = args.normal.as_deref() else {
-        return crate::detect::Detector::load_or_built_in(args.model.as_deref())
+        return rollfuse::detect::Detector::load_or_built_in(args.model.as_deref())
             .map(|d| LiveModel::Defects(Box::new(d)));
     };
-    let model = crate::detect::anomaly::NormalModel::load(path)?;
+    let model = rollfuse::detect::anomaly::NormalModel::load(path)?;
     anyhow::ensure!(
         model.any_height(),
         "{} learned each row of {}-row images apart; the live strip is checked in windows \

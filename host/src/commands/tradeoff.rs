@@ -2,9 +2,9 @@
 //! (docs/tradeoff.md).
 
 use super::bars::{Bars, Show};
-use crate::tradeoff::bench::McuTable;
-use crate::tradeoff::{acquire, report, study, sweep};
 use anyhow::ensure;
+use rollfuse::tradeoff::bench::McuTable;
+use rollfuse::tradeoff::{acquire, report, study, sweep};
 use std::path::PathBuf;
 
 /// Arguments of `rollfuse tradeoff`.
@@ -47,7 +47,7 @@ pub fn run(args: Args, show: Show) -> anyhow::Result<()> {
         );
         McuTable::empty()
     };
-    let _folder = crate::files::NewFolder::create(&args.out)?;
+    let _folder = rollfuse::files::NewFolder::create(&args.out)?;
     let mut acquisitions = Vec::new();
     for scene in &scenes {
         acquisitions.push(acquire(scene)?);
@@ -56,7 +56,7 @@ pub fn run(args: Args, show: Show) -> anyhow::Result<()> {
     let rows = study(&acquisitions, &setups, args.repeats, &mcu, &Bars::new(show))?;
     let names: Vec<String> = acquisitions.iter().map(|a| a.name.clone()).collect();
     let md = report::markdown(&rows, &names, mcu.build.as_deref());
-    let mut batch = crate::files::Batch::new();
+    let mut batch = rollfuse::files::Batch::new();
     batch.add_bytes(
         &args.out.join("tradeoff.csv"),
         report::csv(&rows).as_bytes(),

@@ -1,8 +1,8 @@
 //! The arguments of `rollfuse fuse`.
 
 use crate::commands::named;
-use crate::fullres::Precision;
-use crate::fullres::register::TrackParams;
+use rollfuse::fullres::Precision;
+use rollfuse::fullres::register::TrackParams;
 use rollfuse_core::{Ablation, LlWeighting, Wavelet};
 use std::path::PathBuf;
 
@@ -58,8 +58,9 @@ pub struct Args {
     /// its `frame_*.png` files (if none, its `.png` files) in name order.
     #[arg(required = true)]
     pub frames: Vec<PathBuf>,
-    /// The fused image (PNG). A roll longer than --segment-rows is written as numbered
-    /// segments OUT_STEM.0000.png … listed with their belt rows in OUT_STEM.json.
+    /// The fused image: PNG, or a mosaic as .npy (f32, the values unrounded). A roll
+    /// longer than --segment-rows is written as numbered segments OUT_STEM.0000.png …
+    /// listed with their belt rows in OUT_STEM.json.
     #[arg(long)]
     pub out: PathBuf,
     /// Roll or mosaic.
@@ -76,7 +77,7 @@ pub struct Args {
     #[arg(long, default_value_t = 8)]
     pub blend_rows: usize,
     /// Roll: most rows per output segment.
-    #[arg(long, default_value_t = crate::strip_file::DEFAULT_SEGMENT_ROWS)]
+    #[arg(long, default_value_t = rollfuse::strip_file::DEFAULT_SEGMENT_ROWS)]
     pub segment_rows: usize,
     /// Roll, --align template: rows searched either side of the predicted position
     /// (default: 3 plus 30 % of the predicted step).

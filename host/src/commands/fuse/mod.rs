@@ -6,13 +6,13 @@ mod args;
 mod mosaic;
 mod roll;
 
-pub use args::{AlignArg, Args, ModeArg, OutBits};
+pub use args::{AlignArg, Args, ModeArg};
 
 use crate::commands::bars::Show;
-use crate::frames::{self, manifest_path, motion_offsets};
-use crate::fullres::register::Tracker;
-use crate::image::{PixelLimit, Planes};
 use anyhow::bail;
+use rollfuse::frames::{self, manifest_path, motion_offsets};
+use rollfuse::fullres::register::Tracker;
+use rollfuse::image::{ImageFormat, PixelLimit, Planes};
 use rollfuse_core::{FuseConfig, SaliencyNorm};
 
 /// Frames an automatic choice of mode loads at once to find their span (a mosaic holds
@@ -40,7 +40,7 @@ pub fn run(mut args: Args, show: Show, limit: PixelLimit) -> anyhow::Result<()> 
     if let Some(m) = args.min_score.filter(|m| !(0.0..=1.0).contains(m)) {
         bail!("--min-score must be in 0..=1, got {m}");
     }
-    crate::files::require_png_name(&args.out)?;
+    let format = ImageFormat::of(&args.out)?;
     match args.template_rows[..] {
         [t0, t1] if 0.0 <= t0 && t0 < t1 && t1 <= 1.0 => {}
         _ => bail!(
@@ -80,6 +80,13 @@ pub fn run(mut args: Args, show: Show, limit: PixelLimit) -> anyhow::Result<()> 
             "--records keeps rolls: a mosaic of a few frames is not one (--mode roll fuses a roll)"
         );
     }
+    if matches!(plan, Plan::Roll(_)) && format != ImageFormat::Png {
+        bail!(
+            "{}: a roll's strip is written as it grows, in PNG segments; name it .png (a \
+             mosaic may be any image format)",
+            args.out.display()
+        );
+    }
     match plan {
         Plan::Mosaic(frames) => mosaic::run(&args, frames, &cfg, show, limit),
         Plan::Roll(loaded) => roll::run(&args, loaded, &cfg, show, limit),
@@ -87,10 +94,10 @@ pub fn run(mut args: Args, show: Show, limit: PixelLimit) -> anyhow::Result<()> 
 }
 
 /// Refuses an aligner's reach past the frames
-/// ([`crate::fullres::track::TrackParams::check`]); a mosaic's largest shift is bounded as
+/// ([`rollfuse::fullres::track::TrackParams::check`]); a mosaic's largest shift is bounded as
 /// a roll's first search is.
 fn check_reaches(args: &Args) -> anyhow::Result<()> {
-    let (w, h) = crate::image::dimensions(&args.frames[0])?;
+    let (w, h) = rollfuse::image::dimensions(&args.frames[0])?;
     let (w, h) = (w as usize, h as usize);
     args.track_params(h).check(w, h)
 }
@@ -112,7 +119,7 @@ fn plan(args: &Args, limit: PixelLimit) -> anyhow::Result<(Plan, &'static str)> 
         (ModeArg::Roll, _) => return Ok((Plan::Roll(None), "roll")),
         (ModeArg::Auto, align) => align,
     };
-    let (_, h) = crate::image::dimensions(&args.frames[0])?;
+    let (_, h) = rollfuse::image::dimensions(&args.frames[0])?;
     let h = f64::from(h);
     let span = |rows: &mut dyn Iterator<Item = f64>| {
         let (lo, hi) = rows.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), r| {

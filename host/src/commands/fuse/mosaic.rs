@@ -5,11 +5,11 @@ use super::args::{AlignArg, Args};
 use crate::commands::bars::{Bars, Show};
 use crate::commands::check_writable;
 use crate::commands::side_files::{self, Side};
-use crate::frames::{manifest_path, motion_offsets, refuse_overwriting_inputs};
-use crate::fullres::align::{Aligned, Match, Offset, TemplateParams, align_chain};
-use crate::fullres::fuse_mosaic_mut;
-use crate::image::{PixelLimit, Planes};
 use anyhow::bail;
+use rollfuse::frames::{manifest_path, motion_offsets, refuse_overwriting_inputs};
+use rollfuse::fullres::align::{Aligned, Match, Offset, TemplateParams, align_chain};
+use rollfuse::fullres::fuse_mosaic_mut;
+use rollfuse::image::{PixelLimit, Planes};
 use rollfuse_core::FuseConfig;
 use std::path::{Path, PathBuf};
 
@@ -51,7 +51,7 @@ pub fn run(
         &args.frames,
         args.manifest.as_deref(),
     )?;
-    let _folder = crate::files::NewFolder::for_file(&args.out)?;
+    let _folder = rollfuse::files::NewFolder::for_file(&args.out)?;
     let (placed, record) = match args.align {
         AlignArg::None => unaligned(&args.frames),
         AlignArg::Motion => by_motion(args)?,
@@ -67,9 +67,9 @@ pub fn run(
     let started = std::time::Instant::now();
     let fused = fuse_mosaic_mut(&mut placed, cfg, args.precision, limit)?;
     let took = started.elapsed().as_secs_f64();
-    fused.save_png_bits(&args.out, args.out_bits.bits())?;
+    fused.save(&args.out, args.out_bits.bits())?;
     let json = serde_json::to_string_pretty(&record)? + "\n";
-    crate::files::write_bytes_atomic(&offsets_path, json.as_bytes())?;
+    rollfuse::files::write_bytes_atomic(&offsets_path, json.as_bytes())?;
     side_files::remove_others(&args.out, &[Side::Offsets])?;
     println!("offsets (rows, columns) on the canvas:");
     for f in &record.frames {

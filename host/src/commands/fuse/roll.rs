@@ -5,17 +5,17 @@ use super::args::{AlignArg, Args, OutBits};
 use crate::commands::bars::{Bars, Show};
 use crate::commands::check_writable;
 use crate::commands::side_files::{self, Side};
-use crate::files::PendingFile;
-use crate::frames::{manifest_path, motion_offsets, refuse_overwriting_inputs};
-use crate::fullres::register::{Placement, Summary};
-use crate::fullres::roll::{Bands, StripSink};
-use crate::fullres::strip::{Placing, StripOptions, StripReport, WindowChoice, fuse_strip};
-use crate::fullres::window::{Geometry, WindowSource};
-use crate::image::{PixelLimit, Planes};
-use crate::progress::Progress;
-use crate::sim::Manifest;
-use crate::strip_file::{Segment, StripWriter};
 use anyhow::bail;
+use rollfuse::files::PendingFile;
+use rollfuse::frames::{manifest_path, motion_offsets, refuse_overwriting_inputs};
+use rollfuse::fullres::register::{Placement, Summary};
+use rollfuse::fullres::roll::{Bands, StripSink};
+use rollfuse::fullres::strip::{Placing, StripOptions, StripReport, WindowChoice, fuse_strip};
+use rollfuse::fullres::window::{Geometry, WindowSource};
+use rollfuse::image::{PixelLimit, Planes};
+use rollfuse::progress::Progress;
+use rollfuse::sim::Manifest;
+use rollfuse::strip_file::{Segment, StripWriter};
 use rollfuse_core::FuseConfig;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::sync_channel;
@@ -65,7 +65,7 @@ pub fn run(
     let csv_path = Side::FramesCsv.path(out);
     let index_path = StripWriter::index_path(out);
     check_outputs(args, &csv_path, &index_path)?;
-    let _folder = crate::files::NewFolder::for_file(out)?;
+    let _folder = rollfuse::files::NewFolder::for_file(out)?;
     let opts = strip_options(args, cfg)?;
     // Opened before the work: a database that cannot be had is said at once.
     let mut records = args.record.open()?;
@@ -139,7 +139,7 @@ fn record(
     let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
     let (first, last) = (&args.frames[0], &args.frames[args.frames.len() - 1]);
     let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
-    let manifest_scale = crate::image::dimensions(first)
+    let manifest_scale = rollfuse::image::dimensions(first)
         .ok()
         .and_then(|size| manifest_geometry(&manifest, size))
         .map(|g| g.mm_per_px);
@@ -160,7 +160,7 @@ fn record(
     } else {
         rollfuse_records::Status::Failed("its placement cannot be trusted".into())
     };
-    let id = crate::records::record_strip(records, &start, &args.out, segments, &status)?;
+    let id = rollfuse::records::record_strip(records, &start, &args.out, segments, &status)?;
     println!(
         "records: roll {id}, {} segment{} ({})",
         segments.len(),
@@ -201,12 +201,12 @@ fn check_outputs(args: &Args, csv_path: &Path, index_path: &Path) -> anyhow::Res
         args.manifest.as_deref(),
     )?;
     let records: Vec<(&str, &Path)> = args.record.as_input().into_iter().collect();
-    crate::files::refuse_overwriting(&[out, csv_path, index_path], &records)?;
+    rollfuse::files::refuse_overwriting(&[out, csv_path, index_path], &records)?;
     let mut inputs: Vec<(&str, &Path)> =
         args.frames.iter().map(|p| ("input", p.as_path())).collect();
     inputs.extend(records);
-    crate::strip_file::refuse_segment_names(out, &inputs)?;
-    if args.precision == crate::fullres::Precision::Fixed && args.out_bits == OutBits::Sixteen {
+    rollfuse::strip_file::refuse_segment_names(out, &inputs)?;
+    if args.precision == rollfuse::fullres::Precision::Fixed && args.out_bits == OutBits::Sixteen {
         eprintln!("note: --precision fixed makes 8-bit values; the 16-bit file holds them scaled");
     }
     Ok(())
@@ -215,7 +215,7 @@ fn check_outputs(args: &Args, csv_path: &Path, index_path: &Path) -> anyhow::Res
 /// How the frames are placed (`--align`, the manifest's rows) and fused (the window from
 /// `--window-rows`, the manifest's roller, or measured; the bands).
 fn strip_options(args: &Args, cfg: &FuseConfig) -> anyhow::Result<StripOptions> {
-    let (w, h) = crate::image::dimensions(&args.frames[0])?;
+    let (w, h) = rollfuse::image::dimensions(&args.frames[0])?;
     let manifest = manifest_path(args.manifest.as_deref(), &args.frames);
     let commanded = || -> anyhow::Result<Vec<f64>> {
         Ok(motion_offsets(&manifest, &args.frames)?
@@ -268,7 +268,7 @@ fn fuse_files<S: StripSink>(
             let (tx, rx) = sync_channel(DECODE_AHEAD);
             scope.spawn(move || {
                 for path in files {
-                    let frame = Planes::load(path, limit);
+                    let frame = Planes::load(path, limit).map_err(anyhow::Error::from);
                     let failed = frame.is_err();
                     if tx.send(frame).is_err() || failed {
                         break;
@@ -292,7 +292,7 @@ fn print_summary(args: &Args, r: &StripReport, segments: &[Segment], took: f64, 
             (WindowSource::Geometry, _) => "from the roller geometry in the manifest".into(),
             (WindowSource::Measured, _) => format!(
                 "measured on the first {} frames",
-                n.min(crate::fullres::strip::MEASURE_FRAMES)
+                n.min(rollfuse::fullres::strip::MEASURE_FRAMES)
             ),
             (WindowSource::Default, Some(why)) => format!(
                 "the middle half: no contact could be measured on the first frames, {}",
