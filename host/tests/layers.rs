@@ -2,9 +2,9 @@
 //! `host/src/commands/` and `host/src/main.rs` (the `rollfuse` binary, which declares the
 //! commands) may name `crate::commands`, and only they may use clap.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-fn sources(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
+fn sources(dir: &Path, out: &mut Vec<PathBuf>) {
     for entry in std::fs::read_dir(dir).unwrap() {
         let path = entry.unwrap().path();
         if path.is_dir() {
@@ -15,21 +15,29 @@ fn sources(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
     }
 }
 
+/// The files of `files` outside the command line (`host/src/commands/`, `host/src/main.rs`)
+/// whose text contains any of `needles`.
+fn outside_the_command_line_naming(files: &[PathBuf], needles: &[&str]) -> Vec<String> {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    files
+        .iter()
+        .filter(|p| !p.starts_with(src.join("commands")) && **p != src.join("main.rs"))
+        .filter(|p| {
+            let text = std::fs::read_to_string(p).unwrap();
+            needles.iter().any(|n| text.contains(n))
+        })
+        .map(|p| p.display().to_string())
+        .collect()
+}
+
 #[test]
 fn no_library_module_imports_the_commands() {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
     let mut files = Vec::new();
     sources(&src, &mut files);
     assert!(files.len() > 20, "found the sources");
-    let offenders: Vec<String> = files
-        .iter()
-        .filter(|p| !p.starts_with(src.join("commands")) && *p != &src.join("main.rs"))
-        .filter(|p| {
-            let text = std::fs::read_to_string(p).unwrap();
-            text.contains("crate::commands") || text.contains("rollfuse::commands")
-        })
-        .map(|p| p.display().to_string())
-        .collect();
+    let offenders =
+        outside_the_command_line_naming(&files, &["crate::commands", "rollfuse::commands"]);
     assert!(offenders.is_empty(), "{offenders:?}");
 }
 
@@ -38,8 +46,6 @@ fn no_library_module_imports_the_commands() {
 #[test]
 fn only_the_command_line_uses_clap() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
-    let commands = root.join("host/src/commands");
-    let main = root.join("host/src/main.rs");
     let mut files = Vec::new();
     for dir in [
         "host/src",
@@ -57,14 +63,6 @@ fn only_the_command_line_uses_clap() {
         sources(&root.join(dir), &mut files);
     }
     assert!(files.len() > 100, "found the sources");
-    let offenders: Vec<String> = files
-        .iter()
-        .filter(|p| !p.starts_with(&commands) && **p != main)
-        .filter(|p| {
-            let text = std::fs::read_to_string(p).unwrap();
-            text.contains("clap::") || text.contains("use clap")
-        })
-        .map(|p| p.display().to_string())
-        .collect();
+    let offenders = outside_the_command_line_naming(&files, &["clap::", "use clap"]);
     assert!(offenders.is_empty(), "{offenders:?}");
 }
