@@ -154,28 +154,22 @@ impl Replay {
             return Ok(true);
         }
         Ok(!self.searching
-            && !self.swallows_a_record(n)?
+            && !self.swallows_a_record(n)
             && self.records_follow(4 + n, FOLLOWING)?)
     }
 
-    /// Whether a record whose message decodes starts inside the `n`-byte record at hand:
-    /// then its length was damaged. Tiles are all of one size, so a flipped length can
-    /// span a whole number of them exactly and land on a record that checks out; kept as
-    /// it is, it would take the good records inside it down with it, unseen.
-    fn swallows_a_record(&mut self, n: usize) -> anyhow::Result<bool> {
-        for at in 1..4 + n {
-            if self.fill(at + 4)? < at + 4 {
-                return Ok(false);
-            }
+    /// Whether a record whose message decodes lies inside the `n`-byte record at hand (all
+    /// of it at hand): then its length was damaged. Tiles are all of one size, so a
+    /// flipped length can span a whole number of them exactly and land on a record that
+    /// checks out; kept as it is, it would take the good records inside it down with it,
+    /// unseen.
+    fn swallows_a_record(&self, n: usize) -> bool {
+        (1..n).any(|at| {
             let inner = self.length_at(at);
-            if (MIN_MESSAGE..=MAX_MESSAGE).contains(&inner)
-                && self.fill(at + 4 + inner)? == at + 4 + inner
+            (MIN_MESSAGE..=MAX_MESSAGE).contains(&inner)
+                && at + 4 + inner <= 4 + n
                 && self.decodes_at(at, inner)
-            {
-                return Ok(true);
-            }
-        }
-        Ok(false)
+        })
     }
 
     /// Whether records start `at` bytes on: the file ends there, or a header is there, or
