@@ -1,4 +1,5 @@
-//! Images on the host: planes of `f32` gray levels, loaded from and saved to PNG.
+//! Images on the host: planes of `f32` gray levels, loaded from PNG (and what else the
+//! `image` crate was built to read) and saved as PNG or NumPy arrays ([`ImageFormat`]).
 
 use crate::files::{PngLayout, write_png};
 use anyhow::ensure;
