@@ -118,12 +118,22 @@ impl ReadError {
     }
 }
 
-/// An image file's width and height, from its header alone.
-pub fn dimensions(path: &Path) -> Result<(u32, u32), ReadError> {
+/// A reader of `path` that has guessed its format from its first bytes.
+fn reader(
+    path: &Path,
+) -> Result<::image::ImageReader<std::io::BufReader<std::fs::File>>, ReadError> {
     ::image::ImageReader::open(path)
         .and_then(|r| r.with_guessed_format())
-        .map_err(::image::ImageError::IoError)
-        .and_then(|r| r.into_dimensions())
+        .map_err(|source| ReadError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+}
+
+/// An image file's width and height, from its header alone.
+pub fn dimensions(path: &Path) -> Result<(u32, u32), ReadError> {
+    reader(path)?
+        .into_dimensions()
         .map_err(|e| ReadError::of(path, e))
 }
 
@@ -138,11 +148,7 @@ fn open_within_limit(path: &Path, limit: PixelLimit) -> Result<::image::DynamicI
             limit,
         });
     }
-    ::image::ImageReader::open(path)
-        .and_then(|r| r.with_guessed_format())
-        .map_err(::image::ImageError::IoError)
-        .and_then(|r| r.decode())
-        .map_err(|e| ReadError::of(path, e))
+    reader(path)?.decode().map_err(|e| ReadError::of(path, e))
 }
 
 /// The formats images are written in, chosen by the output's extension. A new format is a
