@@ -56,7 +56,7 @@ pub fn refuse_overwriting_inputs(
         .map(|p| ("input frame", p.as_path()))
         .chain([("manifest", manifest.as_path())])
         .collect();
-    crate::files::refuse_overwriting(outputs, &inputs)
+    Ok(crate::files::refuse_overwriting(outputs, &inputs)?)
 }
 
 /// Loads every frame, checking they agree in size and colour; held together, they share

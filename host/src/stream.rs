@@ -426,10 +426,10 @@ impl StreamedStrip {
         let Some(writer) = self.writer else {
             return Ok(Vec::new());
         };
-        writer.finish(serde_json::json!({
+        Ok(writer.finish(serde_json::json!({
             "tile_size": m.tile_size,
             "configurations": m.configurations,
-        }))
+        }))?)
     }
 }
 
@@ -1005,5 +1005,8 @@ fn fault_counts(m: &StreamRecord) -> Vec<(&'static str, u64)> {
 }
 
 fn write_manifest(path: &Path, manifest: &StreamRecord) -> anyhow::Result<()> {
-    crate::files::write_bytes_atomic(path, manifest.to_json()?.as_bytes())
+    Ok(crate::files::write_bytes_atomic(
+        path,
+        manifest.to_json()?.as_bytes(),
+    )?)
 }

@@ -113,7 +113,12 @@ fn bad_input_is_refused_clearly() {
         height: h,
         planes: vec![image.planes[0].clone()],
     };
-    let msg = |r: anyhow::Result<rollfuse::depth::DepthMap>| format!("{:#}", r.unwrap_err());
+    // Each is the input's fault, and says why.
+    let msg = |r: Result<rollfuse::depth::DepthMap, rollfuse::depth::Error>| {
+        let e = r.unwrap_err();
+        assert!(matches!(e, rollfuse::depth::Error::Invalid(_)), "{e:?}");
+        e.to_string()
+    };
     assert!(msg(reconstruct(&gray, None, &lights)).contains("RGB"));
     let small_bg = flat_background(w - 1, h);
     assert!(msg(reconstruct(&image, Some(&small_bg), &lights)).contains("must match"));

@@ -6,7 +6,7 @@
 
 use proptest::prelude::*;
 use rollfuse::link::sim::SimDevice;
-use rollfuse::link::{Received, Transport};
+use rollfuse::link::{self, Received, Transport};
 use rollfuse::progress::Silent;
 use rollfuse::sim::Scene;
 use rollfuse::stream::{self, Options};
@@ -23,10 +23,10 @@ struct Scripted {
 }
 
 impl Transport for Scripted {
-    fn send(&mut self, _: &[u8]) -> anyhow::Result<()> {
+    fn send(&mut self, _: &[u8]) -> Result<(), link::Error> {
         Ok(())
     }
-    fn receive(&mut self, buf: &mut [u8], _: Duration) -> anyhow::Result<Received> {
+    fn receive(&mut self, buf: &mut [u8], _: Duration) -> Result<Received, link::Error> {
         Ok(match self.messages.next() {
             Some(m) => {
                 let n = m.len().min(buf.len());
@@ -407,12 +407,12 @@ struct Quiet {
 }
 
 impl Transport for Quiet {
-    fn send(&mut self, message: &[u8]) -> anyhow::Result<()> {
+    fn send(&mut self, message: &[u8]) -> Result<(), link::Error> {
         let (_, c) = protocol::decode::<rollfuse_core::protocol::Command>(message).unwrap();
         self.sent.lock().unwrap().push(c);
         Ok(())
     }
-    fn receive(&mut self, buf: &mut [u8], timeout: Duration) -> anyhow::Result<Received> {
+    fn receive(&mut self, buf: &mut [u8], timeout: Duration) -> Result<Received, link::Error> {
         if std::time::Instant::now() < self.until {
             std::thread::sleep(timeout.min(Duration::from_millis(50)));
             return Ok(Received::Timeout);
@@ -561,12 +561,12 @@ struct Tapped<T> {
 }
 
 impl<T: Transport> Transport for Tapped<T> {
-    fn send(&mut self, message: &[u8]) -> anyhow::Result<()> {
+    fn send(&mut self, message: &[u8]) -> Result<(), link::Error> {
         self.sent.push(message.to_vec());
         self.link.send(message)
     }
 
-    fn receive(&mut self, buf: &mut [u8], timeout: Duration) -> anyhow::Result<Received> {
+    fn receive(&mut self, buf: &mut [u8], timeout: Duration) -> Result<Received, link::Error> {
         self.link.receive(buf, timeout)
     }
 }
@@ -616,14 +616,14 @@ struct Unplugged {
 }
 
 impl Transport for Unplugged {
-    fn send(&mut self, _: &[u8]) -> anyhow::Result<()> {
+    fn send(&mut self, _: &[u8]) -> Result<(), link::Error> {
         Ok(())
     }
-    fn receive(&mut self, buf: &mut [u8], _: Duration) -> anyhow::Result<Received> {
+    fn receive(&mut self, buf: &mut [u8], _: Duration) -> Result<Received, link::Error> {
         let m = self
             .messages
             .pop_front()
-            .ok_or_else(|| anyhow::anyhow!("no such device"))?;
+            .ok_or_else(|| link::Error::Other("no such device".into()))?;
         buf[..m.len()].copy_from_slice(&m);
         Ok(Received::Message(m.len()))
     }
@@ -732,11 +732,11 @@ struct StrayFirstTile<T> {
 }
 
 impl<T: Transport> Transport for StrayFirstTile<T> {
-    fn send(&mut self, message: &[u8]) -> anyhow::Result<()> {
+    fn send(&mut self, message: &[u8]) -> Result<(), link::Error> {
         self.link.send(message)
     }
 
-    fn receive(&mut self, buf: &mut [u8], timeout: Duration) -> anyhow::Result<Received> {
+    fn receive(&mut self, buf: &mut [u8], timeout: Duration) -> Result<Received, link::Error> {
         let got = self.link.receive(buf, timeout)?;
         let Received::Message(n) = got else {
             return Ok(got);

@@ -20,14 +20,14 @@ pub fn value_error(message: impl Into<String>) -> PyErr {
     PyValueError::new_err(message.into())
 }
 
-/// `Result<T, anyhow::Error>` into a Python result.
+/// A result of the library (any crate's error, or `anyhow`'s) into a Python result.
 pub trait OrPy<T> {
     /// The value, or the error as a Python exception ([`to_py`]).
     fn or_py(self) -> pyo3::PyResult<T>;
 }
 
-impl<T> OrPy<T> for anyhow::Result<T> {
+impl<T, E: Into<anyhow::Error>> OrPy<T> for Result<T, E> {
     fn or_py(self) -> pyo3::PyResult<T> {
-        self.map_err(to_py)
+        self.map_err(|e| to_py(e.into()))
     }
 }

@@ -103,7 +103,7 @@ pub fn simulate<'py>(
     }
     scene
         .validate()
-        .map_err(|e| e.context("with the overrides"))
+        .map_err(|e| anyhow::Error::from(e).context("with the overrides"))
         .or_py()?;
     let category = py.get_type::<PyUserWarning>();
     for w in scene.warnings() {

@@ -245,6 +245,21 @@ fn for_each_laplacian(
 /// The largest `|∇²I|` over the region: the `max L` of eq. 3 (e.g. a frame's observation
 /// window's, for [`SaliencyNorm::Reference`] when its tiles are fused). Fails if `buf` is
 /// shorter than the region.
+///
+/// A lone bright pixel on a dark field stands out by four times its level (the
+/// 4-neighbour Laplacian):
+///
+/// ```
+/// use rollfuse_core::Dims;
+/// use rollfuse_core::saliency::laplacian_max;
+///
+/// let dims = Dims::new(5, 5)?;
+/// let mut image = [0i32; 25];
+/// image[12] = 10;
+/// assert_eq!(laplacian_max(&image, dims)?, 40);
+/// assert!(laplacian_max(&image[..20], dims).is_err());
+/// # Ok::<(), rollfuse_core::Error>(())
+/// ```
 pub fn laplacian_max(buf: &[i32], dims: Dims) -> Result<u32, crate::Error> {
     dims.check_buffer("image", buf.len())?;
     // Any i32 samples: the 64-bit Laplacian.
@@ -622,6 +637,15 @@ fn map_laplacian_row_u8(rows: [&[u8]; 3], out: &mut [i32], f: impl Fn(u32) -> i3
 
 /// `W₁ = S₁ / (S₁ + S₂)` as Q15 (`1.0` = 32768), rounded to nearest, `½` when both are
 /// zero.
+///
+/// ```
+/// use rollfuse_core::saliency::weight;
+///
+/// assert_eq!(weight(3, 1).to_num::<f32>(), 0.75);
+/// assert_eq!(weight(0, 0).to_num::<f32>(), 0.5);
+/// // Sums past 32 bits keep their ratio.
+/// assert_eq!(weight(u32::MAX, u32::MAX).to_num::<f32>(), 0.5);
+/// ```
 ///
 /// Both sums are first halved together until they add up to at most 2¹⁷ (keeping their
 /// ratio to 17 bits). The division then runs in 32 bits: a 64-bit one is a library call of

@@ -12,9 +12,10 @@
 //! its pixels' distances from it; `--circle x,y,r` overrides.
 
 use super::lights::Lights;
-use anyhow::{bail, ensure};
+use crate::Error;
 use nalgebra::{Matrix3, Vector3};
 use rollfuse_io::image::Planes;
+use rollfuse_io::{invalid, require};
 
 /// A circle in pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -42,7 +43,7 @@ fn departure(image: &Planes, background: &Planes) -> Vec<f64> {
 }
 
 /// Finds the contact disc automatically.
-pub fn find_disc(image: &Planes, background: &Planes) -> anyhow::Result<Circle> {
+pub fn find_disc(image: &Planes, background: &Planes) -> Result<Circle, Error> {
     let (w, h) = (image.width, image.height);
     let dev = departure(image, background);
     let mut sorted = dev.clone();
@@ -84,7 +85,7 @@ pub fn find_disc(image: &Planes, background: &Planes) -> anyhow::Result<Circle> 
         }
     }
     if best.len() < 30 {
-        bail!("no contact disc found in the image: pass its position with --circle x,y,r");
+        invalid!("no contact disc found in the image: pass its position with --circle x,y,r");
     }
     let n = best.len() as f64;
     let cx = best.iter().map(|&i| (i % w) as f64).sum::<f64>() / n;
@@ -110,22 +111,22 @@ pub fn calibrate(
     radius_mm: f64,
     mm_per_px: f64,
     circle: Option<Circle>,
-) -> anyhow::Result<(Lights, Circle)> {
+) -> Result<(Lights, Circle), Error> {
     if !image.is_rgb() {
-        bail!("calibration needs an RGB image (one LED per channel), this one is gray");
+        invalid!("calibration needs an RGB image (one LED per channel), this one is gray");
     }
-    ensure!(
+    require!(
         radius_mm.is_finite() && radius_mm > 0.0,
         "--radius-mm must be positive, got {radius_mm}"
     );
-    ensure!(
+    require!(
         mm_per_px.is_finite() && mm_per_px > 0.0,
         "--mm-per-px must be positive, got {mm_per_px}"
     );
     let estimated;
     let background = match background {
         Some(b) => {
-            ensure!(
+            require!(
                 b.is_rgb() && (b.width, b.height) == (image.width, image.height),
                 "the background must be an RGB image of the same size as the ball's"
             );
@@ -147,10 +148,10 @@ pub fn calibrate(
         mm_per_px,
     };
     let (ata, atb, disc_pixels) = normal_equations(image, background, &ball);
-    ensure!(disc_pixels >= 20, "the contact disc covers too few pixels");
+    require!(disc_pixels >= 20, "the contact disc covers too few pixels");
     let inv = ata
         .try_inverse()
-        .ok_or_else(|| anyhow::anyhow!("the disc's normals do not determine the lights"))?;
+        .ok_or_else(|| Error::Invalid("the disc's normals do not determine the lights".into()))?;
     let m: [Vector3<f64>; 3] = std::array::from_fn(|c| inv * atb[c]);
     let dir = |v: &Vector3<f64>| {
         let u = v / v.norm();
@@ -169,14 +170,14 @@ pub fn calibrate(
 
 /// Refuses a contact disc too small, or one whose normals tilt too little to tell the
 /// LEDs apart, for a ball of `radius_mm` seen at `mm_per_px`.
-fn check_disc(circle: &Circle, radius_mm: f64, mm_per_px: f64) -> anyhow::Result<()> {
-    ensure!(
+fn check_disc(circle: &Circle, radius_mm: f64, mm_per_px: f64) -> Result<(), Error> {
+    require!(
         circle.r > 2.0 && circle.r.is_finite(),
         "the contact disc (radius {:.1} px) is too small to calibrate from",
         circle.r
     );
     let disc_mm = circle.r * mm_per_px;
-    ensure!(
+    require!(
         disc_mm < radius_mm,
         "the contact disc ({disc_mm:.2} mm in radius) is wider than the ball ({radius_mm} mm): \
          check --radius-mm and --mm-per-px"
@@ -184,7 +185,7 @@ fn check_disc(circle: &Circle, radius_mm: f64, mm_per_px: f64) -> anyhow::Result
     // The fit uses the disc's inner 90 %: its normals must tilt enough to tell the LEDs
     // apart (and a ball far larger than its disc would overflow the cap's squares).
     let tilt_deg = (0.9 * disc_mm / radius_mm).asin().to_degrees();
-    ensure!(
+    require!(
         tilt_deg >= MIN_TILT_DEG,
         "the ball ({radius_mm} mm in radius) is too large for its contact disc ({disc_mm:.2} mm): \
          its surface tilts {tilt_deg:.2}° at most, under {MIN_TILT_DEG}°; check --radius-mm and \

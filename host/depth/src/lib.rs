@@ -7,14 +7,19 @@
 //! - [`calibrate`]: light directions and gains from an image of a ball of known radius.
 //! - [`output`]: `.npy`, a colour-mapped PNG with a scale bar, a PLY point cloud.
 //! - [`synthetic`]: a ball rendered with known lights, for tests and benches.
+//!
+//! Every fallible function returns [`Error`]: input that cannot give a height map, a
+//! light file that could not be read, an output that could not be written.
 
 pub mod calibrate;
+mod error;
 pub mod lights;
 pub mod output;
 pub mod poisson;
 pub mod stereo;
 pub mod synthetic;
 
+pub use error::Error;
 use lights::Lights;
 use rollfuse_io::image::Planes;
 
@@ -54,18 +59,18 @@ pub struct DepthMap {
 /// let peak = depth.height_mm.iter().copied().fold(f32::MIN, f32::max);
 /// let true_peak = truth.iter().copied().fold(f64::MIN, f64::max);
 /// assert!((f64::from(peak) - true_peak).abs() < 0.02, "{peak} mm against {true_peak} mm");
-/// # anyhow::Ok(())
+/// # Ok::<(), rollfuse_depth::Error>(())
 /// ```
 pub fn reconstruct(
     image: &Planes,
     background: Option<&Planes>,
     lights: &Lights,
-) -> anyhow::Result<DepthMap> {
+) -> Result<DepthMap, Error> {
     let estimated;
     let background = match background {
         Some(b) => b,
         None => {
-            anyhow::ensure!(
+            rollfuse_io::require!(
                 image.is_rgb(),
                 "depth needs an RGB image (one LED per channel), this one is gray"
             );
@@ -95,7 +100,7 @@ pub fn reconstruct(
     );
     let heights = poisson::solve_neumann(rhs, w, h)?;
     if heights.iter().any(|v| !v.is_finite()) {
-        anyhow::bail!("the slopes did not integrate to finite heights");
+        rollfuse_io::invalid!("the slopes did not integrate to finite heights");
     }
     // Zero at the undisturbed gel: the median height off contact (or the lowest point when
     // contact covers almost everything).

@@ -12,8 +12,9 @@
 //! two nearly the same) cannot separate the three components of a normal: it is refused
 //! with its condition number.
 
-use anyhow::{Context, bail, ensure};
+use crate::Error;
 use nalgebra::Matrix3;
+use rollfuse_io::{invalid, require};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -56,25 +57,35 @@ impl Lights {
     }
 
     /// Reads and checks a light file.
-    pub fn load(path: &Path) -> anyhow::Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read light file {}", path.display()))?;
-        let lights: Self = toml::from_str(&text)
-            .with_context(|| format!("{} is not a valid light file", path.display()))?;
+    pub fn load(path: &Path) -> Result<Self, Error> {
+        let text = std::fs::read_to_string(path).map_err(|source| Error::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let lights: Self = toml::from_str(&text).map_err(|e| {
+            Error::Invalid(format!(
+                "{} is not a valid light file: {}",
+                path.display(),
+                e.to_string().trim_end()
+            ))
+        })?;
         lights
             .check()
-            .with_context(|| format!("light file {}", path.display()))?;
+            .map_err(|e| Error::Invalid(format!("light file {}: {e}", path.display())))?;
         Ok(lights)
     }
 
     /// The file's text.
-    pub fn to_toml(&self) -> anyhow::Result<String> {
-        Ok(toml::to_string(self)?)
+    pub fn to_toml(&self) -> Result<String, Error> {
+        toml::to_string(self).map_err(|e| Error::Invalid(format!("lights as TOML: {e}")))
     }
 
     /// Writes the file, whole or not at all.
-    pub fn save(&self, path: &Path) -> anyhow::Result<()> {
-        rollfuse_io::files::write_bytes_atomic(path, self.to_toml()?.as_bytes())
+    pub fn save(&self, path: &Path) -> Result<(), Error> {
+        Ok(rollfuse_io::files::write_bytes_atomic(
+            path,
+            self.to_toml()?.as_bytes(),
+        )?)
     }
 
     /// The three directions, red, green, blue.
@@ -84,32 +95,32 @@ impl Lights {
 
     /// Checks the scale, that each direction is a unit vector (±2 %) pointing toward the
     /// camera side, the gains, and the light matrix's condition number.
-    pub fn check(&self) -> anyhow::Result<()> {
-        ensure!(
+    pub fn check(&self) -> Result<(), Error> {
+        require!(
             self.mm_per_px.is_finite() && self.mm_per_px > 0.0 && self.mm_per_px < 10.0,
             "mm_per_px must be in (0, 10), got {}",
             self.mm_per_px
         );
         for (name, d) in ["red", "green", "blue"].iter().zip(self.directions()) {
             let norm = d.iter().map(|v| v * v).sum::<f64>().sqrt();
-            ensure!(
+            require!(
                 d.iter().all(|v| v.is_finite()) && (norm - 1.0).abs() <= 0.02,
                 "{name} = {d:?} is not a unit vector (length {norm:.3})"
             );
-            ensure!(
+            require!(
                 d[2] > 0.05,
                 "{name} = {d:?} does not light the gel from the camera's side (z ≤ 0.05)"
             );
         }
         for (name, g) in ["red", "green", "blue"].iter().zip(self.gains) {
-            ensure!(
+            require!(
                 g.is_finite() && (0.05..=20.0).contains(&g),
                 "gain of {name} must be in 0.05..=20, got {g}"
             );
         }
         let c = self.condition();
         if c.is_nan() || c > MAX_CONDITION {
-            bail!(
+            invalid!(
                 "the light directions are too close to each other or to one plane: condition \
                  number {c:.1} (at most {MAX_CONDITION} is accepted)"
             );
@@ -135,6 +146,17 @@ impl Lights {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_light_file_s_errors_say_whose_fault_they_are() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("lights.toml");
+        assert!(matches!(Lights::load(&missing), Err(Error::Read { .. })));
+        std::fs::write(&missing, "mm_per_px = -1\n").unwrap();
+        let e = Lights::load(&missing).unwrap_err();
+        assert!(matches!(e, Error::Invalid(_)), "{e:?}");
+        assert!(e.to_string().contains("lights.toml"), "{e}");
+    }
 
     fn product_lights() -> Lights {
         Lights::product(0.05)

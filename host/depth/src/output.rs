@@ -5,14 +5,13 @@
 //! Each writer adds its file to a [`Batch`]: the caller commits the files together.
 
 use super::DepthMap;
-use anyhow::Context;
-use rollfuse_io::files::{Batch, PngLayout, add_png};
+use rollfuse_io::files::{Batch, PngLayout, WriteError, add_png};
 use rollfuse_io::font;
 use std::io::Write;
 use std::path::Path;
 
 /// Writes `DEPTH.npy`: float32 heights in mm, `height × width`, row-major.
-pub fn write_npy(depth: &DepthMap, batch: &mut Batch, path: &Path) -> anyhow::Result<()> {
+pub fn write_npy(depth: &DepthMap, batch: &mut Batch, path: &Path) -> Result<(), WriteError> {
     let bytes = rollfuse_io::npy::encode_f32(&depth.height_mm, depth.height, depth.width)?;
     batch.add_bytes(path, &bytes)
 }
@@ -26,7 +25,7 @@ fn colour(v: f32, max: f32) -> [u8; 3] {
 
 /// Writes the picture: heights in viridis from 0 to the largest height, and at the right a
 /// scale bar labelled with both ends in mm.
-pub fn write_png(depth: &DepthMap, batch: &mut Batch, path: &Path) -> anyhow::Result<()> {
+pub fn write_png(depth: &DepthMap, batch: &mut Batch, path: &Path) -> Result<(), WriteError> {
     let (w, h) = (depth.width, depth.height);
     let max = depth
         .height_mm
@@ -86,9 +85,9 @@ fn draw_text(img: &mut image::RgbImage, text: &str, x: usize, y: usize, zoom: us
 
 /// Writes a binary little-endian PLY with one vertex per pixel: `x` along columns, `y`
 /// along rows, `z` the height, all in mm.
-pub fn write_ply(depth: &DepthMap, batch: &mut Batch, path: &Path) -> anyhow::Result<()> {
+pub fn write_ply(depth: &DepthMap, batch: &mut Batch, path: &Path) -> Result<(), WriteError> {
     batch.add(path, |out| {
-        ply(depth, out).with_context(|| format!("cannot write {}", path.display()))
+        ply(depth, out).map_err(|e| WriteError::io("write", path)(e).into())
     })
 }
 

@@ -12,29 +12,30 @@
 //! height map is recovered from its own forward differences (test
 //! `recovers_a_height_map_from_its_own_differences`, 1e-6 relative, odd sizes too).
 
-use anyhow::{bail, ensure};
+use crate::Error;
 use rayon::prelude::*;
+use rollfuse_io::{invalid, require};
 use rustdct::{DctNum, DctPlanner};
 
 /// Integrates forward-difference gradients (`w × h` each, row-major; the last column of
 /// `gx` and the last row of `gy` are ignored) into heights with mean 0, in the
 /// gradients' units times pixels. Refuses non-finite gradients, and gradients so large
 /// that the heights would overflow.
-pub fn integrate(gx: &[f64], gy: &[f64], w: usize, h: usize) -> anyhow::Result<Vec<f64>> {
-    ensure!(w >= 1 && h >= 1, "an empty gradient field");
-    ensure!(
+pub fn integrate(gx: &[f64], gy: &[f64], w: usize, h: usize) -> Result<Vec<f64>, Error> {
+    require!(w >= 1 && h >= 1, "an empty gradient field");
+    require!(
         gx.len() == w * h && gy.len() == w * h,
         "gradient fields of {} and {} values for a {w}×{h} map",
         gx.len(),
         gy.len()
     );
     if let Some(i) = gx.iter().chain(gy).position(|v| !v.is_finite()) {
-        bail!("gradient {i} is not finite: refusing to integrate NaN or infinity");
+        invalid!("gradient {i} is not finite: refusing to integrate NaN or infinity");
     }
     let f = divergence(w, h, |i| gx[i], |i| gy[i]);
     let heights = solve_neumann(f, w, h)?;
     // Finite gradients near f64::MAX still overflow the transform's sums.
-    ensure!(
+    require!(
         heights.iter().all(|v| v.is_finite()),
         "gradients too large to integrate: the heights overflow f64"
     );
@@ -74,8 +75,8 @@ pub fn divergence<T: DctNum>(
 /// right-hand side (`w × h`, row-major; its values must sum to zero, as a divergence does),
 /// in place of `f`. In `f64` (what the exactness test holds to 1e-6) or `f32` (twice the
 /// vector width, what depth maps use: their heights are good to far less).
-pub fn solve_neumann<T: DctNum>(mut f: Vec<T>, w: usize, h: usize) -> anyhow::Result<Vec<T>> {
-    ensure!(
+pub fn solve_neumann<T: DctNum>(mut f: Vec<T>, w: usize, h: usize) -> Result<Vec<T>, Error> {
+    require!(
         f.len() == w * h && w >= 1 && h >= 1,
         "a {w}×{h} map needs {} values",
         w * h

@@ -13,9 +13,10 @@
 //! quadratic surface fitted to each channel with the contact (outliers) left out.
 
 use super::lights::Lights;
-use anyhow::{bail, ensure};
+use crate::Error;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use rollfuse_io::image::Planes;
+use rollfuse_io::{invalid, require};
 
 /// The steepest slope kept (about 78°): beyond it the shading is too weak and too
 /// sensitive to noise; steeper slopes are clamped to it.
@@ -105,11 +106,11 @@ fn basis(x: usize, y: usize, w: usize, h: usize) -> SVector<f64, 6> {
 }
 
 /// Normals → slopes for an RGB `image` under `lights`, against `background` (same size).
-pub fn slopes(image: &Planes, background: &Planes, lights: &Lights) -> anyhow::Result<Slopes> {
+pub fn slopes(image: &Planes, background: &Planes, lights: &Lights) -> Result<Slopes, Error> {
     if !image.is_rgb() {
-        bail!("depth needs an RGB image (one LED per channel), this one is gray");
+        invalid!("depth needs an RGB image (one LED per channel), this one is gray");
     }
-    ensure!(
+    require!(
         background.is_rgb() && (background.width, background.height) == (image.width, image.height),
         "the background is {}×{} {}, the image {}×{} RGB: they must match",
         background.width,
@@ -122,7 +123,7 @@ pub fn slopes(image: &Planes, background: &Planes, lights: &Lights) -> anyhow::R
     let inv: Matrix3<f64> = lights
         .matrix()
         .try_inverse()
-        .ok_or_else(|| anyhow::anyhow!("the light matrix is singular"))?;
+        .ok_or_else(|| Error::Invalid("the light matrix is singular".into()))?;
     let dirs = lights.directions();
     let scale: [f64; 3] = std::array::from_fn(|c| dirs[c][2] / lights.gains[c]);
     let (w, h) = (image.width, image.height);
@@ -159,13 +160,13 @@ pub fn slopes(image: &Planes, background: &Planes, lights: &Lights) -> anyhow::R
         valid[i] = true;
     }
     if dark * 2 > n {
-        bail!(
+        invalid!(
             "the background is dark (below {DARK} gray levels) in {} % of the image: no light to work with",
             dark * 100 / n
         );
     }
     if valid.iter().filter(|&&v| v).count() * 2 < n {
-        bail!(
+        invalid!(
             "fewer than half the pixels have a usable normal: is the image dark or not lit by these LEDs?"
         );
     }

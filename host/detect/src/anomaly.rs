@@ -346,7 +346,10 @@ impl NormalModel {
     /// Writes the model whole or not at all.
     pub fn save(&self, path: &Path) -> anyhow::Result<()> {
         let json = serde_json::to_string(self)? + "\n";
-        rollfuse_io::files::write_bytes_atomic(path, json.as_bytes())
+        Ok(rollfuse_io::files::write_bytes_atomic(
+            path,
+            json.as_bytes(),
+        )?)
     }
 }
 

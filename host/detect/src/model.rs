@@ -138,7 +138,7 @@ pub fn save(path: &Path, net: &Net, about: &About) -> anyhow::Result<()> {
     let bytes = store
         .get_bytes()
         .map_err(|e| anyhow::anyhow!("cannot encode the model: {e}"))?;
-    write_bytes_atomic(path, &bytes)
+    Ok(write_bytes_atomic(path, &bytes)?)
 }
 
 /// The model built into the tool (`models/detector.safetensors`; see `docs/detect.md`

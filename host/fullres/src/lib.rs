@@ -9,9 +9,14 @@
 //!
 //! A whole roll is fused as it arrives ([`roll`]) and written as it grows, in indexed PNG
 //! segments ([`strip_file`]).
+//!
+//! Every fallible function returns [`Error`]: input that cannot be fused, a strip file
+//! that could not be read or written, or the error of a frame, sink or callback the
+//! caller handed in.
 
 pub mod align;
 pub mod contact;
+mod error;
 pub mod register;
 pub mod roll;
 pub mod strip;
@@ -19,13 +24,16 @@ pub mod strip_file;
 pub mod window;
 
 use align::Offset;
-use anyhow::{bail, ensure};
+pub use error::Error;
 use rayon::prelude::*;
 use rollfuse_core::fusion::{
     Join, LlWeight, Sequential, U8Pair, U8Work, fuse_scratch_len, fuse_u8,
 };
 use rollfuse_core::{Dims, FuseConfig, float};
 use rollfuse_io::image::{PixelLimit, Planes};
+
+/// A result of this crate.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 /// Which arithmetic fuses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -52,7 +60,7 @@ fn canvas(
     w: usize,
     h: usize,
     limit: PixelLimit,
-) -> anyhow::Result<(i64, i64, usize, usize)> {
+) -> crate::Result<(i64, i64, usize, usize)> {
     let span = |f: fn(&Offset) -> i64| {
         let (lo, hi) = offsets
             .iter()
@@ -64,10 +72,10 @@ fn canvas(
     };
     let ((min_x, dx), (min_y, dy)) = match (span(|at| at.dx), span(|at| at.dy)) {
         (Some(x), Some(y)) => (x, y),
-        _ => bail!("frame offsets span more than the canvas can hold"),
+        _ => rollfuse_io::invalid!("frame offsets span more than the canvas can hold"),
     };
     let (cw, ch) = (dx.saturating_add(w), dy.saturating_add(h));
-    ensure!(
+    rollfuse_io::require!(
         cw.checked_mul(ch)
             .is_some_and(|n| u64::try_from(n).is_ok_and(|n| limit.admits(n))),
         "a canvas of {cw}×{ch} pixels is larger than the limit of {} (--max-pixels; \
@@ -108,7 +116,7 @@ pub fn fuse_mosaic(
     cfg: &FuseConfig,
     precision: Precision,
     limit: PixelLimit,
-) -> anyhow::Result<Planes> {
+) -> crate::Result<Planes> {
     let frames = frames
         .iter()
         .map(|f| (FrameRef::Kept(f.image), f.at))
@@ -127,7 +135,7 @@ pub fn fuse_mosaic_mut(
     cfg: &FuseConfig,
     precision: Precision,
     limit: PixelLimit,
-) -> anyhow::Result<Planes> {
+) -> crate::Result<Planes> {
     let frames = frames
         .iter_mut()
         .map(|(image, at)| (FrameRef::Spent(image), *at))
@@ -174,14 +182,14 @@ pub fn fuse_mosaic_from(
     cfg: &FuseConfig,
     precision: Precision,
     limit: PixelLimit,
-) -> anyhow::Result<Planes> {
-    ensure!(
+) -> crate::Result<Planes> {
+    rollfuse_io::require!(
         offsets.len() == source.frames(),
         "{} offsets for {} frames",
         offsets.len(),
         source.frames()
     );
-    ensure!(!offsets.is_empty(), "no frames to fuse");
+    rollfuse_io::require!(!offsets.is_empty(), "no frames to fuse");
     let (w, h, channels) = source.shape();
     let per_channel = (0..channels)
         .map(|c| {
@@ -198,21 +206,21 @@ fn fuse_frames(
     cfg: &FuseConfig,
     precision: Precision,
     limit: PixelLimit,
-) -> anyhow::Result<Planes> {
+) -> crate::Result<Planes> {
     let Some((first, _)) = frames.first() else {
-        bail!("no frames to fuse");
+        rollfuse_io::invalid!("no frames to fuse");
     };
     let (w, h, channels) = (first.width, first.height, first.planes.len());
     for (k, (image, _)) in frames.iter().enumerate() {
         if (image.width, image.height) != (w, h) {
-            bail!(
+            rollfuse_io::invalid!(
                 "frame {k} is {}×{}, frame 0 is {w}×{h}: all frames must have one size",
                 image.width,
                 image.height
             );
         }
         if image.planes.len() != channels {
-            bail!(
+            rollfuse_io::invalid!(
                 "frame {k} has {} channels, frame 0 has {channels}: mix of gray and RGB",
                 image.planes.len()
             );
@@ -258,7 +266,7 @@ fn fuse_planes(
     cfg: &FuseConfig,
     precision: Precision,
     limit: PixelLimit,
-) -> anyhow::Result<Planes> {
+) -> crate::Result<Planes> {
     Dims::new(w, h)?.check_levels(cfg.levels)?;
     let (min_x, min_y, cw, ch) = canvas(offsets, w, h, limit)?;
     let starts: Vec<usize> = offsets
@@ -269,7 +277,7 @@ fn fuse_planes(
     let planes: Vec<Vec<f32>> = per_channel
         .into_par_iter()
         .map(|planes| fuse_channel(planes, &starts, (w, h), (cw, ch), cfg, precision))
-        .collect::<anyhow::Result<_>>()?;
+        .collect::<crate::Result<_>>()?;
     Ok(Planes {
         width: cw,
         height: ch,
@@ -285,7 +293,7 @@ fn fuse_channel(
     (cw, ch): (usize, usize),
     cfg: &FuseConfig,
     precision: Precision,
-) -> anyhow::Result<Vec<f32>> {
+) -> crate::Result<Vec<f32>> {
     let mut fuser = Fuser::new(w, h, cw, cfg, precision)?;
     let mut frames = planes.into_iter().zip(starts).enumerate();
     // When every frame covers the whole canvas the first passes through as the mosaic
@@ -391,7 +399,7 @@ impl Fuser {
         cw: usize,
         cfg: &FuseConfig,
         precision: Precision,
-    ) -> anyhow::Result<Self> {
+    ) -> crate::Result<Self> {
         let region = Dims::with_stride(w, h, cw)?;
         let packed = Dims::new(w, h)?;
         let n = w * h;
@@ -417,7 +425,7 @@ impl Fuser {
         mosaic: &mut [f32],
         mut frame: FrameRef<Vec<f32>>,
         ll: LlWeight,
-    ) -> anyhow::Result<()> {
+    ) -> crate::Result<()> {
         let region = self.region;
         let (w, stride) = (region.width(), region.stride());
         match self.precision {
@@ -485,12 +493,12 @@ impl Fuser {
 /// frame whose centre row (the roller's apex) is nearest to it, and neighbouring frames'
 /// strips are blended linearly over `blend` rows either side of each seam. Columns are
 /// not shifted. All frames must agree in size and channels, as for [`fuse_mosaic`].
-pub fn splice(frames: &[Placed], blend: usize, limit: PixelLimit) -> anyhow::Result<Planes> {
-    ensure!(!frames.is_empty(), "no frames to splice");
+pub fn splice(frames: &[Placed], blend: usize, limit: PixelLimit) -> crate::Result<Planes> {
+    rollfuse_io::require!(!frames.is_empty(), "no frames to splice");
     let first = frames[0].image;
     let (w, h, channels) = (first.width, first.height, first.planes.len());
     for (k, f) in frames.iter().enumerate() {
-        ensure!(
+        rollfuse_io::require!(
             (f.image.width, f.image.height, f.image.planes.len()) == (w, h, channels),
             "frame {k} differs in size or channels from frame 0"
         );

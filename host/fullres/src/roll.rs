@@ -19,7 +19,6 @@
 
 use super::window::ContactWindow;
 use super::{FrameRef, Fuser, Precision};
-use anyhow::{bail, ensure};
 use rollfuse_core::FuseConfig;
 use rollfuse_core::fusion::LlWeight;
 use rollfuse_io::image::Planes;
@@ -66,7 +65,7 @@ impl StripSink for StripInMemory {
             height: 0,
             planes: vec![Vec::new(); channels.len()],
         });
-        ensure!(
+        anyhow::ensure!(
             row == first + image.height as i64,
             "strip rows out of order: row {row} after {} rows from {first}",
             image.height
@@ -160,8 +159,8 @@ impl<S: StripSink> RollFuser<S> {
         bands: Bands,
         cfg: &FuseConfig,
         precision: Precision,
-    ) -> anyhow::Result<Self> {
-        ensure!(
+    ) -> crate::Result<Self> {
+        rollfuse_io::require!(
             bands.band_rows >= 2
                 && bands.blend_rows.is_multiple_of(2)
                 && bands.blend_rows <= bands.band_rows,
@@ -174,7 +173,7 @@ impl<S: StripSink> RollFuser<S> {
         let region = bands.band_rows + 2 * margin;
         let reach = bands.band_rows / 2 + margin;
         if region > height {
-            bail!(
+            rollfuse_io::invalid!(
                 "frames of {height} rows are too short for bands of {} rows with {} levels: \
                  use fewer levels or --band-rows",
                 bands.band_rows,
@@ -230,8 +229,8 @@ impl<S: StripSink> RollFuser<S> {
         index: usize,
         (top, left): (i64, i64),
         image: Planes,
-    ) -> anyhow::Result<()> {
-        ensure!(
+    ) -> crate::Result<()> {
+        rollfuse_io::require!(
             (image.width, image.height, image.planes.len())
                 == (self.width, self.height, self.channels),
             "frame {index} is {}×{} with {} channels; the roll's frames are {}×{} with {}",
@@ -278,7 +277,7 @@ impl<S: StripSink> RollFuser<S> {
 
     /// Fuses the bands the last windows hold, writes the rest of the strip and returns the
     /// sink and the summary.
-    pub fn finish(mut self) -> anyhow::Result<(S, RollSummary)> {
+    pub fn finish(mut self) -> crate::Result<(S, RollSummary)> {
         if let (Some(mut b), Some(last)) = (self.next_band, self.last_top) {
             let end = self.window_start(last) + self.window.rows as i64;
             while self.centre(b) < end {
@@ -340,7 +339,7 @@ impl<S: StripSink> RollFuser<S> {
         }
     }
 
-    fn fuse_band(&mut self, b: i64) -> anyhow::Result<()> {
+    fn fuse_band(&mut self, b: i64) -> crate::Result<()> {
         let band_rows = self.bands.band_rows as i64;
         let c = self.centre(b);
         let region_top = b * band_rows - self.margin as i64;
@@ -405,7 +404,7 @@ impl<S: StripSink> RollFuser<S> {
 
     /// Fuses the frames `chosen` (indices into `self.frames`, in acquisition order) over
     /// the `region_rows` rows from belt row `region_top`.
-    fn fuse_region(&mut self, region_top: i64, chosen: &[usize]) -> anyhow::Result<Vec<Vec<f32>>> {
+    fn fuse_region(&mut self, region_top: i64, chosen: &[usize]) -> crate::Result<Vec<Vec<f32>>> {
         let w = self.width;
         let region_rows = self.bands.band_rows + 2 * self.margin;
         let rows_of = |f: &Held, c: usize| -> Vec<f32> {
@@ -441,7 +440,7 @@ impl<S: StripSink> RollFuser<S> {
         &mut self,
         band: Option<&Band>,
         range: std::ops::Range<i64>,
-    ) -> anyhow::Result<()> {
+    ) -> crate::Result<()> {
         let w = self.width;
         let zeros = vec![0f32; w];
         for row in range {
@@ -465,7 +464,7 @@ impl<S: StripSink> RollFuser<S> {
         band: &Band,
         next: &Band,
         zone: std::ops::Range<i64>,
-    ) -> anyhow::Result<()> {
+    ) -> crate::Result<()> {
         let w = self.width;
         let blend = (zone.end - zone.start) as f32;
         let mut mixed = vec![vec![0f32; w]; self.channels];

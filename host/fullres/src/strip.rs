@@ -10,7 +10,6 @@ use super::contact::{ContactProfile, NoContact};
 use super::register::{Placement, Source, Summary, TrackParams, Tracker};
 use super::roll::{Bands, RollFuser, RollSummary, StripSink};
 use super::window::{ContactWindow, Geometry, WindowSource};
-use anyhow::{Context, bail, ensure};
 use rollfuse_core::FuseConfig;
 use rollfuse_io::image::Planes;
 use std::collections::VecDeque;
@@ -103,7 +102,7 @@ pub fn fuse_strip<S: StripSink>(
     opts: &StripOptions,
     make_sink: impl FnOnce(usize, usize) -> anyhow::Result<S>,
     mut on_frame: impl FnMut(&Placement) -> anyhow::Result<()>,
-) -> anyhow::Result<(S, StripReport)> {
+) -> crate::Result<(S, StripReport)> {
     let mut frames = frames.into_iter();
     let mut head = Vec::with_capacity(MEASURE_FRAMES);
     for frame in frames.by_ref() {
@@ -113,7 +112,7 @@ pub fn fuse_strip<S: StripSink>(
         }
     }
     let Some(first) = head.first() else {
-        bail!("no frames to fuse");
+        rollfuse_io::invalid!("no frames to fuse");
     };
     let shape = (first.width, first.height, first.planes.len());
     for (k, f) in head.iter().enumerate() {
@@ -130,7 +129,7 @@ pub fn fuse_strip<S: StripSink>(
         opts.precision,
     )?;
     let mut placer = Placer::new(&opts.placing, &profile);
-    let mut take = |placed: Vec<(Placement, Planes)>| -> anyhow::Result<()> {
+    let mut take = |placed: Vec<(Placement, Planes)>| -> crate::Result<()> {
         for (p, image) in placed {
             on_frame(&p)?;
             fuser.push(p.frame, (p.row.round() as i64, p.col), image)?;
@@ -164,8 +163,8 @@ pub fn fuse_strip<S: StripSink>(
 }
 
 /// Refuses frame `k` unless it is `width × height` with `channels` planes.
-fn same_shape(k: usize, f: &Planes, (w, h, c): (usize, usize, usize)) -> anyhow::Result<()> {
-    ensure!(
+fn same_shape(k: usize, f: &Planes, (w, h, c): (usize, usize, usize)) -> crate::Result<()> {
+    rollfuse_io::require!(
         (f.width, f.height, f.planes.len()) == (w, h, c),
         "frame {k} is {}×{} with {} channels; the roll's frames are {w}×{h} with {c}",
         f.width,
@@ -232,11 +231,11 @@ impl Placer {
     }
 
     /// Frame `k`; the frames whose placement is now final, with it.
-    fn push(&mut self, k: usize, frame: Planes) -> anyhow::Result<Vec<(Placement, Planes)>> {
+    fn push(&mut self, k: usize, frame: Planes) -> crate::Result<Vec<(Placement, Planes)>> {
         let commanded_row = |rows: &[f64]| {
             rows.get(k)
                 .copied()
-                .with_context(|| format!("frame {k} has no commanded row"))
+                .ok_or_else(|| crate::Error::Invalid(format!("frame {k} has no commanded row")))
         };
         match self {
             Placer::Track {

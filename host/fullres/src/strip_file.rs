@@ -24,8 +24,7 @@
 //!
 //! Memory: one segment, `segment_rows × width × channels` samples.
 
-use anyhow::{Context, ensure};
-use rollfuse_io::files::{Batch, PngLayout, add_png, write_bytes_atomic};
+use rollfuse_io::files::{Batch, PngLayout, WriteError, add_png, write_bytes_atomic};
 use std::path::{Path, PathBuf};
 
 /// Default rows per segment.
@@ -59,9 +58,9 @@ pub struct StripIndex<T: serde::Serialize> {
 
 /// Refuses, before any work, an input (each named by what it is) that a strip written to
 /// `out` could overwrite with a segment: one named `STEM.NNNN.EXT` beside `out`.
-pub fn refuse_segment_names(out: &Path, inputs: &[(&str, &Path)]) -> anyhow::Result<()> {
+pub fn refuse_segment_names(out: &Path, inputs: &[(&str, &Path)]) -> crate::Result<()> {
     for (what, input) in inputs {
-        ensure!(
+        rollfuse_io::require!(
             !is_segment_name(out, input),
             "{} would write segments named like the {what} {}: refusing to overwrite an input",
             out.display(),
@@ -103,15 +102,18 @@ pub fn first_row_of(image: &Path) -> Option<(PathBuf, i64)> {
 }
 
 /// The segments a strip's index (`STEM.json`) lists, in belt order.
-pub fn read_segments(index: &Path) -> anyhow::Result<Vec<Segment>> {
+pub fn read_segments(index: &Path) -> crate::Result<Vec<Segment>> {
     #[derive(serde::Deserialize)]
     struct Listed {
         segments: Vec<Segment>,
     }
-    let text = std::fs::read_to_string(index)
-        .with_context(|| format!("cannot read the strip index {}", index.display()))?;
-    let listed: Listed = serde_json::from_str(&text)
-        .with_context(|| format!("{} is not a strip index", index.display()))?;
+    let text = std::fs::read_to_string(index).map_err(|source| crate::Error::Read {
+        path: index.to_path_buf(),
+        source,
+    })?;
+    let listed: Listed = serde_json::from_str(&text).map_err(|e| {
+        crate::Error::Invalid(format!("{} is not a strip index: {e}", index.display()))
+    })?;
     Ok(listed.segments)
 }
 
@@ -169,9 +171,9 @@ impl StripWriter {
         channels: usize,
         bits: u8,
         segment_rows: usize,
-    ) -> anyhow::Result<Self> {
-        ensure!(segment_rows >= 1, "segments need at least one row");
-        ensure!(width >= 1, "a strip needs at least one column");
+    ) -> crate::Result<Self> {
+        rollfuse_io::require!(segment_rows >= 1, "segments need at least one row");
+        rollfuse_io::require!(width >= 1, "a strip needs at least one column");
         Ok(Self {
             out: out.to_path_buf(),
             width,
@@ -217,7 +219,7 @@ impl StripWriter {
     /// Puts the staged segments in place, then returns the segments written since the
     /// last call, each whole at its name in [`StripWriter::in_place`] mode, with their
     /// numbers.
-    pub fn new_segments(&mut self) -> anyhow::Result<Vec<(usize, Segment)>> {
+    pub fn new_segments(&mut self) -> crate::Result<Vec<(usize, Segment)>> {
         self.land_staged()?;
         let from = self.written.len() - self.unreported;
         self.unreported = 0;
@@ -226,13 +228,13 @@ impl StripWriter {
 
     /// Writes the segment being collected now, though it is not full (it is staged in
     /// [`StripWriter::in_place`] mode): the last one of a strip about to finish.
-    pub fn end_segment(&mut self) -> anyhow::Result<()> {
+    pub fn end_segment(&mut self) -> crate::Result<()> {
         self.flush()
     }
 
     /// Writes each staged segment, whole, at its name; one that cannot be written stays
     /// staged with those after it (a strip dropped unfinished tries them again).
-    fn land_staged(&mut self) -> anyhow::Result<()> {
+    fn land_staged(&mut self) -> crate::Result<()> {
         while let Some(png) = self.staged.first() {
             let n = self.written.len() - self.staged.len();
             write_bytes_atomic(&self.numbered(n), png)?;
@@ -262,12 +264,12 @@ impl StripWriter {
 
     /// Moves the segments written beside older files into place, the older index first
     /// removed so that no index describes a mix of two strips meanwhile.
-    fn replace_older(&mut self) -> anyhow::Result<()> {
+    fn replace_older(&mut self) -> crate::Result<()> {
         remove_if_there(&Self::index_path(&self.out))?;
         for file in &mut self.files {
             if let Written::Beside { hidden, target } = file {
                 std::fs::rename(&*hidden, &*target)
-                    .with_context(|| format!("cannot move {} into place", target.display()))?;
+                    .map_err(WriteError::io("move into place", target))?;
                 *file = Written::InPlace(target.clone());
             }
         }
@@ -276,12 +278,12 @@ impl StripWriter {
 
     /// Removes what an older strip of the same name left that this one did not write:
     /// segments numbered past this one's, and the lone `out` when this one has segments.
-    fn remove_stale(&self) -> anyhow::Result<()> {
+    fn remove_stale(&self) -> crate::Result<()> {
         let mut stale = Self::segments_on_disk(&self.out, self.written.len());
         if (self.written.len() > 1 || self.in_place) && self.out.exists() {
             stale.push(self.out.clone());
         }
-        rollfuse_io::files::remove_stale(stale)
+        Ok(rollfuse_io::files::remove_stale(stale)?)
     }
 
     /// The segments of a strip written to `out` that are on disk, numbered from `first` on
@@ -299,8 +301,8 @@ impl StripWriter {
     }
 
     /// Appends belt row `row` (one slice of `width` values per channel, 8-bit scale).
-    pub fn push(&mut self, row: i64, channels: &[&[f32]]) -> anyhow::Result<()> {
-        ensure!(
+    pub fn push(&mut self, row: i64, channels: &[&[f32]]) -> crate::Result<()> {
+        rollfuse_io::require!(
             channels.len() == self.channels && channels.iter().all(|c| c.len() == self.width),
             "a strip row must have {} channels of {} values",
             self.channels,
@@ -340,7 +342,7 @@ impl StripWriter {
     }
 
     /// Writes the segment being collected, if any.
-    fn flush(&mut self) -> anyhow::Result<()> {
+    fn flush(&mut self) -> crate::Result<()> {
         let Some(first) = self.current_first.take() else {
             return Ok(());
         };
@@ -391,10 +393,10 @@ impl StripWriter {
 
     /// Writes the last segment, renames a lone segment to `out` itself, and writes the
     /// index with `details`. Returns the segments written.
-    pub fn finish<T: serde::Serialize>(mut self, details: T) -> anyhow::Result<Vec<Segment>> {
+    pub fn finish<T: serde::Serialize>(mut self, details: T) -> crate::Result<Vec<Segment>> {
         self.flush()?;
         self.land_staged()?;
-        ensure!(
+        rollfuse_io::require!(
             !self.written.is_empty(),
             "the strip has no rows: nothing was written"
         );
@@ -404,7 +406,7 @@ impl StripWriter {
         if self.written.len() == 1 && !self.in_place {
             let lone = self.numbered(0);
             std::fs::rename(&lone, &self.out)
-                .with_context(|| format!("cannot move {} into place", self.out.display()))?;
+                .map_err(WriteError::io("move into place", &self.out))?;
             self.written[0].file = self
                 .out
                 .file_name()
@@ -419,7 +421,9 @@ impl StripWriter {
             segments: self.written.clone(),
             details,
         };
-        let json = serde_json::to_string_pretty(&index)? + "\n";
+        let json = serde_json::to_string_pretty(&index)
+            .map_err(|e| crate::Error::Invalid(format!("the strip's index as JSON: {e}")))?
+            + "\n";
         write_bytes_atomic(&Self::index_path(&self.out), json.as_bytes())?;
         Ok(std::mem::take(&mut self.written))
     }
@@ -450,17 +454,17 @@ impl Drop for StripWriter {
 }
 
 /// Removes `path` if it is there.
-fn remove_if_there(path: &Path) -> anyhow::Result<()> {
+fn remove_if_there(path: &Path) -> crate::Result<()> {
     match std::fs::remove_file(path) {
         Ok(()) => Ok(()),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
-        Err(e) => Err(e).with_context(|| format!("cannot remove the old {}", path.display())),
+        Err(e) => Err(WriteError::io("remove the old", path)(e).into()),
     }
 }
 
 impl crate::roll::StripSink for StripWriter {
     fn row(&mut self, row: i64, channels: &[&[f32]]) -> anyhow::Result<()> {
-        self.push(row, channels)
+        Ok(self.push(row, channels)?)
     }
 }
 

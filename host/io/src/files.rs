@@ -11,13 +11,64 @@
 //! bytes have been written in all, as a disk that fills up midway would
 //! (`ErrorKind::StorageFull`).
 
-use anyhow::{Context, ensure};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 /// The environment variable that makes outputs fail after so many bytes (tests).
 pub const FAIL_WRITES_AFTER: &str = "ROLLFUSE_FAIL_WRITES_AFTER";
+
+/// Why an output was not written: the file system's fault ([`WriteError::Io`]: a full
+/// disk, no permission, a device error) told apart from where the output was pointed
+/// ([`WriteError::Refused`]) and from the content's own error ([`WriteError::Content`]).
+/// In every case the previous file, if any, is as it was.
+#[derive(Debug, thiserror::Error)]
+pub enum WriteError {
+    /// The operating system refused or failed a step.
+    #[error("cannot {doing} {}", path.display())]
+    Io {
+        /// The step, in words ("write", "move into place", …).
+        doing: &'static str,
+        /// The file or folder it was done to.
+        path: PathBuf,
+        /// What the operating system said.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The output was asked for in a way it cannot be written: pointed at something it
+    /// must not replace (not a regular file, a loop of links, an input, another output of
+    /// the same run, a path whose folder is a file) or named or shaped for a format this
+    /// writer does not take.
+    #[error("{0}")]
+    Refused(String),
+    /// The content could not be made: the error of the code that writes it.
+    #[error(transparent)]
+    Content(anyhow::Error),
+}
+
+impl WriteError {
+    /// `source` as the failure of `doing` to `path`.
+    pub fn io<'a>(doing: &'static str, path: &'a Path) -> impl FnOnce(std::io::Error) -> Self + 'a {
+        move |source| Self::Io {
+            doing,
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+
+    /// The operating system's error kind where the file system failed (for the content's
+    /// error, anywhere in its chain): `StorageFull` for a full disk.
+    pub fn io_kind(&self) -> Option<std::io::ErrorKind> {
+        match self {
+            Self::Io { source, .. } => Some(source.kind()),
+            Self::Refused(_) => None,
+            Self::Content(e) => e
+                .chain()
+                .find_map(|c| c.downcast_ref::<std::io::Error>())
+                .map(std::io::Error::kind),
+        }
+    }
+}
 
 /// A temporary path beside `target`: same folder (so the rename stays on one file
 /// system), hidden, unique to this process and this call (two outputs of one name in a
@@ -51,19 +102,18 @@ pub struct NewFolder {
 
 impl NewFolder {
     /// Makes the folder of the file `path` and its missing parents.
-    pub fn for_file(path: &Path) -> anyhow::Result<Self> {
+    pub fn for_file(path: &Path) -> Result<Self, WriteError> {
         Self::create(folder_of(path))
     }
 
     /// Makes `path` and its missing parents.
-    pub fn create(path: &Path) -> anyhow::Result<Self> {
+    pub fn create(path: &Path) -> Result<Self, WriteError> {
         let made: Vec<PathBuf> = path
             .ancestors()
             .filter(|p| !p.as_os_str().is_empty() && !p.exists())
             .map(Path::to_path_buf)
             .collect();
-        std::fs::create_dir_all(path)
-            .with_context(|| format!("cannot create output folder {}", path.display()))?;
+        std::fs::create_dir_all(path).map_err(WriteError::io("create output folder", path))?;
         Ok(Self { made })
     }
 }
@@ -144,34 +194,37 @@ pub fn sweep_stale(dir: &Path) -> usize {
 /// replaced whole). Anything but a regular file there — a FIFO, a device, a socket, a
 /// folder — is refused: an output never replaces what the user pointed at with something
 /// else.
-pub fn output_target(target: &Path) -> anyhow::Result<PathBuf> {
+pub fn output_target(target: &Path) -> Result<PathBuf, WriteError> {
     let mut at = target.to_path_buf();
     // As many links as the kernel follows in one path.
     for _ in 0..40 {
         let meta = match std::fs::symlink_metadata(&at) {
             Ok(meta) => meta,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(at),
-            Err(e) => return Err(e).with_context(|| format!("cannot look at {}", at.display())),
+            Err(e) => return Err(WriteError::io("look at", &at)(e)),
         };
         let kind = meta.file_type();
         if kind.is_symlink() {
-            let to = std::fs::read_link(&at)
-                .with_context(|| format!("cannot read the link {}", at.display()))?;
+            let to = std::fs::read_link(&at).map_err(WriteError::io("read the link", &at))?;
             at = match at.parent() {
                 Some(dir) if to.is_relative() => dir.join(to),
                 _ => to,
             };
             continue;
         }
-        ensure!(
-            kind.is_file(),
-            "{} is {}: outputs are written to regular files only",
-            target.display(),
-            special_kind(&kind)
-        );
+        if !kind.is_file() {
+            return Err(WriteError::Refused(format!(
+                "{} is {}: outputs are written to regular files only",
+                target.display(),
+                special_kind(&kind)
+            )));
+        }
         return Ok(at);
     }
-    anyhow::bail!("{} is a loop of symbolic links", target.display())
+    Err(WriteError::Refused(format!(
+        "{} is a loop of symbolic links",
+        target.display()
+    )))
 }
 
 /// What a file that is not a regular file is, in words.
@@ -214,15 +267,15 @@ pub fn resolved(path: &Path) -> PathBuf {
 
 /// Refuses, before any work, an output that is one of the inputs: `inputs` are each
 /// named by what they are (`"input frame"`, `"background"`, `"recording"`, …).
-pub fn refuse_overwriting(outputs: &[&Path], inputs: &[(&str, &Path)]) -> anyhow::Result<()> {
+pub fn refuse_overwriting(outputs: &[&Path], inputs: &[(&str, &Path)]) -> Result<(), WriteError> {
     for out in outputs {
         let target = resolved(out);
         if let Some((what, input)) = inputs.iter().find(|(_, p)| resolved(p) == target) {
-            anyhow::bail!(
+            return Err(WriteError::Refused(format!(
                 "{} is the {what} {}: refusing to overwrite an input",
                 out.display(),
                 input.display()
-            );
+            )));
         }
     }
     Ok(())
@@ -230,14 +283,15 @@ pub fn refuse_overwriting(outputs: &[&Path], inputs: &[(&str, &Path)]) -> anyhow
 
 /// Refuses, before any work, two outputs that are one file (the second would replace the
 /// first): `what` says how they came to share it.
-pub fn refuse_duplicate_outputs(outputs: &[&Path], what: &str) -> anyhow::Result<()> {
+pub fn refuse_duplicate_outputs(outputs: &[&Path], what: &str) -> Result<(), WriteError> {
     let mut seen = std::collections::HashSet::new();
     for out in outputs {
-        anyhow::ensure!(
-            seen.insert(resolved(out)),
-            "{} would be written twice ({what}): refusing to lose one of them",
-            out.display()
-        );
+        if !seen.insert(resolved(out)) {
+            return Err(WriteError::Refused(format!(
+                "{} would be written twice ({what}): refusing to lose one of them",
+                out.display()
+            )));
+        }
     }
     Ok(())
 }
@@ -258,17 +312,17 @@ fn room() -> Option<&'static std::sync::atomic::AtomicU64> {
 
 /// Refuses, before any work, inputs inside `folder`, an output folder replaced whole
 /// ([`replace_folder`]).
-pub fn refuse_inside(folder: &Path, inputs: &[(&str, &Path)]) -> anyhow::Result<()> {
+pub fn refuse_inside(folder: &Path, inputs: &[(&str, &Path)]) -> Result<(), WriteError> {
     let folder_at = resolved(folder);
     if let Some((what, input)) = inputs
         .iter()
         .find(|(_, p)| resolved(p).starts_with(&folder_at))
     {
-        anyhow::bail!(
+        return Err(WriteError::Refused(format!(
             "the {what} {} is inside {}, which is replaced whole: refusing to remove an input",
             input.display(),
             folder.display()
-        );
+        )));
     }
     Ok(())
 }
@@ -279,8 +333,8 @@ pub struct Output {
 }
 
 impl Output {
-    fn create(tmp: &Path) -> anyhow::Result<Self> {
-        let file = File::create(tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+    fn create(tmp: &Path) -> Result<Self, WriteError> {
+        let file = File::create(tmp).map_err(WriteError::io("create", tmp))?;
         Ok(Self { file })
     }
 }
@@ -312,14 +366,13 @@ impl Write for Output {
 }
 
 /// Flushes and syncs a finished temporary.
-fn finish(writer: BufWriter<Output>, target: &Path) -> anyhow::Result<()> {
+fn finish(writer: BufWriter<Output>, target: &Path) -> Result<(), WriteError> {
     let out = writer
         .into_inner()
-        .map_err(|e| e.into_error())
-        .with_context(|| format!("cannot write {}", target.display()))?;
+        .map_err(|e| WriteError::io("write", target)(e.into_error()))?;
     out.file
         .sync_all()
-        .with_context(|| format!("cannot write {} to disk", target.display()))
+        .map_err(WriteError::io("sync to disk", target))
 }
 
 /// Files written whole, then moved into place together by [`Batch::commit`]. Dropped
@@ -342,12 +395,12 @@ impl Batch {
         &mut self,
         target: &Path,
         fill: impl FnOnce(&mut BufWriter<Output>) -> anyhow::Result<()>,
-    ) -> anyhow::Result<()> {
+    ) -> Result<(), WriteError> {
         let target = &output_target(target)?;
         let tmp = temporary_beside(target, "part");
         let result = (|| {
             let mut writer = BufWriter::with_capacity(1 << 16, Output::create(&tmp)?);
-            fill(&mut writer)?;
+            fill(&mut writer).map_err(WriteError::Content)?;
             finish(writer, target)
         })();
         match result {
@@ -363,21 +416,20 @@ impl Batch {
     }
 
     /// [`Batch::add`] of a byte string.
-    pub fn add_bytes(&mut self, target: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    pub fn add_bytes(&mut self, target: &Path, bytes: &[u8]) -> Result<(), WriteError> {
         self.add(target, |w| {
             w.write_all(bytes)
-                .with_context(|| format!("cannot write {}", target.display()))
+                .map_err(|e| WriteError::io("write", target)(e).into())
         })
     }
 
     /// Moves every file into place, in the order they were added (so an index added last
     /// appears last).
-    pub fn commit(mut self) -> anyhow::Result<()> {
+    pub fn commit(mut self) -> Result<(), WriteError> {
         for (tmp, target) in std::mem::take(&mut self.ready) {
             if let Err(e) = std::fs::rename(&tmp, &target) {
                 let _ = std::fs::remove_file(&tmp);
-                return Err(e)
-                    .with_context(|| format!("cannot move {} into place", target.display()));
+                return Err(WriteError::io("move into place", &target)(e));
             }
         }
         Ok(())
@@ -398,14 +450,14 @@ impl Drop for Batch {
 pub fn write_atomic(
     target: &Path,
     fill: impl FnOnce(&mut BufWriter<Output>) -> anyhow::Result<()>,
-) -> anyhow::Result<()> {
+) -> Result<(), WriteError> {
     let mut batch = Batch::new();
     batch.add(target, fill)?;
     batch.commit()
 }
 
 /// [`write_atomic`] of a byte string.
-pub fn write_bytes_atomic(target: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+pub fn write_bytes_atomic(target: &Path, bytes: &[u8]) -> Result<(), WriteError> {
     let mut batch = Batch::new();
     batch.add_bytes(target, bytes)?;
     batch.commit()
@@ -418,30 +470,28 @@ pub fn write_bytes_atomic(target: &Path, bytes: &[u8]) -> anyhow::Result<()> {
 pub fn replace_folder<T>(
     target: &Path,
     fill: impl FnOnce(&Path) -> anyhow::Result<T>,
-) -> anyhow::Result<T> {
+) -> Result<T, WriteError> {
     let staging = temporary_beside(target, "part");
     let _ = std::fs::remove_dir_all(&staging);
-    std::fs::create_dir_all(&staging)
-        .with_context(|| format!("cannot create {}", staging.display()))?;
+    std::fs::create_dir_all(&staging).map_err(WriteError::io("create", &staging))?;
     let filled = match fill(&staging) {
         Ok(v) => v,
         Err(e) => {
             let _ = std::fs::remove_dir_all(&staging);
-            return Err(e);
+            return Err(WriteError::Content(e));
         }
     };
     let old = temporary_beside(target, "old");
     let had = target.exists();
     let swapped = (|| {
         if had {
-            std::fs::rename(target, &old)
-                .with_context(|| format!("cannot move {} aside", target.display()))?;
+            std::fs::rename(target, &old).map_err(WriteError::io("move aside", target))?;
         }
-        std::fs::rename(&staging, target).with_context(|| {
+        std::fs::rename(&staging, target).map_err(|e| {
             if had {
                 let _ = std::fs::rename(&old, target);
             }
-            format!("cannot move {} into place", target.display())
+            WriteError::io("move into place", target)(e)
         })
     })();
     if let Err(e) = swapped {
@@ -465,7 +515,7 @@ pub struct PendingFile {
 
 impl PendingFile {
     /// Starts writing `target`.
-    pub fn create(target: &Path) -> anyhow::Result<Self> {
+    pub fn create(target: &Path) -> Result<Self, WriteError> {
         let target = output_target(target)?;
         let tmp = temporary_beside(&target, "part");
         Ok(Self {
@@ -476,24 +526,26 @@ impl PendingFile {
     }
 
     /// Appends `bytes`.
-    pub fn write_all(&mut self, bytes: &[u8]) -> anyhow::Result<()> {
-        let w = self.writer.as_mut().context("file already committed")?;
+    pub fn write_all(&mut self, bytes: &[u8]) -> Result<(), WriteError> {
+        // The writer is taken only by the commit, which consumes the file.
+        let Some(w) = self.writer.as_mut() else {
+            return Ok(());
+        };
         w.write_all(bytes)
-            .with_context(|| format!("cannot write {}", self.target.display()))
+            .map_err(WriteError::io("write", &self.target))
     }
 
     /// Flushes, syncs and renames the file into place.
-    pub fn commit(self) -> anyhow::Result<()> {
+    pub fn commit(self) -> Result<(), WriteError> {
         self.commit_by(|tmp, target| {
-            std::fs::rename(tmp, target)
-                .with_context(|| format!("cannot move {} into place", target.display()))
+            std::fs::rename(tmp, target).map_err(WriteError::io("move into place", target))
         })
     }
 
     /// Flushes, syncs and puts the file into place only where no file is: whether it
     /// did. Never replaces a file, even one that appears meanwhile (a hard link, which
     /// fails on an existing name; where the file system has none, a rename after a look).
-    pub fn commit_if_new(self) -> anyhow::Result<bool> {
+    pub fn commit_if_new(self) -> Result<bool, WriteError> {
         let mut placed = false;
         self.commit_by(|tmp, target| {
             let linked = match std::fs::hard_link(tmp, target) {
@@ -502,7 +554,7 @@ impl PendingFile {
                 Err(_) if target.exists() => Ok(false),
                 Err(_) => std::fs::rename(tmp, target).map(|()| true),
             };
-            placed = linked.with_context(|| format!("cannot place {}", target.display()))?;
+            placed = linked.map_err(WriteError::io("place", target))?;
             Ok(())
         })?;
         Ok(placed)
@@ -512,9 +564,12 @@ impl PendingFile {
     /// removed in every case.
     fn commit_by(
         mut self,
-        place: impl FnOnce(&Path, &Path) -> anyhow::Result<()>,
-    ) -> anyhow::Result<()> {
-        let writer = self.writer.take().context("file already committed")?;
+        place: impl FnOnce(&Path, &Path) -> Result<(), WriteError>,
+    ) -> Result<(), WriteError> {
+        // The writer is there until this, which consumes the file, takes it.
+        let Some(writer) = self.writer.take() else {
+            return Ok(());
+        };
         let result = finish(writer, &self.target).and_then(|()| place(&self.tmp, &self.target));
         let _ = std::fs::remove_file(&self.tmp);
         result
@@ -531,15 +586,17 @@ impl Drop for PendingFile {
 
 /// Refuses an image output not named `.png` (images are written as PNG only): call it
 /// before the work, as [`write_png`] does before writing.
-pub fn require_png_name(target: &Path) -> anyhow::Result<()> {
-    ensure!(
-        target
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("png")),
+pub fn require_png_name(target: &Path) -> Result<(), WriteError> {
+    if target
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+    {
+        return Ok(());
+    }
+    Err(WriteError::Refused(format!(
         "{}: images are written as PNG; name the file .png",
         target.display()
-    );
-    Ok(())
+    )))
 }
 
 /// PNG sample layouts written by [`write_png`].
@@ -557,15 +614,17 @@ pub enum PngLayout {
 
 impl PngLayout {
     /// The layout for `channels` (1 or 3) samples of `bits` (8 or 16).
-    pub fn new(channels: usize, bits: u8) -> anyhow::Result<Self> {
+    pub fn new(channels: usize, bits: u8) -> Result<Self, WriteError> {
         Ok(match (channels, bits) {
             (1, 8) => Self::Gray8,
             (3, 8) => Self::Rgb8,
             (1, 16) => Self::Gray16,
             (3, 16) => Self::Rgb16,
-            _ => anyhow::bail!(
-                "PNG output is gray or RGB of 8 or 16 bits, not {channels} channels of {bits} bits"
-            ),
+            _ => {
+                return Err(WriteError::Refused(format!(
+                    "PNG output is gray or RGB of 8 or 16 bits, not {channels} channels of {bits} bits"
+                )));
+            }
         })
     }
 
@@ -596,7 +655,7 @@ pub fn write_png(
     data: &[u8],
     size: (usize, usize),
     layout: PngLayout,
-) -> anyhow::Result<()> {
+) -> Result<(), WriteError> {
     let mut batch = Batch::new();
     add_png(&mut batch, target, data, size, layout)?;
     batch.commit()
@@ -609,12 +668,9 @@ pub fn add_png(
     data: &[u8],
     size: (usize, usize),
     layout: PngLayout,
-) -> anyhow::Result<()> {
+) -> Result<(), WriteError> {
     require_png_name(target)?;
-    batch.add(target, |out| {
-        encode_png(out, data, size, layout)
-            .with_context(|| format!("cannot write {}", target.display()))
-    })
+    batch.add(target, |out| Ok(encode_png(out, data, size, layout)?))
 }
 
 /// Encodes a `width × height` PNG of `data` (samples row by row in `layout`) into `out`.
@@ -623,26 +679,28 @@ pub fn encode_png(
     data: &[u8],
     (width, height): (usize, usize),
     layout: PngLayout,
-) -> anyhow::Result<()> {
+) -> Result<(), WriteError> {
     use image::ImageEncoder;
-    ensure!(
-        width
-            .checked_mul(height)
-            .and_then(|n| n.checked_mul(layout.bytes_per_pixel()))
-            == Some(data.len()),
-        "{} bytes are not a {width}×{height} image of {layout:?}",
-        data.len()
-    );
-    let (w, h) = (u32::try_from(width)?, u32::try_from(height)?);
-    image::codecs::png::PngEncoder::new(out).write_image(data, w, h, layout.color())?;
-    Ok(())
+    let sized = width
+        .checked_mul(height)
+        .and_then(|n| n.checked_mul(layout.bytes_per_pixel()))
+        == Some(data.len());
+    let (Ok(w), Ok(h), true) = (u32::try_from(width), u32::try_from(height), sized) else {
+        return Err(WriteError::Refused(format!(
+            "{} bytes are not a {width}×{height} image of {layout:?}",
+            data.len()
+        )));
+    };
+    image::codecs::png::PngEncoder::new(out)
+        .write_image(data, w, h, layout.color())
+        .map_err(|e| WriteError::Content(e.into()))
 }
 
 /// Fails early, with the path in the message, if `path` cannot be written, before any
 /// long work starts: its folder, or the nearest one above it that exists (the missing ones
 /// are made as the output is written: [`NewFolder::for_file`]), must be a folder that can
 /// be written to. Leaves an existing file as it is and creates nothing.
-pub fn check_writable(path: &Path) -> anyhow::Result<()> {
+pub fn check_writable(path: &Path) -> Result<(), WriteError> {
     let parent = folder_of(path);
     let existing = parent
         .ancestors()
@@ -655,12 +713,13 @@ pub fn check_writable(path: &Path) -> anyhow::Result<()> {
         })
         .find(|p| p.exists())
         .unwrap_or(Path::new("."));
-    anyhow::ensure!(
-        existing.is_dir(),
-        "cannot write {}: {} is not a folder",
-        path.display(),
-        existing.display()
-    );
+    if !existing.is_dir() {
+        return Err(WriteError::Refused(format!(
+            "cannot write {}: {} is not a folder",
+            path.display(),
+            existing.display()
+        )));
+    }
     let probe = if path.exists() {
         std::fs::OpenOptions::new()
             .append(true)
@@ -670,15 +729,14 @@ pub fn check_writable(path: &Path) -> anyhow::Result<()> {
         let tmp = existing.join(format!(".rollfuse-write-check-{}", std::process::id()));
         std::fs::File::create(&tmp).and_then(|_| std::fs::remove_file(&tmp))
     };
-    probe.map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
+    probe.map_err(WriteError::io("write", path))
 }
 
 /// Removes files an output no longer has (a replaced strip's extra segments, another
 /// output's side files), naming the first that cannot be removed.
-pub fn remove_stale(paths: Vec<PathBuf>) -> anyhow::Result<()> {
+pub fn remove_stale(paths: Vec<PathBuf>) -> Result<(), WriteError> {
     for p in paths {
-        std::fs::remove_file(&p)
-            .with_context(|| format!("cannot remove the stale {}", p.display()))?;
+        std::fs::remove_file(&p).map_err(WriteError::io("remove the stale", &p))?;
     }
     Ok(())
 }
@@ -693,6 +751,41 @@ pub fn folder_of(path: &Path) -> &Path {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_write_error_says_whose_fault_it_is() {
+        let dir = tempfile::tempdir().unwrap();
+        // The file system's: the folder is not there.
+        let missing = dir.path().join("no/such/folder/out.bin");
+        let e = write_bytes_atomic(&missing, b"x").unwrap_err();
+        assert!(
+            matches!(
+                e,
+                WriteError::Io {
+                    doing: "create",
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        assert_eq!(e.io_kind(), Some(std::io::ErrorKind::NotFound));
+        // Where it was pointed: a folder is not replaced by a file.
+        let e = write_bytes_atomic(dir.path(), b"x").unwrap_err();
+        assert!(matches!(e, WriteError::Refused(_)), "{e:?}");
+        assert_eq!(e.io_kind(), None);
+        // A full disk met by the code writing the content is told apart from its own
+        // errors, and the target keeps what it had.
+        let out = dir.path().join("out.bin");
+        std::fs::write(&out, b"old").unwrap();
+        let full = write_atomic(&out, |_| {
+            Err(std::io::Error::from(std::io::ErrorKind::StorageFull).into())
+        })
+        .unwrap_err();
+        assert_eq!(full.io_kind(), Some(std::io::ErrorKind::StorageFull));
+        let own = write_atomic(&out, |_| anyhow::bail!("no pixels")).unwrap_err();
+        assert!(matches!(own, WriteError::Content(_)) && own.io_kind().is_none());
+        assert_eq!(std::fs::read(&out).unwrap(), b"old");
+    }
 
     #[test]
     fn a_link_is_written_through_and_special_files_are_refused() {

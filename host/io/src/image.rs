@@ -1,8 +1,7 @@
 //! Images on the host: planes of `f32` gray levels, loaded from PNG (and what else the
 //! `image` crate was built to read) and saved as PNG or NumPy arrays ([`ImageFormat`]).
 
-use crate::files::{PngLayout, write_png};
-use anyhow::ensure;
+use crate::files::{PngLayout, WriteError, write_png};
 use std::path::{Path, PathBuf};
 
 /// The largest image read by default, pixels: 32 Mi (e.g. 640 × 52 000 rows), at most
@@ -38,6 +37,19 @@ impl PixelLimit {
     pub fn admits(self, pixels: u64) -> bool {
         pixels <= self.0
     }
+}
+
+/// A window that does not lie inside the image it was to be cut from.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "crop of {}×{} at row {}, column {} lies outside a {}×{} image",
+    window[3], window[2], window[0], window[1], image[1], image[0]
+)]
+pub struct OutsideImage {
+    /// Top row, left column, height and width of the window.
+    pub window: [usize; 4],
+    /// The image's height and width.
+    pub image: [usize; 2],
 }
 
 /// Why an image could not be read: the operating system's fault ([`ReadError::Io`]) told
@@ -169,7 +181,7 @@ impl ImageFormat {
         &[("png", ImageFormat::Png), ("npy", ImageFormat::Npy)];
 
     /// The format `target`'s extension names (any case), or an error that lists them.
-    pub fn of(target: &Path) -> anyhow::Result<Self> {
+    pub fn of(target: &Path) -> Result<Self, WriteError> {
         let ext = target.extension().and_then(|e| e.to_str()).unwrap_or("");
         Self::EXTENSIONS
             .iter()
@@ -180,11 +192,11 @@ impl ImageFormat {
                     .iter()
                     .map(|(n, _)| format!(".{n}"))
                     .collect();
-                anyhow::anyhow!(
+                WriteError::Refused(format!(
                     "{}: images are written as {} files; name it with one of those",
                     target.display(),
                     names.join(" or ")
-                )
+                ))
             })
     }
 }
@@ -285,13 +297,13 @@ impl Planes {
         left: usize,
         height: usize,
         width: usize,
-    ) -> anyhow::Result<Self> {
-        ensure!(
-            top + height <= self.height && left + width <= self.width,
-            "crop of {width}×{height} at row {top}, column {left} lies outside a {}×{} image",
-            self.width,
-            self.height
-        );
+    ) -> Result<Self, OutsideImage> {
+        if top + height > self.height || left + width > self.width {
+            return Err(OutsideImage {
+                window: [top, left, height, width],
+                image: [self.height, self.width],
+            });
+        }
         let planes = self
             .planes
             .iter()
@@ -393,7 +405,7 @@ impl Planes {
 
     /// Saves as a gray or RGB PNG of 8 or 16 bits per sample (16 keeps the fractions of
     /// gray levels that fusion produces), whole or not at all ([`crate::files`]).
-    pub fn save_png_bits(&self, path: &Path, bits: u8) -> anyhow::Result<()> {
+    pub fn save_png_bits(&self, path: &Path, bits: u8) -> Result<(), WriteError> {
         let layout = PngLayout::new(self.planes.len(), bits)?;
         let bytes = match bits {
             8 => self.to_u8(),
@@ -405,7 +417,7 @@ impl Planes {
     /// Saves in the format `path`'s extension names ([`ImageFormat::of`]), whole or not at
     /// all: a PNG of `png_bits` (8 or 16) a sample, or a NumPy array of the values as they
     /// are.
-    pub fn save(&self, path: &Path, png_bits: u8) -> anyhow::Result<()> {
+    pub fn save(&self, path: &Path, png_bits: u8) -> Result<(), WriteError> {
         match ImageFormat::of(path)? {
             ImageFormat::Png => self.save_png_bits(path, png_bits),
             ImageFormat::Npy => crate::files::write_bytes_atomic(path, &self.to_npy()?),
@@ -413,7 +425,7 @@ impl Planes {
     }
 
     /// The image as `.npy` bytes: rows × columns, or rows × columns × 3 interleaved.
-    fn to_npy(&self) -> anyhow::Result<Vec<u8>> {
+    fn to_npy(&self) -> Result<Vec<u8>, WriteError> {
         let (w, h, c) = (self.width, self.height, self.planes.len());
         if c == 1 {
             return crate::npy::encode_f32(&self.planes[0], h, w);
@@ -425,12 +437,12 @@ impl Planes {
     }
 
     /// Saves as an 8-bit gray or RGB PNG, whole or not at all.
-    pub fn save_png(&self, path: &Path) -> anyhow::Result<()> {
+    pub fn save_png(&self, path: &Path) -> Result<(), WriteError> {
         self.save_png_bits(path, 8)
     }
 
     /// An 8-bit gray or RGB PNG into `batch`, moved into place with the rest of it.
-    pub fn add_png(&self, batch: &mut crate::files::Batch, path: &Path) -> anyhow::Result<()> {
+    pub fn add_png(&self, batch: &mut crate::files::Batch, path: &Path) -> Result<(), WriteError> {
         let layout = PngLayout::new(self.planes.len(), 8)?;
         crate::files::add_png(
             batch,

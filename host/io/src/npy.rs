@@ -1,21 +1,22 @@
 //! Writes NumPy `.npy` files (format 1.0): `numpy.load` reads them as they are.
 
-use std::io::Write;
+use crate::files::WriteError;
 
 /// Encodes a row-major `rows × cols` array of `f32` as `.npy` bytes (little-endian `<f4`).
-pub fn encode_f32(data: &[f32], rows: usize, cols: usize) -> anyhow::Result<Vec<u8>> {
+pub fn encode_f32(data: &[f32], rows: usize, cols: usize) -> Result<Vec<u8>, WriteError> {
     encode_f32_shaped(data, &[rows, cols])
 }
 
 /// Encodes a row-major (C-order) array of `f32` of any `shape` as `.npy` bytes.
-pub fn encode_f32_shaped(data: &[f32], shape: &[usize]) -> anyhow::Result<Vec<u8>> {
+pub fn encode_f32_shaped(data: &[f32], shape: &[usize]) -> Result<Vec<u8>, WriteError> {
     let dims: Vec<String> = shape.iter().map(usize::to_string).collect();
-    anyhow::ensure!(
-        data.len() == shape.iter().product::<usize>(),
-        "npy: {} values do not make a {} array",
-        data.len(),
-        dims.join("×")
-    );
+    if data.len() != shape.iter().product::<usize>() {
+        return Err(WriteError::Refused(format!(
+            "npy: {} values do not make a {} array",
+            data.len(),
+            dims.join("×")
+        )));
+    }
     // A tuple of one needs its comma: (5,).
     let tuple = match dims.as_slice() {
         [one] => format!("({one},)"),
@@ -26,12 +27,18 @@ pub fn encode_f32_shaped(data: &[f32], shape: &[usize]) -> anyhow::Result<Vec<u8
     let total = 10 + header.len() + 1;
     header.push_str(&" ".repeat(total.next_multiple_of(64) - total));
     header.push('\n');
+    let Ok(header_len) = u16::try_from(header.len()) else {
+        return Err(WriteError::Refused(format!(
+            "npy: a {}-dimensional shape is too long for the header",
+            shape.len()
+        )));
+    };
     let mut out = Vec::with_capacity(10 + header.len() + 4 * data.len());
-    out.write_all(b"\x93NUMPY\x01\x00")?;
-    out.write_all(&u16::try_from(header.len())?.to_le_bytes())?;
-    out.write_all(header.as_bytes())?;
+    out.extend_from_slice(b"\x93NUMPY\x01\x00");
+    out.extend_from_slice(&header_len.to_le_bytes());
+    out.extend_from_slice(header.as_bytes());
     for v in data {
-        out.write_all(&v.to_le_bytes())?;
+        out.extend_from_slice(&v.to_le_bytes());
     }
     Ok(out)
 }

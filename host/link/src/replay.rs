@@ -14,8 +14,7 @@
 //! passed over and the second recording plays on. A record cut off by the end of the file
 //! is skipped like damage; what came before stands.
 
-use super::{Received, Transport};
-use anyhow::Context;
+use super::{Error, Received, Transport};
 use rollfuse_core::protocol::{self, DeviceMessage, MAX_MESSAGE, MIN_MESSAGE};
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -76,9 +75,12 @@ pub struct Replay {
 
 impl Replay {
     /// Opens a recording, checking its header.
-    pub fn open(path: &Path) -> anyhow::Result<Self> {
-        let file = std::fs::File::open(path)
-            .with_context(|| format!("cannot open recording {}", path.display()))?;
+    pub fn open(path: &Path) -> Result<Self, Error> {
+        let file = std::fs::File::open(path).map_err(|e| Error::File {
+            doing: "open",
+            path: path.to_path_buf(),
+            source: e.into(),
+        })?;
         let mut me = Self {
             path: path.to_path_buf(),
             file,
@@ -89,11 +91,11 @@ impl Replay {
             damage: Damage::default(),
         };
         let n = me.fill(MAGIC.len())?;
-        anyhow::ensure!(
-            me.at_hand(n) == MAGIC,
-            "{} is not a rollfuse stream recording",
-            path.display()
-        );
+        if me.at_hand(n) != MAGIC {
+            return Err(Error::NotARecording {
+                path: path.to_path_buf(),
+            });
+        }
         me.start += MAGIC.len();
         Ok(me)
     }
@@ -104,7 +106,7 @@ impl Replay {
     }
 
     /// Reads until `want` bytes are at hand, or the file ends: how many are.
-    fn fill(&mut self, want: usize) -> anyhow::Result<usize> {
+    fn fill(&mut self, want: usize) -> Result<usize, Error> {
         while self.window.len() - self.start < want && !self.eof {
             self.window.drain(..self.start);
             self.start = 0;
@@ -116,7 +118,11 @@ impl Replay {
                     other => break other,
                 }
             };
-            let n = n.with_context(|| format!("reading {}", self.path.display()))?;
+            let n = n.map_err(|e| Error::File {
+                doing: "read",
+                path: self.path.clone(),
+                source: e.into(),
+            })?;
             self.window.truncate(had + n);
             self.eof = n == 0;
         }
@@ -149,7 +155,7 @@ impl Replay {
     /// Whether the `n`-byte record at hand is one: its message decodes, or — outside a
     /// search, where messages recorded corrupt as they arrived are kept — what follows it
     /// starts records too ([`Replay::records_follow`]).
-    fn record_holds(&mut self, n: usize) -> anyhow::Result<bool> {
+    fn record_holds(&mut self, n: usize) -> Result<bool, Error> {
         if self.decodes_at(0, n) {
             return Ok(true);
         }
@@ -175,7 +181,7 @@ impl Replay {
     /// Whether records start `at` bytes on: the file ends there, or a header is there, or
     /// a record whose message decodes — or, `depth` more times, one of a length a message
     /// can have whose following bytes pass the same test.
-    fn records_follow(&mut self, at: usize, depth: u32) -> anyhow::Result<bool> {
+    fn records_follow(&mut self, at: usize, depth: u32) -> Result<bool, Error> {
         let got = self.fill(at + MAGIC.len())?;
         if got == at {
             return Ok(true);
@@ -208,11 +214,11 @@ impl Replay {
 }
 
 impl Transport for Replay {
-    fn send(&mut self, _message: &[u8]) -> anyhow::Result<()> {
+    fn send(&mut self, _message: &[u8]) -> Result<(), Error> {
         Ok(())
     }
 
-    fn receive(&mut self, buf: &mut [u8], _timeout: Duration) -> anyhow::Result<Received> {
+    fn receive(&mut self, buf: &mut [u8], _timeout: Duration) -> Result<Received, Error> {
         loop {
             let got = self.fill(MAGIC.len())?;
             if got < 4 {
@@ -259,28 +265,31 @@ pub struct Recorder {
 
 impl Recorder {
     /// Starts a recording (replacing the file at `path` when finished).
-    pub fn create(path: &Path) -> anyhow::Result<Self> {
-        let mut file = rollfuse_io::files::PendingFile::create(path)
-            .with_context(|| format!("cannot create recording {}", path.display()))?;
+    pub fn create(path: &Path) -> Result<Self, Error> {
+        let mut file = rollfuse_io::files::PendingFile::create(path).map_err(|e| Error::File {
+            doing: "create",
+            path: path.to_path_buf(),
+            source: e.into(),
+        })?;
         file.write_all(MAGIC)?;
         Ok(Self { file })
     }
 
     /// Appends one message.
-    pub fn record(&mut self, message: &[u8]) -> anyhow::Result<()> {
+    pub fn record(&mut self, message: &[u8]) -> Result<(), Error> {
         self.file.write_all(&(message.len() as u32).to_le_bytes())?;
-        self.file.write_all(message)
+        Ok(self.file.write_all(message)?)
     }
 
     /// Flushes, syncs and moves the recording into place.
-    pub fn finish(self) -> anyhow::Result<()> {
-        self.file.commit()
+    pub fn finish(self) -> Result<(), Error> {
+        Ok(self.file.commit()?)
     }
 
     /// [`Recorder::finish`] for a session that failed: the recording is kept only where no
     /// file is at its name (it never replaces an older one); whether it was kept.
-    pub fn keep_if_new(self) -> anyhow::Result<bool> {
-        self.file.commit_if_new()
+    pub fn keep_if_new(self) -> Result<bool, Error> {
+        Ok(self.file.commit_if_new()?)
     }
 }
 
@@ -288,6 +297,21 @@ impl Recorder {
 mod tests {
     use super::*;
     use rollfuse_core::protocol::Tile;
+
+    #[test]
+    fn a_recording_that_is_not_there_is_told_from_one_that_is_not_a_recording() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("rec.bin");
+        let missing = Replay::open(&path).err().unwrap();
+        assert!(
+            matches!(missing, Error::File { doing: "open", .. }),
+            "{missing:?}"
+        );
+        std::fs::write(&path, b"PNG, not a recording").unwrap();
+        let other = Replay::open(&path).err().unwrap();
+        assert!(matches!(other, Error::NotARecording { .. }), "{other:?}");
+        assert!(other.to_string().contains("rec.bin"), "{other}");
+    }
 
     /// A recording's bytes: the header, then `count` tile messages (indices from `first`).
     fn recording(first: u32, count: u32) -> Vec<u8> {

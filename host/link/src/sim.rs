@@ -14,9 +14,8 @@
 //! Its stream is the core's `device::Session`, the one the firmware runs, on the
 //! firmware's memory by default ([`DeviceMemory`]): it refuses what the module refuses.
 
-use super::{Received, Transport};
+use super::{Error, Received, Transport};
 use crate::pipeline_memory::PipelineMemory;
-use anyhow::Context;
 use rollfuse_core::device::{
     Capture, Controller, Event, FIRMWARE_VERSION, Handed, MCU_CAPACITY, Memory, Next, Order,
     Outlet, Sensor, Session, raw_chunks,
@@ -76,12 +75,12 @@ impl SimDevice {
     /// Starts a virtual device on `scene` with the firmware's memory. Fails if the
     /// product's default configuration does not fit the scene's camera (the host may
     /// configure another once connected).
-    pub fn start(scene: &Scene) -> anyhow::Result<Self> {
+    pub fn start(scene: &Scene) -> Result<Self, Error> {
         Self::start_with(scene, DeviceMemory::Firmware)
     }
 
     /// [`Self::start`] with the given pipeline memory.
-    pub fn start_with(scene: &Scene, memory: DeviceMemory) -> anyhow::Result<Self> {
+    pub fn start_with(scene: &Scene, memory: DeviceMemory) -> Result<Self, Error> {
         Self::start_paced(scene, memory, None)
     }
 
@@ -91,15 +90,12 @@ impl SimDevice {
         scene: &Scene,
         memory: DeviceMemory,
         frame_period: Option<Duration>,
-    ) -> anyhow::Result<Self> {
-        let sim = Simulator::new(scene)?;
+    ) -> Result<Self, Error> {
+        let sim = Simulator::new(scene).map_err(Error::Scene)?;
         let (sensor, config) = sensor_for(scene, &sim);
-        let refused = |reason| {
-            anyhow::anyhow!(
-                "the virtual device's default configuration does not fit a {}×{} camera: {reason:?}",
-                sensor.width,
-                sensor.height
-            )
+        let refused = |reason| Error::VirtualConfig {
+            camera: [sensor.width, sensor.height],
+            reason: format!("{reason:?}"),
         };
         let mut controller = Controller::new(sensor, FIRMWARE_VERSION, config).map_err(refused)?;
         let capacity = match memory {
@@ -130,7 +126,7 @@ impl SimDevice {
                 };
                 dev.run();
             })
-            .context("cannot start the virtual device's thread")?;
+            .map_err(Error::VirtualThread)?;
         Ok(Self {
             default_config: config,
             to_device: Some(to_device),
@@ -163,14 +159,14 @@ impl Drop for SimDevice {
 }
 
 impl Transport for SimDevice {
-    fn send(&mut self, message: &[u8]) -> anyhow::Result<()> {
+    fn send(&mut self, message: &[u8]) -> Result<(), Error> {
         self.to_device
             .as_ref()
             .and_then(|tx| tx.send(message.to_vec()).ok())
-            .context("the virtual device has stopped")
+            .ok_or(Error::VirtualStopped)
     }
 
-    fn receive(&mut self, buf: &mut [u8], timeout: Duration) -> anyhow::Result<Received> {
+    fn receive(&mut self, buf: &mut [u8], timeout: Duration) -> Result<Received, Error> {
         match self.from_device.recv_timeout(timeout) {
             Ok(msg) => {
                 let n = msg.len().min(buf.len());

@@ -8,8 +8,7 @@
 //! installing, but on Linux the user needs access to the device node (a udev rule, see
 //! `firmware/README.md`).
 
-use super::{Received, Transport};
-use anyhow::{Context, bail};
+use super::{Error, Received, Transport};
 pub use rollfuse_core::protocol::usb::{EP_IN, EP_OUT, INTERFACE, PID, VID};
 use rusb::UsbContext;
 use std::time::Duration;
@@ -26,21 +25,15 @@ pub struct Found {
 }
 
 /// Opens libusb, with a message that says what to do when it cannot.
-fn context() -> anyhow::Result<rusb::Context> {
-    rusb::Context::new().map_err(|e| {
-        anyhow::anyhow!(
-            "cannot use USB: libusb failed to start ({e}); on Linux, is /dev/bus/usb there and readable?"
-        )
-    })
+fn context() -> Result<rusb::Context, Error> {
+    rusb::Context::new().map_err(Error::UsbUnavailable)
 }
 
 /// Lists the rollfuse devices on the bus; `Ok` with the number of other USB devices seen
 /// when there are none of ours.
-pub fn list() -> anyhow::Result<(Vec<Found>, usize)> {
+pub fn list() -> Result<(Vec<Found>, usize), Error> {
     let ctx = context()?;
-    let devices = ctx
-        .devices()
-        .map_err(|e| anyhow::anyhow!("cannot list USB devices: {e}"))?;
+    let devices = ctx.devices().map_err(Error::UsbList)?;
     let mut found = Vec::new();
     let mut others = 0;
     for dev in devices.iter() {
@@ -153,7 +146,7 @@ impl Reassembly {
         io: &mut impl BulkIn,
         buf: &mut [u8],
         timeout: Duration,
-    ) -> anyhow::Result<Received> {
+    ) -> Result<Received, Error> {
         let have = self.partial.len();
         if have >= buf.len() {
             // Longer than any message: handed on whole to be refused as too long.
@@ -178,29 +171,25 @@ impl Reassembly {
                 Ok(Received::Message(buf.len()))
             }
             Transfer::Gone => Ok(Received::Closed),
-            Transfer::Failed(e) => bail!("USB receive failed: {e}"),
+            Transfer::Failed(error) => Err(Error::Transfer {
+                what: "receive",
+                error,
+            }),
         }
     }
 }
 
 impl Usb {
     /// Opens the first rollfuse device and claims its interface.
-    pub fn open() -> anyhow::Result<Self> {
+    pub fn open() -> Result<Self, Error> {
         let (found, others) = list()?;
         if found.is_empty() {
-            bail!(
-                "no rollfuse device ({VID:04x}:{PID:04x}) on USB ({others} other devices seen); \
-                 is it plugged in and flashed? `rollfuse devices` lists what is seen"
-            );
+            return Err(Error::NoDevice { others });
         }
         let ctx = context()?;
-        let mut handle = ctx.open_device_with_vid_pid(VID, PID).context(
-            "the rollfuse device could not be opened: permissions? (see firmware/README.md)",
-        )?;
+        let mut handle = ctx.open_device_with_vid_pid(VID, PID).ok_or(Error::Open)?;
         let _ = handle.set_auto_detach_kernel_driver(true);
-        handle
-            .claim_interface(INTERFACE)
-            .map_err(|e| anyhow::anyhow!("cannot claim the device's interface: {e}"))?;
+        handle.claim_interface(INTERFACE).map_err(Error::Claim)?;
         // A host that died mid-message leaves the device's IN endpoint holding the rest of
         // it: clearing both endpoints resets their data toggles, and what is still queued
         // is read and dropped, so this session's first reply arrives alone.
@@ -215,18 +204,24 @@ impl Usb {
 }
 
 impl Transport for Usb {
-    fn send(&mut self, message: &[u8]) -> anyhow::Result<()> {
+    fn send(&mut self, message: &[u8]) -> Result<(), Error> {
         let n = self
             .handle
             .write_bulk(EP_OUT, message, Duration::from_secs(1))
-            .map_err(|e| anyhow::anyhow!("USB send failed: {e}"))?;
+            .map_err(|e| Error::Transfer {
+                what: "send",
+                error: e.to_string(),
+            })?;
         if n != message.len() {
-            bail!("USB send cut short: {n} of {} bytes", message.len());
+            return Err(Error::ShortSend {
+                sent: n,
+                len: message.len(),
+            });
         }
         Ok(())
     }
 
-    fn receive(&mut self, buf: &mut [u8], timeout: Duration) -> anyhow::Result<Received> {
+    fn receive(&mut self, buf: &mut [u8], timeout: Duration) -> Result<Received, Error> {
         self.reassembly.receive(&mut self.handle, buf, timeout)
     }
 }

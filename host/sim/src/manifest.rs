@@ -7,7 +7,8 @@
 //! (`rollfuse-stream-1`), or one a later version wrote — is refused naming its format.
 
 use super::scene::{Effect, Scene};
-use anyhow::{Context, bail};
+use crate::Error;
+use rollfuse_io::invalid;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -111,26 +112,33 @@ pub struct Roller {
 impl Manifest {
     /// Reads `path`: a manifest of this format or a motion system's `frames` list. Another
     /// format (a stream's record) or a field of the wrong type is refused naming the file.
-    pub fn read(path: &Path) -> anyhow::Result<Self> {
+    pub fn read(path: &Path) -> Result<Self, Error> {
         #[derive(Deserialize)]
         struct Tag {
             #[serde(default)]
             format: String,
         }
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read manifest {}", path.display()))?;
+        let text = std::fs::read_to_string(path).map_err(|source| Error::Read {
+            what: "manifest",
+            path: path.to_path_buf(),
+            source,
+        })?;
         let tag: Tag = serde_json::from_str(&text)
-            .with_context(|| format!("{} is not a JSON object", path.display()))?;
+            .map_err(|e| Error::Invalid(format!("{} is not a JSON object: {e}", path.display())))?;
         match tag.format.as_str() {
             "" | FRAMES_FORMAT => {}
-            other => bail!(
+            other => invalid!(
                 "{} is of format {other}, not a manifest of frames ({FRAMES_FORMAT}, or a \
                  motion system's `frames` list)",
                 path.display()
             ),
         }
-        serde_json::from_str(&text)
-            .with_context(|| format!("{} is not a manifest of frames", path.display()))
+        serde_json::from_str(&text).map_err(|e| {
+            Error::Invalid(format!(
+                "{} is not a manifest of frames: {e}",
+                path.display()
+            ))
+        })
     }
 
     /// The record of the frame whose file is named `name`.
@@ -154,7 +162,7 @@ impl Manifest {
 mod tests {
     use super::*;
 
-    fn read(text: &str) -> anyhow::Result<Manifest> {
+    fn read(text: &str) -> Result<Manifest, Error> {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("manifest.json");
         std::fs::write(&path, text).unwrap();

@@ -6,8 +6,8 @@ use super::manifest::{FRAMES_FORMAT, FrameRecord, Manifest, Truth};
 use super::render::{FrameDefect, Planes, Simulator, Strip, StripDefect};
 use super::scene::Object;
 use super::textile;
-use anyhow::{Context, ensure};
-use rollfuse_io::files::{Batch, PngLayout, add_png};
+use crate::Error;
+use rollfuse_io::files::{Batch, PngLayout, WriteError, add_png};
 use rollfuse_io::npy;
 use rollfuse_io::progress::Progress;
 use serde::Serialize;
@@ -62,14 +62,14 @@ fn contact_sheet(frames: &[Planes]) -> Planes {
 
 /// Removes `frame_NNNN.png` files numbered `count` and above, left by an earlier, longer
 /// run into the same folder: they would otherwise be taken for frames of this one.
-fn remove_stale_frames(out: &Path, count: usize) -> anyhow::Result<()> {
-    for entry in std::fs::read_dir(out).with_context(|| format!("cannot list {}", out.display()))? {
-        let path = entry?.path();
+fn remove_stale_frames(out: &Path, count: usize) -> Result<(), WriteError> {
+    let listed = std::fs::read_dir(out).map_err(WriteError::io("list", out))?;
+    for entry in listed {
+        let path = entry.map_err(WriteError::io("list", out))?.path();
         if let Some(k) = frame_index(&path)
             && k >= count
         {
-            std::fs::remove_file(&path)
-                .with_context(|| format!("cannot remove stale {}", path.display()))?;
+            std::fs::remove_file(&path).map_err(WriteError::io("remove stale", &path))?;
         }
     }
     Ok(())
@@ -88,7 +88,7 @@ fn frame_index(path: &Path) -> Option<usize> {
 /// `out` would replace or remove: a file in `out` named as one of its outputs
 /// (`manifest.json`, `contact_sheet.png`, `lights.toml`, any `frame_NNNN.png`), or
 /// anything under `out/truth/`.
-pub fn refuse_overwriting(input: &Path, what: &str, out: &Path) -> anyhow::Result<()> {
+pub fn refuse_overwriting(input: &Path, what: &str, out: &Path) -> Result<(), WriteError> {
     let at = rollfuse_io::files::resolved(input);
     let dir = rollfuse_io::files::resolved(out);
     let named_as_output = at.parent() == Some(dir.as_path())
@@ -98,12 +98,13 @@ pub fn refuse_overwriting(input: &Path, what: &str, out: &Path) -> anyhow::Resul
                     .iter()
                     .any(|o| n == *o)
             }));
-    anyhow::ensure!(
-        !named_as_output && !at.starts_with(dir.join("truth")),
-        "the {what} {} is where the simulation writes into {}: refusing to overwrite an input",
-        input.display(),
-        out.display()
-    );
+    if named_as_output || at.starts_with(dir.join("truth")) {
+        return Err(WriteError::Refused(format!(
+            "the {what} {} is where the simulation writes into {}: refusing to overwrite an input",
+            input.display(),
+            out.display()
+        )));
+    }
     Ok(())
 }
 
@@ -115,12 +116,13 @@ fn add_truth(
     sim: &Simulator,
     strip: &Strip,
     out: &Path,
-) -> anyhow::Result<Vec<(String, String)>> {
+) -> Result<Vec<(String, String)>, Error> {
     // Validation bounds every scene value; this is the last word on what is written.
-    ensure!(
-        strip.height_mm.iter().all(|h| h.is_finite()),
-        "the scene's height map is not finite everywhere: nothing written"
-    );
+    if !strip.height_mm.iter().all(|h| h.is_finite()) {
+        return Err(Error::Invalid(
+            "the scene's height map is not finite everywhere: nothing written".into(),
+        ));
+    }
     let truth_dir = out.join("truth");
     batch.add_bytes(
         &truth_dir.join("height.npy"),
@@ -156,7 +158,7 @@ fn add_defects(
     sim: &Simulator,
     frames: Vec<FrameDefects>,
     out: &Path,
-) -> anyhow::Result<Option<String>> {
+) -> Result<Option<String>, Error> {
     let Object::Textile { fabric, .. } = &sim.scene().object else {
         return Ok(None);
     };
@@ -166,23 +168,27 @@ fn add_defects(
         class: textile::FABRICS
             .iter()
             .position(|f| f.name == fabric)
-            .context("unknown fabric")?,
+            .ok_or_else(|| Error::Invalid(format!("unknown fabric {fabric:?}")))?,
         strip_origin_mm: strip.origin_mm,
         mm_per_px: sim.scene().sensor.mm_per_px,
         defects: strip.defects.clone(),
         frames,
     };
     let file = "truth/defects.json";
-    let json = serde_json::to_string_pretty(&truth)? + "\n";
+    let json = to_json(&truth)? + "\n";
     batch.add_bytes(&out.join(file), json.as_bytes())?;
     Ok(Some(file.to_string()))
 }
 
+/// `value` as indented JSON.
+fn to_json(value: &impl Serialize) -> Result<String, Error> {
+    serde_json::to_string_pretty(value).map_err(|e| Error::Invalid(e.to_string()))
+}
+
 /// Renders every frame of `sim` into `out` with its ground truth and manifest; `progress`
 /// counts the frames rendered.
-pub fn write(sim: &Simulator, out: &Path, progress: &dyn Progress) -> anyhow::Result<Manifest> {
-    std::fs::create_dir_all(out.join("truth"))
-        .with_context(|| format!("cannot create {}", out.display()))?;
+pub fn write(sim: &Simulator, out: &Path, progress: &dyn Progress) -> Result<Manifest, Error> {
+    std::fs::create_dir_all(out.join("truth")).map_err(WriteError::io("create", out))?;
     // Every file is written before any is moved into place, the manifest last: a failure
     // leaves the previous run's files as they were, never a mix.
     let mut batch = Batch::new();
@@ -230,7 +236,10 @@ pub fn write(sim: &Simulator, out: &Path, progress: &dyn Progress) -> anyhow::Re
             blue: scene.lights.blue,
             gains: [1.0; 3],
         };
-        batch.add_bytes(&out.join("lights.toml"), lights.to_toml()?.as_bytes())?;
+        let toml = lights
+            .to_toml()
+            .map_err(|e| Error::Invalid(e.to_string()))?;
+        batch.add_bytes(&out.join("lights.toml"), toml.as_bytes())?;
     }
     let manifest = Manifest {
         format: FRAMES_FORMAT.to_string(),
@@ -258,7 +267,7 @@ pub fn write(sim: &Simulator, out: &Path, progress: &dyn Progress) -> anyhow::Re
         }),
         scene_file: Some(scene.clone()),
     };
-    let json = serde_json::to_string_pretty(&manifest)?;
+    let json = to_json(&manifest)?;
     batch.add_bytes(&out.join("manifest.json"), (json + "\n").as_bytes())?;
     batch.commit()?;
     remove_stale_frames(out, sim.frames())?;

@@ -123,7 +123,7 @@ fn percentile_90(height_mm: &[f32], width: usize, box_px: [f64; 4]) -> f64 {
 
 impl Simulator {
     /// Lays out and rasterizes the scene's object over every belt row its frames can see.
-    pub fn new(scene: &Scene) -> anyhow::Result<Self> {
+    pub fn new(scene: &Scene) -> Result<Self, crate::Error> {
         scene.validate()?;
         let s = &scene.sensor;
         let mmpp = s.mm_per_px;

@@ -2,7 +2,8 @@
 //! simulate. TOML, every field documented in `docs/simulator.md`; unknown fields are
 //! refused, and every value is checked with an error that names its field.
 
-use anyhow::{Context, anyhow, bail};
+use crate::Error;
+use rollfuse_io::invalid;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -14,19 +15,19 @@ pub const MAX_FRAMES: usize = 10_000;
 pub const MAX_STRIP_PIXELS: usize = 1 << 26;
 
 /// Checks a textile's fields: a known fabric, a bounded number of defects, a sane scale.
-fn validate_textile(fabric: &str, defects: usize, scale: f64) -> anyhow::Result<()> {
+fn validate_textile(fabric: &str, defects: usize, scale: f64) -> Result<(), Error> {
     if super::textile::fabric(fabric).is_none() {
         let names: Vec<&str> = super::textile::FABRICS.iter().map(|f| f.name).collect();
-        bail!(
+        invalid!(
             "object.fabric must be one of {}, got {fabric:?}",
             names.join(", ")
         );
     }
     if defects > MAX_DEFECTS {
-        bail!("object.defects must be at most {MAX_DEFECTS}, got {defects}");
+        invalid!("object.defects must be at most {MAX_DEFECTS}, got {defects}");
     }
     if !(0.5..=2.0).contains(&scale) {
-        bail!("object.scale must be in 0.5..=2, got {scale}");
+        invalid!("object.scale must be in 0.5..=2, got {scale}");
     }
     Ok(())
 }
@@ -394,17 +395,21 @@ impl Default for EffectParams {
 
 impl Scene {
     /// Reads and checks a scene file; the scene's name defaults to the file's stem.
-    pub fn load(path: &Path) -> anyhow::Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read scene file {}", path.display()))?;
+    pub fn load(path: &Path) -> Result<Self, Error> {
+        let text = std::fs::read_to_string(path).map_err(|source| Error::Read {
+            what: "scene file",
+            path: path.to_path_buf(),
+            source,
+        })?;
         let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("scene");
-        Self::parse(&text, stem).with_context(|| format!("in scene file {}", path.display()))
+        Self::parse(&text, stem)
+            .map_err(|e| e.within(format_args!("in scene file {}", path.display())))
     }
 
     /// Parses and checks a scene from TOML text.
-    pub fn parse(text: &str, default_name: &str) -> anyhow::Result<Self> {
+    pub fn parse(text: &str, default_name: &str) -> Result<Self, Error> {
         let mut scene: Scene =
-            toml::from_str(text).map_err(|e| anyhow!("{}", e.to_string().trim_end()))?;
+            toml::from_str(text).map_err(|e| Error::Invalid(e.to_string().trim_end().into()))?;
         if scene.name.is_empty() {
             scene.name = default_name.to_string();
         }
@@ -418,7 +423,7 @@ impl Scene {
     }
 
     /// Checks every value, naming the field of the first bad one.
-    pub fn validate(&self) -> anyhow::Result<()> {
+    pub fn validate(&self) -> Result<(), Error> {
         let s = &self.sensor;
         positive("sensor.roller_radius_mm", s.roller_radius_mm)?;
         positive("sensor.gel_thickness_mm", s.gel_thickness_mm)?;
@@ -430,22 +435,22 @@ impl Scene {
             ("sensor.height_px", s.height_px),
         ] {
             if !(8..=MAX_IMAGE_SIDE).contains(&v) {
-                bail!("{field} must be 8..={MAX_IMAGE_SIDE} pixels, got {v}");
+                invalid!("{field} must be 8..={MAX_IMAGE_SIDE} pixels, got {v}");
             }
         }
         if !(1..=MAX_FRAMES).contains(&s.frames) {
-            bail!("sensor.frames must be 1..={MAX_FRAMES}, got {}", s.frames);
+            invalid!("sensor.frames must be 1..={MAX_FRAMES}, got {}", s.frames);
         }
         if let Some(row) = s.focal_row
             && row >= s.height_px
         {
-            bail!(
+            invalid!(
                 "sensor.focal_row must be below sensor.height_px ({}), got {row}",
                 s.height_px
             );
         }
         if s.roller_radius_mm * 2.0 < s.height_px as f64 * s.mm_per_px * 0.5 {
-            bail!(
+            invalid!(
                 "sensor.roller_radius_mm ({}) is too small for the field of view ({} mm along the belt)",
                 s.roller_radius_mm,
                 s.height_px as f64 * s.mm_per_px
@@ -461,17 +466,17 @@ impl Scene {
         let strip_px = (travel_px + s.height_px as f64 * 2.0 + 2.0 * self.params.jitter_px)
             * s.width_px as f64;
         if strip_px.is_nan() || strip_px > MAX_STRIP_PIXELS as f64 {
-            bail!(
+            invalid!(
                 "sensor.frames × sensor.frame_spacing_mm / sensor.mm_per_px: the belt strip would be {:.0} pixels, more than {MAX_STRIP_PIXELS}",
                 strip_px
             );
         }
         if self.has(Effect::Gray) && self.has(Effect::Rgb) {
-            bail!("effects: list `gray` or `rgb`, not both");
+            invalid!("effects: list `gray` or `rgb`, not both");
         }
         for (i, e) in self.effects.iter().enumerate() {
             if self.effects[..i].contains(e) {
-                bail!("effects: `{}` is listed twice", e.name());
+                invalid!("effects: `{}` is listed twice", e.name());
             }
         }
         for (field, v) in [
@@ -481,7 +486,7 @@ impl Scene {
         ] {
             let norm = v.iter().map(|c| c * c).sum::<f64>().sqrt();
             if !v.iter().all(|c| c.is_finite()) || (norm - 1.0).abs() > 1e-3 || v[2] <= 0.0 {
-                bail!(
+                invalid!(
                     "{field} must be a unit vector pointing toward the camera (z > 0), got {v:?}"
                 );
             }
@@ -491,7 +496,7 @@ impl Scene {
     }
 
     /// The effects' parameters: blurs, noise, motion errors and illumination in range.
-    fn validate_params(&self) -> anyhow::Result<()> {
+    fn validate_params(&self) -> Result<(), Error> {
         let (p, s) = (&self.params, &self.sensor);
         non_negative("params.gel_sigma_per_thickness", p.gel_sigma_per_thickness)?;
         non_negative("params.defocus_sigma_px", p.defocus_sigma_px)?;
@@ -501,7 +506,7 @@ impl Scene {
             ("params.defocus_sigma_px", p.defocus_sigma_px),
         ] {
             if sigma > 256.0 {
-                bail!("{field}: a blur of σ = {sigma:.0} px is more than 256 px");
+                invalid!("{field}: a blur of σ = {sigma:.0} px is more than 256 px");
             }
         }
         non_negative("params.read_noise", p.read_noise)?;
@@ -512,20 +517,20 @@ impl Scene {
         ] {
             non_negative(field, px)?;
             if px > 1000.0 {
-                bail!("{field} must be at most 1000, got {px}");
+                invalid!("{field} must be at most 1000, got {px}");
             }
         }
         if !(0.0..1.0).contains(&p.speed_jitter) {
-            bail!(
+            invalid!(
                 "params.speed_jitter must be in 0..1, got {}",
                 p.speed_jitter
             );
         }
         if !(0.0..1.0).contains(&p.vignetting) {
-            bail!("params.vignetting must be in 0..1, got {}", p.vignetting);
+            invalid!("params.vignetting must be in 0..1, got {}", p.vignetting);
         }
         if !(-1.0..1.0).contains(&p.gradient) {
-            bail!("params.gradient must be in -1..1, got {}", p.gradient);
+            invalid!("params.gradient must be in -1..1, got {}", p.gradient);
         }
         Ok(())
     }
@@ -551,7 +556,7 @@ impl Scene {
         out
     }
 
-    fn validate_object(&self) -> anyhow::Result<()> {
+    fn validate_object(&self) -> Result<(), Error> {
         match &self.object {
             Object::Letters { text, height_mm } => validate_letters(text, *height_mm)?,
             Object::Dots {
@@ -594,38 +599,33 @@ impl Scene {
 }
 
 /// The letters: a short text the font can draw, raised.
-fn validate_letters(text: &str, height_mm: f64) -> anyhow::Result<()> {
+fn validate_letters(text: &str, height_mm: f64) -> Result<(), Error> {
     positive("object.height_mm", height_mm)?;
     if text.trim().is_empty() || text.chars().count() > 64 {
-        bail!("object.text must have 1..=64 characters");
+        invalid!("object.text must have 1..=64 characters");
     }
     if let Some(c) = text.chars().find(|c| !rollfuse_io::font::supports(*c)) {
-        bail!("object.text: no glyph for {c:?} (A–Z, 0–9 and space)");
+        invalid!("object.text: no glyph for {c:?} (A–Z, 0–9 and space)");
     }
     Ok(())
 }
 
 /// A grid of dots, lines or curves: raised, each smaller than the grid's pitch, and the
 /// pitch at least a pixel.
-fn validate_grid(
-    height_mm: f64,
-    pitch_mm: f64,
-    size_mm: f64,
-    mm_per_px: f64,
-) -> anyhow::Result<()> {
+fn validate_grid(height_mm: f64, pitch_mm: f64, size_mm: f64, mm_per_px: f64) -> Result<(), Error> {
     positive("object.height_mm", height_mm)?;
     at_least_a_pixel("object.pitch_mm", pitch_mm, mm_per_px)?;
     positive("object.size_mm", size_mm)?;
     if size_mm >= pitch_mm {
-        bail!("object.size_mm ({size_mm}) must be smaller than object.pitch_mm ({pitch_mm})");
+        invalid!("object.size_mm ({size_mm}) must be smaller than object.pitch_mm ({pitch_mm})");
     }
     Ok(())
 }
 
 /// Primitives: at least one, their region names usable and distinct, each shape sound.
-fn validate_primitives(shapes: &[Shape]) -> anyhow::Result<()> {
+fn validate_primitives(shapes: &[Shape]) -> Result<(), Error> {
     if shapes.is_empty() {
-        bail!("object.shapes must list at least one shape");
+        invalid!("object.shapes must list at least one shape");
     }
     validate_region_names(shapes)?;
     for (i, shape) in shapes.iter().enumerate() {
@@ -635,7 +635,7 @@ fn validate_primitives(shapes: &[Shape]) -> anyhow::Result<()> {
 }
 
 /// Region names: letters, digits, '_' or '-', none used twice.
-fn validate_region_names(shapes: &[Shape]) -> anyhow::Result<()> {
+fn validate_region_names(shapes: &[Shape]) -> Result<(), Error> {
     let mut names: Vec<&str> = Vec::new();
     for (i, shape) in shapes.iter().enumerate() {
         let (Shape::Sphere {
@@ -652,10 +652,10 @@ fn validate_region_names(shapes: &[Shape]) -> anyhow::Result<()> {
                 .chars()
                 .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
         {
-            bail!("object.shapes[{i}].region must be letters, digits, '_' or '-', got {name:?}");
+            invalid!("object.shapes[{i}].region must be letters, digits, '_' or '-', got {name:?}");
         }
         if names.contains(&name.as_str()) {
-            bail!("object.shapes[{i}].region {name:?} is used twice");
+            invalid!("object.shapes[{i}].region {name:?} is used twice");
         }
         names.push(name);
     }
@@ -663,7 +663,7 @@ fn validate_region_names(shapes: &[Shape]) -> anyhow::Result<()> {
 }
 
 /// Shape `i`: finite position, positive size, a sphere's cap no higher than its diameter.
-fn validate_shape(i: usize, shape: &Shape) -> anyhow::Result<()> {
+fn validate_shape(i: usize, shape: &Shape) -> Result<(), Error> {
     let at = |f: &str| format!("object.shapes[{i}].{f}");
     match shape {
         Shape::Sphere {
@@ -679,7 +679,7 @@ fn validate_shape(i: usize, shape: &Shape) -> anyhow::Result<()> {
             if let Some(h) = height_mm {
                 positive(&at("height_mm"), *h)?;
                 if *h > 2.0 * radius_mm {
-                    bail!("{} ({h}) must not exceed the diameter", at("height_mm"));
+                    invalid!("{} ({h}) must not exceed the diameter", at("height_mm"));
                 }
             }
         }
@@ -720,9 +720,9 @@ fn in_range(v: f64) -> bool {
     v.is_finite() && v.abs() <= MAX_SCENE_VALUE
 }
 
-fn finite(field: &str, v: f64) -> anyhow::Result<()> {
+fn finite(field: &str, v: f64) -> Result<(), Error> {
     if !in_range(v) {
-        bail!(
+        invalid!(
             "{field} must be a finite number of at most {MAX_SCENE_VALUE:e}, got {}",
             shown(v)
         );
@@ -730,9 +730,9 @@ fn finite(field: &str, v: f64) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn positive(field: &str, v: f64) -> anyhow::Result<()> {
+fn positive(field: &str, v: f64) -> Result<(), Error> {
     if !(in_range(v) && v > 0.0) {
-        bail!(
+        invalid!(
             "{field} must be a positive number of at most {MAX_SCENE_VALUE:e}, got {}",
             shown(v)
         );
@@ -740,9 +740,9 @@ fn positive(field: &str, v: f64) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn at_least_a_pixel(field: &str, v: f64, mm_per_px: f64) -> anyhow::Result<()> {
+fn at_least_a_pixel(field: &str, v: f64, mm_per_px: f64) -> Result<(), Error> {
     if !(in_range(v) && v >= mm_per_px) {
-        bail!(
+        invalid!(
             "{field} must be at least one pixel ({mm_per_px} mm) and at most {MAX_SCENE_VALUE:e}, got {}",
             shown(v)
         );
@@ -750,9 +750,9 @@ fn at_least_a_pixel(field: &str, v: f64, mm_per_px: f64) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn non_negative(field: &str, v: f64) -> anyhow::Result<()> {
+fn non_negative(field: &str, v: f64) -> Result<(), Error> {
     if !(in_range(v) && v >= 0.0) {
-        bail!(
+        invalid!(
             "{field} must be zero or positive, at most {MAX_SCENE_VALUE:e}, got {}",
             shown(v)
         );

@@ -384,7 +384,7 @@ pub fn run(args: Args, limit: PixelLimit) -> anyhow::Result<()> {
             (serde_json::to_string_pretty(&list)? + "\n").as_bytes(),
         )?;
     }
-    batch.commit()
+    Ok(batch.commit()?)
 }
 
 /// `DIR/STEM_detect.png` for an input image.
@@ -570,5 +570,5 @@ fn anomalies_run(
             (serde_json::to_string_pretty(&results)? + "\n").as_bytes(),
         )?;
     }
-    batch.commit()
+    Ok(batch.commit()?)
 }

@@ -64,9 +64,15 @@ pub const SAMPLES: [&str; 3] = ["dots", "lines", "curves"];
 /// The scene files at `paths`, loaded, or without any the built-in scenes `names`.
 pub fn scenes_or(paths: &[PathBuf], names: &[&str]) -> anyhow::Result<Vec<Scene>> {
     if paths.is_empty() {
-        names.iter().map(|n| built_in::scene(n)).collect()
+        Ok(names
+            .iter()
+            .map(|n| built_in::scene(n))
+            .collect::<Result<_, _>>()?)
     } else {
-        paths.iter().map(|p| Scene::load(p)).collect()
+        Ok(paths
+            .iter()
+            .map(|p| Scene::load(p))
+            .collect::<Result<_, _>>()?)
     }
 }
 

@@ -88,5 +88,5 @@ fn cut_to_image(reference: Planes, image: &Planes, args: &Args) -> anyhow::Resul
         reference.height,
         image.width
     );
-    reference.crop(first, 0, image.height, image.width)
+    Ok(reference.crop(first, 0, image.height, image.width)?)
 }

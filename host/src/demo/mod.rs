@@ -287,7 +287,7 @@ impl<'p> Clock<'p> {
 }
 
 fn write(path: &Path, text: &str) -> anyhow::Result<()> {
-    crate::files::write_bytes_atomic(path, text.as_bytes())
+    Ok(crate::files::write_bytes_atomic(path, text.as_bytes())?)
 }
 
 /// The roll at full resolution: `frames` aligned by matching (their belt rows by motion,

@@ -72,7 +72,7 @@ pub(crate) fn acquire(scene: &Scene) -> anyhow::Result<Acquisition> {
 
 /// Rows `top..top + h` of an image (all columns).
 pub(crate) fn crop_rows(img: &Planes, top: usize, h: usize) -> anyhow::Result<Planes> {
-    img.crop(top, 0, h, img.width)
+    Ok(img.crop(top, 0, h, img.width)?)
 }
 
 /// The figures of the paper's evaluation for one scene.
@@ -104,7 +104,7 @@ pub(crate) fn evaluate_acquired(
     // Frames first..=last placed by motion; the result cropped to frame m's footprint.
     let over = |first: usize,
                 last: usize,
-                how: &dyn Fn(&[Placed]) -> anyhow::Result<Planes>|
+                how: &dyn Fn(&[Placed]) -> crate::fullres::Result<Planes>|
      -> anyhow::Result<Planes> {
         let placed: Vec<Placed> = (first..=last)
             .map(|k| Placed {

@@ -542,6 +542,22 @@ pub(crate) fn inverse_level<T: Lift>(
 
 /// Forward 1-D transform of `line` in place: `⌈n/2⌉` low then `⌊n/2⌋` high coefficients.
 /// Samples must satisfy `|x| ≤ MAX_SAMPLE`; `scratch` needs `line.len()` elements.
+///
+/// The integer Haar step of a pair `(a, b)` is `d = b − a` and `s = a + ⌊d/2⌋`, and
+/// [`inverse_1d`] undoes it exactly:
+///
+/// ```
+/// use rollfuse_core::Wavelet;
+/// use rollfuse_core::lifting::{forward_1d, inverse_1d};
+///
+/// let mut line = [10, 12, 20, 30];
+/// let mut scratch = [0; 4];
+/// forward_1d(Wavelet::Haar, &mut line, &mut scratch)?;
+/// assert_eq!(line, [11, 25, 2, 10]);
+/// inverse_1d(Wavelet::Haar, &mut line, &mut scratch)?;
+/// assert_eq!(line, [10, 12, 20, 30]);
+/// # Ok::<(), rollfuse_core::Error>(())
+/// ```
 pub fn forward_1d(wavelet: Wavelet, line: &mut [i32], scratch: &mut [i32]) -> Result<(), Error> {
     let dims = Dims::new(line.len(), 1)?;
     check_args(line, dims, None, scratch)?;
@@ -575,6 +591,27 @@ pub fn inverse_1d(wavelet: Wavelet, line: &mut [i32], scratch: &mut [i32]) -> Re
 /// Forward 2-D transform of the `dims` region of `buf`, `levels` deep, in place (layout in
 /// [`crate::geometry`]). Samples must satisfy `|x| ≤ MAX_SAMPLE`; `scratch` needs
 /// [`scratch_len`] elements.
+///
+/// Lossless: [`inverse_2d`] gives back every sample. Out-of-range input is refused, not
+/// wrapped:
+///
+/// ```
+/// use rollfuse_core::{Dims, Wavelet};
+/// use rollfuse_core::lifting::{MAX_SAMPLE, forward_2d, inverse_2d, scratch_len};
+///
+/// let dims = Dims::new(13, 9)?;
+/// let image: Vec<i32> = (0..13 * 9).map(|i| (i * 37 % 256) as i32).collect();
+/// let mut buf = image.clone();
+/// let mut scratch = vec![0; scratch_len(dims)];
+/// forward_2d(Wavelet::Db2, &mut buf, dims, 2, &mut scratch)?;
+/// assert_ne!(buf, image);
+/// inverse_2d(Wavelet::Db2, &mut buf, dims, 2, &mut scratch)?;
+/// assert_eq!(buf, image);
+///
+/// buf[0] = MAX_SAMPLE as i32 + 1;
+/// assert!(forward_2d(Wavelet::Db2, &mut buf, dims, 2, &mut scratch).is_err());
+/// # Ok::<(), rollfuse_core::Error>(())
+/// ```
 pub fn forward_2d(
     wavelet: Wavelet,
     buf: &mut [i32],

@@ -103,24 +103,24 @@ impl TrackParams {
     /// (`--search-rows`) from 1 to the height, the first search (`--max-shift`) and the
     /// sideways drift (`--max-drift-cols`) at most the height and the width, the score
     /// from −1 to 1. A search past the frame finds nothing more, and costs time.
-    pub fn check(&self, width: usize, height: usize) -> anyhow::Result<()> {
+    pub fn check(&self, width: usize, height: usize) -> crate::Result<()> {
         if let Some(r) = self.search_rows {
-            anyhow::ensure!(
+            rollfuse_io::require!(
                 (1..=height).contains(&r),
                 "--search-rows must be from 1 to the frames' height ({height} rows), got {r}"
             );
         }
-        anyhow::ensure!(
+        rollfuse_io::require!(
             self.first_search_rows <= height,
             "--max-shift must be at most the frames' height ({height} rows), got {}",
             self.first_search_rows
         );
-        anyhow::ensure!(
+        rollfuse_io::require!(
             self.max_drift_cols <= width,
             "--max-drift-cols must be at most the frames' width ({width}), got {}",
             self.max_drift_cols
         );
-        anyhow::ensure!(
+        rollfuse_io::require!(
             (-1.0..=1.0).contains(&self.min_score),
             "--min-score must be from -1 to 1, got {}",
             self.min_score

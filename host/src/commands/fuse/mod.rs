@@ -99,7 +99,7 @@ pub fn run(mut args: Args, show: Show, limit: PixelLimit) -> anyhow::Result<()> 
 fn check_reaches(args: &Args) -> anyhow::Result<()> {
     let (w, h) = rollfuse::image::dimensions(&args.frames[0])?;
     let (w, h) = (w as usize, h as usize);
-    args.track_params(h).check(w, h)
+    Ok(args.track_params(h).check(w, h)?)
 }
 
 /// Chooses roll or mosaic (`--mode auto`: a roll when the frames span more than a frame

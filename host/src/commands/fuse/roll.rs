@@ -79,26 +79,24 @@ pub fn run(
         let k = p.frame;
         bars.advance_to(k as u64 + 1);
         let score = p.score.map(|s| format!("{s:.4}")).unwrap_or_default();
-        csv.write_all(
-            format!(
-                "{k},{},{:.3},{},{},{score},{:.3}\n",
-                files[k].display(),
-                p.row,
-                p.col,
-                p.source.name(),
-                p.sigma
-            )
-            .as_bytes(),
-        )
+        let line = format!(
+            "{k},{},{:.3},{},{},{score},{:.3}\n",
+            files[k].display(),
+            p.row,
+            p.col,
+            p.source.name(),
+            p.sigma
+        );
+        Ok(csv.write_all(line.as_bytes())?)
     };
     let make_sink = |width: usize, channels: usize| {
-        StripWriter::new(
+        Ok(StripWriter::new(
             out,
             width,
             channels,
             args.out_bits.bits(),
             args.segment_rows,
-        )
+        )?)
     };
     let (writer, report) = fuse_files(files, loaded, limit, &opts, make_sink, on_frame)?;
     bars.finish();
@@ -262,7 +260,12 @@ fn fuse_files<S: StripSink>(
     on_frame: impl FnMut(&Placement) -> anyhow::Result<()>,
 ) -> anyhow::Result<(S, StripReport)> {
     match loaded {
-        Some(frames) => fuse_strip(frames.into_iter().map(Ok), opts, make_sink, on_frame),
+        Some(frames) => Ok(fuse_strip(
+            frames.into_iter().map(Ok),
+            opts,
+            make_sink,
+            on_frame,
+        )?),
         None => std::thread::scope(|scope| {
             // Decoding on a second thread overlaps with fusion.
             let (tx, rx) = sync_channel(DECODE_AHEAD);
@@ -275,7 +278,7 @@ fn fuse_files<S: StripSink>(
                     }
                 }
             });
-            fuse_strip(rx, opts, make_sink, on_frame)
+            Ok(fuse_strip(rx, opts, make_sink, on_frame)?)
         }),
     }
 }
