@@ -18,7 +18,7 @@
 //!   threshold: above 1 it holds an anomaly; the anomalous cells, grouped by adjacency,
 //!   are its boxes.
 
-use anyhow::{Context, bail, ensure};
+use anyhow::Context;
 use rollfuse_io::image::Planes;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -42,7 +42,7 @@ pub const KIND: &str = "anomaly";
 const FORMAT: &str = "rollfuse-normal-2";
 
 /// Anomaly mode's cells of an image.
-fn cells(image: &Planes) -> anyhow::Result<Cells> {
+fn cells(image: &Planes) -> crate::Result<Cells> {
     Ok(super::cells::cells(image, ANOMALY)?.with_row_relative())
 }
 
@@ -181,7 +181,7 @@ pub struct Anomalies {
 }
 
 /// Gaussians for `cells` of every image: one per cell row when `per_row`.
-fn fit_rows(cells: &[&Cells], per_row: bool) -> anyhow::Result<Vec<Gaussian>> {
+fn fit_rows(cells: &[&Cells], per_row: bool) -> crate::Result<Vec<Gaussian>> {
     let rows = if per_row { cells[0].rows } else { 1 };
     (0..rows)
         .map(|r| {
@@ -192,7 +192,7 @@ fn fit_rows(cells: &[&Cells], per_row: bool) -> anyhow::Result<Vec<Gaussian>> {
                     span.flat_map(move |rr| (0..c.cols).map(move |cc| c.at(rr, cc)))
                 })
                 .collect();
-            Gaussian::fit(&samples).context("the training images' features are degenerate")
+            Ok(Gaussian::fit(&samples).context("the training images' features are degenerate")?)
         })
         .collect()
 }
@@ -201,19 +201,19 @@ impl NormalModel {
     /// Learns `images` (defect-free, of one fabric at one scale): each row of cells apart
     /// when they share one height (camera frames), every row alike otherwise. Refuses
     /// fewer than [`MIN_IMAGES`], and images of different widths.
-    pub fn fit(images: &[Planes]) -> anyhow::Result<Self> {
+    pub fn fit(images: &[Planes]) -> crate::Result<Self> {
         let one_height = images.windows(2).all(|p| p[0].height == p[1].height);
         Self::fit_rows_apart(images, one_height)
     }
 
     /// Learns `images` with every row of cells alike whatever their heights: a model for
     /// images of any height, such as the live strip's windows.
-    pub fn fit_every_row_alike(images: &[Planes]) -> anyhow::Result<Self> {
+    pub fn fit_every_row_alike(images: &[Planes]) -> crate::Result<Self> {
         Self::fit_rows_apart(images, false)
     }
 
-    fn fit_rows_apart(images: &[Planes], per_row: bool) -> anyhow::Result<Self> {
-        ensure!(
+    fn fit_rows_apart(images: &[Planes], per_row: bool) -> crate::Result<Self> {
+        rollfuse_io::require!(
             images.len() >= MIN_IMAGES,
             "anomaly mode needs at least {MIN_IMAGES} defect-free images to learn a fabric \
              from, got {}",
@@ -221,13 +221,13 @@ impl NormalModel {
         );
         let (width, height) = (images[0].width, images[0].height);
         if let Some(odd) = images.iter().find(|i| i.width != width) {
-            bail!(
+            rollfuse_io::invalid!(
                 "the training images differ in width ({} and {}): fit one camera's images",
                 width,
                 odd.width
             );
         }
-        let cells: Vec<Cells> = images.iter().map(cells).collect::<anyhow::Result<_>>()?;
+        let cells: Vec<Cells> = images.iter().map(cells).collect::<crate::Result<_>>()?;
         let all: Vec<&Cells> = cells.iter().collect();
         let rows = fit_rows(&all, per_row)?;
         // Each image scored by a model that has not seen it.
@@ -277,15 +277,15 @@ impl NormalModel {
 
     /// Whether `image` can be scored: its width is the training images', and so is its
     /// height where the model has a Gaussian per cell row.
-    fn check(&self, image: &Planes) -> anyhow::Result<()> {
-        ensure!(
+    fn check(&self, image: &Planes) -> crate::Result<()> {
+        rollfuse_io::require!(
             image.width == self.width,
             "the image is {} pixels wide; the normal model was fitted on images {} wide \
              (fit it on images from this camera, at this scale)",
             image.width,
             self.width
         );
-        ensure!(
+        rollfuse_io::require!(
             self.rows.len() == 1 || image.height == self.height,
             "the image is {} rows high; the normal model learned each row of {}-row images",
             image.height,
@@ -295,7 +295,7 @@ impl NormalModel {
     }
 
     /// Scores `image` and boxes its anomalous regions.
-    pub fn detect(&self, image: &Planes) -> anyhow::Result<Anomalies> {
+    pub fn detect(&self, image: &Planes) -> crate::Result<Anomalies> {
         self.check(image)?;
         let c = cells(image)?;
         let scores: Vec<f32> = self
@@ -312,7 +312,7 @@ impl NormalModel {
 
     /// Scores `image` taken at `1/d` of the model's scale (a device strip downsampled by
     /// `d`): upsampled first, its boxes given in its own pixels.
-    pub fn detect_at_scale(&self, image: &Planes, d: usize) -> anyhow::Result<Anomalies> {
+    pub fn detect_at_scale(&self, image: &Planes, d: usize) -> crate::Result<Anomalies> {
         super::at_camera_scale(image, d, |i| self.detect(i))
     }
 
@@ -322,12 +322,12 @@ impl NormalModel {
     }
 
     /// Reads a model written by [`Self::save`].
-    pub fn load(path: &Path) -> anyhow::Result<Self> {
+    pub fn load(path: &Path) -> crate::Result<Self> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read the normal model {}", path.display()))?;
         let model: Self = serde_json::from_str(&text)
             .with_context(|| format!("{} is not a normal model", path.display()))?;
-        ensure!(
+        rollfuse_io::require!(
             model.format == FORMAT,
             "{} is a normal model of format `{}`; this tool reads `{FORMAT}`",
             path.display(),
@@ -339,12 +339,12 @@ impl NormalModel {
                 .rows
                 .iter()
                 .all(|g| g.mean.len() == DIM && g.precision.len() == DIM * DIM);
-        ensure!(sound, "{} is a damaged normal model", path.display());
+        rollfuse_io::require!(sound, "{} is a damaged normal model", path.display());
         Ok(model)
     }
 
     /// Writes the model whole or not at all.
-    pub fn save(&self, path: &Path) -> anyhow::Result<()> {
+    pub fn save(&self, path: &Path) -> crate::Result<()> {
         let json = serde_json::to_string(self)? + "\n";
         Ok(rollfuse_io::files::write_bytes_atomic(
             path,

@@ -208,9 +208,9 @@ fn levels(mut x: Vec<f32>, mut w: usize, mut h: usize, extremes: usize) -> Vec<L
 }
 
 /// The cells of an image described as `how` says, or why it has none.
-pub fn cells(image: &rollfuse_io::image::Planes, how: Describe) -> anyhow::Result<Cells> {
+pub fn cells(image: &rollfuse_io::image::Planes, how: Describe) -> crate::Result<Cells> {
     let (w, h, cell) = (image.width, image.height, how.cell);
-    anyhow::ensure!(
+    rollfuse_io::require!(
         w >= cell && h >= cell,
         "the image is {w} × {h}: its texture is described in cells of {cell} × {cell} pixels"
     );

@@ -238,12 +238,12 @@ pub fn class_of(seed: u64) -> usize {
 }
 
 /// Renders and fuses roll `seed`.
-pub fn roll(seed: u64, shape: &RollShape) -> anyhow::Result<Roll> {
+pub fn roll(seed: u64, shape: &RollShape) -> crate::Result<Roll> {
     roll_in_style(seed, shape, Style::Standard)
 }
 
 /// Renders and fuses roll `seed`, drawn in `style`.
-pub fn roll_in_style(seed: u64, shape: &RollShape, style: Style) -> anyhow::Result<Roll> {
+pub fn roll_in_style(seed: u64, shape: &RollShape, style: Style) -> crate::Result<Roll> {
     let mut scene = roll_scene(seed, shape);
     style.apply(&mut scene);
     let class = class_of(seed);
@@ -289,7 +289,7 @@ pub fn roll_in_style(seed: u64, shape: &RollShape, style: Style) -> anyhow::Resu
 
 /// `strip` cut into tiles of `rows` (the last one ending at the strip's end), each with
 /// the defects whose centre it holds, clipped to it.
-pub fn cut(strip: &Sample, rows: usize) -> anyhow::Result<Vec<Sample>> {
+pub fn cut(strip: &Sample, rows: usize) -> crate::Result<Vec<Sample>> {
     let h = strip.image.height;
     if h < rows {
         return Ok(Vec::new());

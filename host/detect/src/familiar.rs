@@ -24,7 +24,7 @@
 //! The statistics travel in the model file's metadata (`familiarity`, JSON), so a model
 //! without them (trained before they existed) still loads and simply cannot say.
 
-use anyhow::{Context, ensure};
+use anyhow::Context;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
@@ -62,7 +62,7 @@ pub struct Places {
 
 impl Places {
     /// The places of an image: its texture cells.
-    pub fn of(image: &rollfuse_io::image::Planes) -> anyhow::Result<Self> {
+    pub fn of(image: &rollfuse_io::image::Planes) -> crate::Result<Self> {
         let cells = super::cells::cells(image, super::cells::TEXTURE)?;
         Ok(Self {
             dim: cells.dim,
@@ -111,10 +111,10 @@ impl Familiarity {
     /// Fits the means and shared covariance on the kinds' `fit` images, each kind weighing
     /// alike, then the limit on their `held_out` images: the largest of the kinds'
     /// [`CALIBRATION_QUANTILE`]s, so that no kind is called unknown more often than that.
-    pub fn fit(kinds: &[Kind], classes: usize) -> anyhow::Result<Self> {
+    pub fn fit(kinds: &[Kind], classes: usize) -> crate::Result<Self> {
         let fitted_on: usize = kinds.iter().map(|k| k.fit.len()).sum();
         let calibrated_on: usize = kinds.iter().map(|k| k.held_out.len()).sum();
-        ensure!(
+        rollfuse_io::require!(
             fitted_on >= MIN_IMAGES && calibrated_on >= MIN_IMAGES,
             "familiarity needs at least {MIN_IMAGES} images to fit and {MIN_IMAGES} to calibrate \
              (got {fitted_on} and {calibrated_on})"
@@ -123,7 +123,7 @@ impl Familiarity {
             .iter()
             .find_map(|k| k.fit.first())
             .map_or(0, |(p, _)| p.dim);
-        ensure!(
+        rollfuse_io::require!(
             dim > 0
                 && kinds.iter().all(|k| {
                     k.fit.iter().all(|(p, c)| p.dim == dim && *c < classes)
@@ -154,7 +154,7 @@ impl Familiarity {
                 total += 1;
             }
         }
-        ensure!(
+        rollfuse_io::require!(
             total > dim,
             "familiarity needs more places than features ({total} ≤ {dim})"
         );
@@ -200,7 +200,7 @@ impl Familiarity {
                 .held_out
                 .iter()
                 .map(|p| model.distance(p))
-                .collect::<anyhow::Result<_>>()?;
+                .collect::<crate::Result<_>>()?;
             distances.sort_by(f64::total_cmp);
             limit = limit.max(quantile(&distances, CALIBRATION_QUANTILE));
         }
@@ -231,14 +231,14 @@ impl Familiarity {
     }
 
     /// An image's distance: the [`PLACE_QUANTILE`] of its places'.
-    fn distance(&self, places: &Places) -> anyhow::Result<f64> {
-        ensure!(
+    fn distance(&self, places: &Places) -> crate::Result<f64> {
+        rollfuse_io::require!(
             places.dim == self.dim,
             "the network gives {} features a place, the familiarity statistics describe {}",
             places.dim,
             self.dim
         );
-        ensure!(!places.data.is_empty(), "the image has no places to judge");
+        rollfuse_io::require!(!places.data.is_empty(), "the image has no places to judge");
         let mut white = vec![0f64; self.dim];
         let mut d: Vec<f64> = places
             .each()
@@ -246,27 +246,27 @@ impl Familiarity {
             .collect();
         d.sort_by(f64::total_cmp);
         let q = quantile(&d, PLACE_QUANTILE);
-        ensure!(q.is_finite(), "the image's features are not finite numbers");
+        rollfuse_io::require!(q.is_finite(), "the image's features are not finite numbers");
         Ok(q)
     }
 
     /// Where the places of one image lie among the known cloth.
-    pub fn judge(&self, places: &Places) -> anyhow::Result<Verdict> {
+    pub fn judge(&self, places: &Places) -> crate::Result<Verdict> {
         Ok(Verdict {
             unfamiliarity: self.distance(places)? / self.limit,
         })
     }
 
     /// The statistics as the model file's metadata stores them.
-    pub fn to_metadata(&self) -> anyhow::Result<String> {
-        serde_json::to_string(self).context("cannot encode the familiarity statistics")
+    pub fn to_metadata(&self) -> crate::Result<String> {
+        Ok(serde_json::to_string(self).context("cannot encode the familiarity statistics")?)
     }
 
     /// Reads and checks the metadata for a network of `dim` features and `classes` fabrics.
-    pub fn from_metadata(text: &str, dim: usize, classes: usize) -> anyhow::Result<Self> {
+    pub fn from_metadata(text: &str, dim: usize, classes: usize) -> crate::Result<Self> {
         let model: Self =
             serde_json::from_str(text).context("its familiarity statistics are unreadable")?;
-        ensure!(
+        rollfuse_io::require!(
             model.dim == dim
                 && model.centres.len() == classes
                 && model.centres.iter().all(|m| m.is_empty() || m.len() == dim)
@@ -274,7 +274,7 @@ impl Familiarity {
                 && model.whitening.len() == dim * dim,
             "its familiarity statistics do not fit a network of {dim} features and {classes} fabrics"
         );
-        ensure!(
+        rollfuse_io::require!(
             model.limit.is_finite()
                 && model.limit > 0.0
                 && model.whitening.iter().all(|v| v.is_finite())

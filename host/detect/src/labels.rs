@@ -17,7 +17,7 @@
 
 use super::check_input;
 use super::targets::Labelled;
-use anyhow::{Context, bail, ensure};
+use anyhow::Context;
 use rollfuse_io::image::{PixelLimit, Planes};
 use rollfuse_sim::textile::DefectKind;
 use serde::Deserialize;
@@ -80,7 +80,7 @@ pub fn read_labels(
     labels: &Path,
     images: &Path,
     limit: PixelLimit,
-) -> anyhow::Result<Vec<LabelledImage>> {
+) -> crate::Result<Vec<LabelledImage>> {
     if labels.is_dir() {
         read_yolo(labels, images, limit)
     } else {
@@ -94,12 +94,12 @@ pub fn read_coco(
     labels: &Path,
     images: &Path,
     limit: PixelLimit,
-) -> anyhow::Result<Vec<LabelledImage>> {
+) -> crate::Result<Vec<LabelledImage>> {
     let shown = labels.display();
     let size = std::fs::metadata(labels)
         .with_context(|| format!("cannot read labels {shown}"))?
         .len();
-    ensure!(
+    rollfuse_io::require!(
         size <= MAX_LABELS_BYTES,
         "labels {shown} is {size} bytes, more than the {MAX_LABELS_BYTES} read"
     );
@@ -107,8 +107,8 @@ pub fn read_coco(
         std::fs::read_to_string(labels).with_context(|| format!("cannot read labels {shown}"))?;
     let coco: Coco = serde_json::from_str(&text)
         .with_context(|| format!("labels {shown} is not a COCO detection file"))?;
-    ensure!(!coco.images.is_empty(), "labels {shown} lists no images");
-    ensure!(
+    rollfuse_io::require!(!coco.images.is_empty(), "labels {shown} lists no images");
+    rollfuse_io::require!(
         coco.images.len() <= MAX_IMAGES,
         "labels {shown} lists {} images, more than the {MAX_IMAGES} read",
         coco.images.len()
@@ -116,7 +116,7 @@ pub fn read_coco(
     let kinds = categories(&coco.categories).with_context(|| format!("labels {shown}"))?;
     let mut boxes: HashMap<u64, Vec<Labelled>> = HashMap::new();
     for image in &coco.images {
-        ensure!(
+        rollfuse_io::require!(
             boxes.insert(image.id, Vec::new()).is_none(),
             "labels {shown}: image id {} is listed twice",
             image.id
@@ -136,7 +136,7 @@ pub fn read_coco(
             )
         })?;
         let [x, y, w, h] = a.bbox;
-        ensure!(
+        rollfuse_io::require!(
             a.bbox.iter().all(|v| v.is_finite()) && w > 0.0 && h > 0.0,
             "labels {shown}: annotation {k}'s box {:?} is not a box (x, y, width, height)",
             a.bbox
@@ -159,9 +159,9 @@ pub fn read_coco(
 }
 
 /// Adds `image`'s pixels to `total`, refusing more than fine-tuning holds at once.
-fn count_pixels(total: &mut usize, image: &Planes, labels: &Path) -> anyhow::Result<()> {
+fn count_pixels(total: &mut usize, image: &Planes, labels: &Path) -> crate::Result<()> {
     *total += image.width * image.height;
-    ensure!(
+    rollfuse_io::require!(
         *total <= MAX_TOTAL_PIXELS,
         "labels {}: its images hold more than the {MAX_TOTAL_PIXELS} pixels fine-tuning \
          reads at once; give fewer",
@@ -171,10 +171,10 @@ fn count_pixels(total: &mut usize, image: &Planes, labels: &Path) -> anyhow::Res
 }
 
 /// The defect kind of each category id; every name must be one the detector knows.
-fn categories(list: &[CocoCategory]) -> anyhow::Result<HashMap<u64, DefectKind>> {
+fn categories(list: &[CocoCategory]) -> crate::Result<HashMap<u64, DefectKind>> {
     let mut kinds = HashMap::new();
     for c in list {
-        ensure!(
+        rollfuse_io::require!(
             kinds.insert(c.id, kind_named(&c.name)?).is_none(),
             "category id {} is listed twice",
             c.id
@@ -184,8 +184,8 @@ fn categories(list: &[CocoCategory]) -> anyhow::Result<HashMap<u64, DefectKind>>
 }
 
 /// The defect kind a label's class is named for, in any case.
-fn kind_named(name: &str) -> anyhow::Result<DefectKind> {
-    DefectKind::ALL
+fn kind_named(name: &str) -> crate::Result<DefectKind> {
+    Ok(DefectKind::ALL
         .into_iter()
         .find(|k| k.name() == name.trim().to_lowercase())
         .with_context(|| {
@@ -194,7 +194,7 @@ fn kind_named(name: &str) -> anyhow::Result<DefectKind> {
                 "{name:?} is not a defect the detector knows ({})",
                 names.join(", ")
             )
-        })
+        })?)
 }
 
 /// Loads one listed image and checks its boxes against it.
@@ -203,7 +203,7 @@ fn load(
     boxes: Vec<Labelled>,
     dir: &Path,
     limit: PixelLimit,
-) -> anyhow::Result<LabelledImage> {
+) -> crate::Result<LabelledImage> {
     let path = dir.join(&i.file_name);
     let shown = path.display();
     let image =
@@ -213,14 +213,14 @@ fn load(
     if let (Some(lw), Some(lh)) = (i.width, i.height)
         && (lw, lh) != (w, h)
     {
-        bail!("{shown} is {w}×{h}, but the labels say {lw}×{lh}");
+        rollfuse_io::invalid!("{shown} is {w}×{h}, but the labels say {lw}×{lh}");
     }
     let boxes = boxes
         .into_iter()
         .map(|mut b| {
             let [x0, y0, x1, y1] = b.box_px;
             let (wf, hf) = (w as f32, h as f32);
-            ensure!(
+            rollfuse_io::require!(
                 x0 < wf && y0 < hf && x1 > 0.0 && y1 > 0.0,
                 "{shown}: a {} box {:?} lies outside the {w}×{h} image",
                 b.kind.name(),
@@ -229,7 +229,7 @@ fn load(
             b.box_px = [x0.max(0.0), y0.max(0.0), x1.min(wf), y1.min(hf)];
             Ok(b)
         })
-        .collect::<anyhow::Result<_>>()?;
+        .collect::<crate::Result<_>>()?;
     Ok(LabelledImage { image, boxes })
 }
 
@@ -239,7 +239,7 @@ pub fn read_yolo(
     labels: &Path,
     images: &Path,
     limit: PixelLimit,
-) -> anyhow::Result<Vec<LabelledImage>> {
+) -> crate::Result<Vec<LabelledImage>> {
     let kinds = yolo_classes(labels)?;
     let paths = png_files(images)?;
     let (mut pixels, mut labelled) = (0usize, 0usize);
@@ -263,7 +263,7 @@ pub fn read_yolo(
         };
         out.push(LabelledImage { image, boxes });
     }
-    ensure!(
+    rollfuse_io::require!(
         labelled > 0,
         "no image of {} has a label file in {} (a YOLO label file is the image's name with \
          .txt)",
@@ -274,13 +274,13 @@ pub fn read_yolo(
 }
 
 /// The defect kind of each YOLO class index, from the folder's class file.
-fn yolo_classes(labels: &Path) -> anyhow::Result<Vec<DefectKind>> {
+fn yolo_classes(labels: &Path) -> crate::Result<Vec<DefectKind>> {
     let Some(path) = YOLO_CLASS_FILES
         .iter()
         .map(|name| labels.join(name))
         .find(|p| p.is_file())
     else {
-        bail!(
+        rollfuse_io::invalid!(
             "YOLO labels {} name no classes: put their names (hole, snag, slub), one a line \
              in class order, in {} there",
             labels.display(),
@@ -292,14 +292,14 @@ fn yolo_classes(labels: &Path) -> anyhow::Result<Vec<DefectKind>> {
         .lines()
         .filter(|l| !l.trim().is_empty())
         .map(kind_named)
-        .collect::<anyhow::Result<_>>()
+        .collect::<crate::Result<_>>()
         .with_context(|| path.display().to_string())?;
-    ensure!(!kinds.is_empty(), "{} names no classes", path.display());
+    rollfuse_io::require!(!kinds.is_empty(), "{} names no classes", path.display());
     Ok(kinds)
 }
 
 /// The PNG files of `dir`, by name.
-fn png_files(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+fn png_files(dir: &Path) -> crate::Result<Vec<PathBuf>> {
     let entries =
         std::fs::read_dir(dir).with_context(|| format!("cannot read images {}", dir.display()))?;
     let mut paths = Vec::new();
@@ -312,8 +312,8 @@ fn png_files(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
             paths.push(path);
         }
     }
-    ensure!(!paths.is_empty(), "{} holds no PNG images", dir.display());
-    ensure!(
+    rollfuse_io::require!(!paths.is_empty(), "{} holds no PNG images", dir.display());
+    rollfuse_io::require!(
         paths.len() <= MAX_IMAGES,
         "{} holds {} PNG images, more than the {MAX_IMAGES} read",
         dir.display(),
@@ -324,13 +324,16 @@ fn png_files(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
 }
 
 /// A small text file's contents; `None` when it does not exist.
-fn read_small(path: &Path) -> anyhow::Result<Option<String>> {
+fn read_small(path: &Path) -> crate::Result<Option<String>> {
     let size = match std::fs::metadata(path) {
         Ok(m) => m.len(),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(e) => return Err(e).with_context(|| format!("cannot read {}", path.display())),
+        Err(e) => {
+            let e = anyhow::Error::from(e).context(format!("cannot read {}", path.display()));
+            return Err(e.into());
+        }
     };
-    ensure!(
+    rollfuse_io::require!(
         size <= MAX_YOLO_FILE_BYTES,
         "{} is {size} bytes, more than the {MAX_YOLO_FILE_BYTES} read",
         path.display()
@@ -346,14 +349,14 @@ fn yolo_boxes(
     kinds: &[DefectKind],
     w: usize,
     h: usize,
-) -> anyhow::Result<Vec<Labelled>> {
+) -> crate::Result<Vec<Labelled>> {
     let mut boxes = Vec::new();
     for (n, line) in text.lines().enumerate().map(|(k, l)| (k + 1, l)) {
         let fields: Vec<&str> = line.split_whitespace().collect();
         if fields.is_empty() {
             continue;
         }
-        ensure!(
+        rollfuse_io::require!(
             fields.len() == 5,
             "line {n} has {} values, not a box's 5 (class cx cy w h; segmentation outlines \
              are not read)",
@@ -374,7 +377,7 @@ fn yolo_boxes(
             .collect::<Result<_, _>>()
             .with_context(|| format!("line {n}: {line:?} is not four numbers after the class"))?;
         let (cx, cy, bw, bh) = (v[0], v[1], v[2], v[3]);
-        ensure!(
+        rollfuse_io::require!(
             v.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)) && bw > 0.0 && bh > 0.0,
             "line {n}: {line:?} is not a box in fractions of the image (centre and size, \
              each 0 to 1; pixel boxes are COCO's)"
@@ -419,7 +422,7 @@ mod tests {
     const CATEGORIES: &str =
         r#""categories": [{"id": 1, "name": "hole"}, {"id": 7, "name": "Slub"}]"#;
 
-    fn read(json: &str) -> anyhow::Result<Vec<LabelledImage>> {
+    fn read(json: &str) -> crate::Result<Vec<LabelledImage>> {
         let dir = folder(json);
         read_coco(
             &dir.path().join("labels.json"),
@@ -512,7 +515,7 @@ mod tests {
     }
 
     /// A folder of YOLO labels for `folder`'s two images, `a.txt` holding `a`.
-    fn yolo(classes: &str, a: &str) -> anyhow::Result<Vec<LabelledImage>> {
+    fn yolo(classes: &str, a: &str) -> crate::Result<Vec<LabelledImage>> {
         let dir = folder("{}");
         let labels = dir.path().join("labels");
         std::fs::create_dir(&labels).unwrap();

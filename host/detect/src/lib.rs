@@ -1,7 +1,7 @@
 //! Fabric defect detection and classification (the paper's §IV.B): a CenterNet-style
 //! detector for holes, snags and slubs with a fabric classifier beside it, trained on the
 //! simulator's textiles. `docs/detect.md` has the network, the data, the measured figures
-//! and why it is built on candle.
+//! and why it is built on burn.
 //!
 //! - [`targets`]: boxes to heatmaps and back, matching against the truth (plain Rust).
 //! - [`net`]: the network.
@@ -10,12 +10,16 @@
 //! - [`draw`]: boxes drawn on the image.
 //! - [`train`]: the training loop.
 //! - [`labels`], [`tune`]: the user's labelled images (COCO), and fine-tuning on them.
+//!
+//! Every fallible function returns [`Error`]: a file that could not be read or written
+//! (an I/O error among its causes) told apart from input the detector cannot take.
 
 pub mod anomaly;
 pub mod augment;
 pub mod cells;
 pub mod data;
 pub mod draw;
+mod error;
 pub mod familiar;
 pub mod labels;
 pub mod model;
@@ -24,8 +28,9 @@ pub mod targets;
 pub mod train;
 pub mod tune;
 
-use anyhow::{Context, ensure};
+use anyhow::Context;
 use burn::tensor::{Device, Tensor, TensorData, activation};
+pub use error::{Error, Result};
 use rollfuse_io::image::Planes;
 use serde::Serialize;
 use std::path::Path;
@@ -73,19 +78,19 @@ pub struct Detector {
 
 impl Detector {
     /// Loads a model file (see [`model`]).
-    pub fn load(path: &Path) -> anyhow::Result<Self> {
+    pub fn load(path: &Path) -> crate::Result<Self> {
         let (net, about) = model::load(path)?;
         Ok(Self::from_net(net, about))
     }
 
     /// The model built into the tool.
-    pub fn built_in() -> anyhow::Result<Self> {
+    pub fn built_in() -> crate::Result<Self> {
         let (net, about) = model::built_in()?;
         Ok(Self::from_net(net, about))
     }
 
     /// The model at `path`, or the built-in one without a path.
-    pub fn load_or_built_in(path: Option<&Path>) -> anyhow::Result<Self> {
+    pub fn load_or_built_in(path: Option<&Path>) -> crate::Result<Self> {
         match path {
             Some(path) => Self::load(path),
             None => Self::built_in(),
@@ -109,7 +114,7 @@ impl Detector {
     /// Detects defects and classifies the fabric in a gray image of any length: images
     /// longer than [`TILE_ROWS`] are run in overlapping tiles, the fabric's probabilities
     /// averaged over them by rows. Boxes are clipped to the image.
-    pub fn detect(&self, image: &Planes) -> anyhow::Result<Detection> {
+    pub fn detect(&self, image: &Planes) -> crate::Result<Detection> {
         check_input(image)?;
         let (w, h) = (image.width, image.height);
         let classes = self.about.fabrics.len();
@@ -137,7 +142,7 @@ impl Detector {
                 own.contains(&(centre.max(0.0) as usize)).then_some(f)
             }));
         }
-        ensure!(
+        rollfuse_io::require!(
             mean.iter().all(|p| p.is_finite()),
             "the model's outputs are not finite numbers (a damaged model?)"
         );
@@ -171,12 +176,12 @@ impl Detector {
     /// brought back to the camera's scale the model knows), boxes scaled back to the
     /// image's own pixels. Images that are not gray go to the detector as they are, to be
     /// refused.
-    pub fn detect_at_scale(&self, image: &Planes, d: usize) -> anyhow::Result<Detection> {
+    pub fn detect_at_scale(&self, image: &Planes, d: usize) -> crate::Result<Detection> {
         at_camera_scale(image, d, |i| self.detect(i))
     }
 
     /// One tile through the network.
-    fn run(&self, pixels: &[f32], w: usize, h: usize) -> anyhow::Result<TileOutput> {
+    fn run(&self, pixels: &[f32], w: usize, h: usize) -> crate::Result<TileOutput> {
         let data = TensorData::new(normalized(pixels), [1, 1, h, w]);
         let x = Tensor::<4>::from_data(data, &Device::flex());
         let raw = self.net.forward(x);
@@ -206,14 +211,14 @@ struct TileOutput {
 }
 
 /// Whether the detector takes `image`: gray, at least [`MIN_SIDE`] on each side.
-pub fn check_input(image: &Planes) -> anyhow::Result<()> {
-    ensure!(
+pub fn check_input(image: &Planes) -> crate::Result<()> {
+    rollfuse_io::require!(
         image.planes.len() == 1,
         "the detector takes gray images, this one has {} channels",
         image.planes.len()
     );
     let (w, h) = (image.width, image.height);
-    ensure!(
+    rollfuse_io::require!(
         w >= MIN_SIDE && h >= MIN_SIDE,
         "the image is {w}×{h}, smaller than the detector's {MIN_SIDE}×{MIN_SIDE}"
     );
@@ -221,10 +226,10 @@ pub fn check_input(image: &Planes) -> anyhow::Result<()> {
 }
 
 /// A tensor's values, row-major.
-pub fn floats<const N: usize>(t: Tensor<N>) -> anyhow::Result<Vec<f32>> {
+pub fn floats<const N: usize>(t: Tensor<N>) -> crate::Result<Vec<f32>> {
     t.into_data()
         .try_to_vec::<f32>()
-        .map_err(|e| anyhow::anyhow!("cannot read the network's output: {e:?}"))
+        .map_err(|e| anyhow::anyhow!("cannot read the network's output: {e:?}").into())
 }
 
 /// Tiles of an image `h` rows long: each tile's first row and the rows it answers for
@@ -285,8 +290,8 @@ impl Boxed for Detection {
 pub fn at_camera_scale<T: Boxed>(
     image: &Planes,
     d: usize,
-    run: impl FnOnce(&Planes) -> anyhow::Result<T>,
-) -> anyhow::Result<T> {
+    run: impl FnOnce(&Planes) -> crate::Result<T>,
+) -> crate::Result<T> {
     if d <= 1 || image.planes.len() != 1 {
         return run(image);
     }

@@ -5,7 +5,7 @@
 
 use super::familiar::Familiarity;
 use super::net::{Net, Widths};
-use anyhow::{Context, bail, ensure};
+use anyhow::Context;
 use burn::module::Module;
 use burn::store::{ApplyError, ModuleSnapshot, SafetensorsStore};
 use burn::tensor::Device;
@@ -23,8 +23,8 @@ pub const MAX_MODEL_BYTES: u64 = 256 << 20;
 pub const DEFAULT_THRESHOLD: f32 = 0.3;
 
 /// Refuses a detection threshold outside 0..=1 (what `--threshold` takes).
-pub fn check_threshold(threshold: f32) -> anyhow::Result<()> {
-    anyhow::ensure!(
+pub fn check_threshold(threshold: f32) -> crate::Result<()> {
+    rollfuse_io::require!(
         (0.0..=1.0).contains(&threshold),
         "--threshold must be in 0..=1, got {threshold}"
     );
@@ -49,7 +49,7 @@ pub struct About {
 }
 
 impl About {
-    fn metadata(&self) -> anyhow::Result<HashMap<String, String>> {
+    fn metadata(&self) -> crate::Result<HashMap<String, String>> {
         let w = self.widths.0.map(|c| c.to_string()).join(",");
         let kinds: Vec<&str> = DefectKind::ALL.iter().map(|k| k.name()).collect();
         let mut meta = HashMap::from([
@@ -68,18 +68,18 @@ impl About {
         Ok(meta)
     }
 
-    fn parse(meta: &HashMap<String, String>) -> anyhow::Result<Self> {
+    fn parse(meta: &HashMap<String, String>) -> crate::Result<Self> {
         let get = |k: &str| {
             meta.get(k)
                 .with_context(|| format!("no `{k}` in its metadata"))
         };
-        ensure!(
+        rollfuse_io::require!(
             get("format")? == FORMAT,
             "its format is {:?}, not {FORMAT:?}",
             get("format")?
         );
         let kinds: Vec<&str> = DefectKind::ALL.iter().map(|k| k.name()).collect();
-        ensure!(
+        rollfuse_io::require!(
             *get("kinds")? == kinds.join(","),
             "it detects {:?}, not {}",
             get("kinds")?,
@@ -93,12 +93,12 @@ impl About {
         let widths: [usize; 4] = widths
             .try_into()
             .map_err(|_| anyhow::anyhow!("it lists other than 4 widths"))?;
-        ensure!(
+        rollfuse_io::require!(
             widths.iter().all(|&c| (1..=1024).contains(&c)),
             "its widths {widths:?} are out of range"
         );
         let fabrics: Vec<String> = get("fabrics")?.split(',').map(str::to_string).collect();
-        ensure!(
+        rollfuse_io::require!(
             (1..=1000).contains(&fabrics.len()),
             "it lists no fabric classes"
         );
@@ -110,7 +110,7 @@ impl About {
             .transpose()?;
         let threshold = meta
             .get("threshold")
-            .map(|t| -> anyhow::Result<f32> {
+            .map(|t| -> crate::Result<f32> {
                 let t: f32 = t.parse().context("its threshold is not a number")?;
                 check_threshold(t).context("its threshold")?;
                 Ok(t)
@@ -127,7 +127,7 @@ impl About {
 }
 
 /// Writes `net` and `about` to `path`, whole or not at all.
-pub fn save(path: &Path, net: &Net, about: &About) -> anyhow::Result<()> {
+pub fn save(path: &Path, net: &Net, about: &About) -> crate::Result<()> {
     let mut store = SafetensorsStore::from_bytes(None).clear_metadata();
     for (k, v) in about.metadata()? {
         store = store.metadata(k, v);
@@ -146,21 +146,23 @@ pub fn save(path: &Path, net: &Net, about: &About) -> anyhow::Result<()> {
 pub const BUILT_IN: &[u8] = include_bytes!("../../../models/detector.safetensors");
 
 /// Reads a model file and builds its network; every problem is one line naming the file.
-pub fn load(path: &Path) -> anyhow::Result<(Net, About)> {
+pub fn load(path: &Path) -> crate::Result<(Net, About)> {
     let shown = path.display().to_string();
     let size = std::fs::metadata(path)
         .with_context(|| format!("cannot read model {shown}"))?
         .len();
     if size > MAX_MODEL_BYTES {
-        bail!("model {shown} is {size} bytes, more than a model can be ({MAX_MODEL_BYTES})");
+        rollfuse_io::invalid!(
+            "model {shown} is {size} bytes, more than a model can be ({MAX_MODEL_BYTES})"
+        );
     }
     let bytes = std::fs::read(path).with_context(|| format!("cannot read model {shown}"))?;
     from_bytes(bytes, &shown)
 }
 
 /// The built-in model.
-pub fn built_in() -> anyhow::Result<(Net, About)> {
-    ensure!(
+pub fn built_in() -> crate::Result<(Net, About)> {
+    rollfuse_io::require!(
         !BUILT_IN.is_empty(),
         "this build has no built-in model: pass --model (rollfuse train writes one)"
     );
@@ -168,14 +170,14 @@ pub fn built_in() -> anyhow::Result<(Net, About)> {
 }
 
 /// Builds the network of a model file's bytes on the CPU; `shown` names it in errors.
-pub fn from_bytes(bytes: Vec<u8>, shown: &str) -> anyhow::Result<(Net, About)> {
+pub fn from_bytes(bytes: Vec<u8>, shown: &str) -> crate::Result<(Net, About)> {
     let (_, meta) = safetensors::SafeTensors::read_metadata(&bytes)
         .map_err(|e| anyhow::anyhow!("model {shown} is not a safetensors file ({e})"))?;
     let about = meta
         .metadata()
         .as_ref()
         .context("no metadata")
-        .and_then(About::parse)
+        .and_then(|meta| Ok(About::parse(meta)?))
         .map_err(|e| anyhow::anyhow!("model {shown} is not a rollfuse detector: {e:#}"))?;
     // The network computes in f32; a tensor stored otherwise is refused here, by name,
     // rather than converted or left to fail inside the network.
@@ -187,7 +189,7 @@ pub fn from_bytes(bytes: Vec<u8>, shown: &str) -> anyhow::Result<(Net, About)> {
         .collect();
     names.sort();
     if let Some((name, dtype)) = names.first() {
-        bail!(
+        rollfuse_io::invalid!(
             "model {shown} stores {name} as {dtype:?}; a detector's tensors are F32{}",
             match names.len() - 1 {
                 0 => String::new(),
@@ -206,13 +208,13 @@ pub fn from_bytes(bytes: Vec<u8>, shown: &str) -> anyhow::Result<(Net, About)> {
             0 => String::new(),
             n => format!(" (and {n} more)"),
         };
-        bail!(
+        rollfuse_io::invalid!(
             "model {shown} does not fit the network it describes: {}{more}",
             mismatch(e)
         );
     }
     if let Some((name, _)) = applied.missing.first() {
-        bail!("model {shown} lacks the tensor {name}");
+        rollfuse_io::invalid!("model {shown} lacks the tensor {name}");
     }
     Ok((net, about))
 }

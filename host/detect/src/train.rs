@@ -11,7 +11,6 @@ use super::model::About;
 use super::net::{Net, Widths};
 use super::targets::{KINDS, Labelled, Targets, encode};
 use super::{floats, normalized};
-use anyhow::ensure;
 use burn::module::Module;
 use burn::nn::loss::CrossEntropyLossConfig;
 use burn::optim::{AdamWConfig, GradientsParams};
@@ -103,7 +102,7 @@ pub fn rolls(
     shape: &RollShape,
     style: Style,
     mut done: impl FnMut(usize),
-) -> anyhow::Result<Vec<Roll>> {
+) -> crate::Result<Vec<Roll>> {
     let (tx, rx) = std::sync::mpsc::channel();
     let made = std::thread::scope(|s| {
         let worker = s.spawn(move || {
@@ -114,7 +113,7 @@ pub fn rolls(
                     let _ = tx.send(());
                     r
                 })
-                .collect::<anyhow::Result<Vec<_>>>()
+                .collect::<crate::Result<Vec<_>>>()
         });
         for n in 1..=count {
             if rx.recv().is_err() {
@@ -138,24 +137,24 @@ pub fn train(
     start: Option<Net>,
     made_by: &str,
     progress: &dyn Progress,
-) -> anyhow::Result<(Net, About, TrainReport)> {
-    ensure!(
+) -> crate::Result<(Net, About, TrainReport)> {
+    rollfuse_io::require!(
         opts.crop >= 32 && opts.crop.is_multiple_of(8),
         "the crop side must be a multiple of 8, at least 32"
     );
-    ensure!(
+    rollfuse_io::require!(
         opts.rolls > 0 && opts.batch > 0 && (opts.steps > 0 || start.is_some()),
         "training needs at least one roll, one step and one crop a step"
     );
     // Each roll is simulated and held; each step's batch is held with its activations.
-    ensure!(
+    rollfuse_io::require!(
         opts.rolls <= MAX_ROLLS && opts.validation_rolls <= MAX_ROLLS,
         "at most {MAX_ROLLS} training and {MAX_ROLLS} validation rolls"
     );
-    ensure!(opts.batch <= MAX_BATCH, "at most {MAX_BATCH} crops a step");
-    ensure!(opts.steps <= MAX_STEPS, "at most {MAX_STEPS} steps");
+    rollfuse_io::require!(opts.batch <= MAX_BATCH, "at most {MAX_BATCH} crops a step");
+    rollfuse_io::require!(opts.steps <= MAX_STEPS, "at most {MAX_STEPS} steps");
     let (w, h) = opts.shape.size;
-    ensure!(
+    rollfuse_io::require!(
         opts.crop <= w.min(h),
         "the crop ({}) is larger than the frames ({w}×{h})",
         opts.crop
@@ -175,7 +174,7 @@ pub fn train(
     progress.finish();
     let frames: Vec<&Sample> = train_rolls.iter().flat_map(|r| &r.frames).collect();
     let fused: Vec<&Sample> = train_rolls.iter().flat_map(|r| &r.fused).collect();
-    ensure!(!fused.is_empty(), "the training rolls fused to no tiles");
+    rollfuse_io::require!(!fused.is_empty(), "the training rolls fused to no tiles");
 
     let device = Device::flex().autodiff();
     device.seed(opts.seed);
@@ -227,9 +226,9 @@ fn measure(
     validation: &[&Sample],
     losses: Vec<f32>,
     progress: &dyn Progress,
-) -> anyhow::Result<(About, TrainReport)> {
+) -> crate::Result<(About, TrainReport)> {
     let detector = super::Detector::from_net(net.clone(), about.clone());
-    let accuracy = |source: Source| -> anyhow::Result<Option<f64>> {
+    let accuracy = |source: Source| -> crate::Result<Option<f64>> {
         let samples: Vec<&&Sample> = validation.iter().filter(|s| s.source == source).collect();
         let mut right = 0;
         for s in &samples {
@@ -262,7 +261,7 @@ fn calibrate(
     trained_on: &[&Sample],
     held_out: &[&Sample],
     progress: &dyn Progress,
-) -> anyhow::Result<(Familiarity, f64)> {
+) -> crate::Result<(Familiarity, f64)> {
     let total = (trained_on.len() + held_out.len()) as u64;
     progress.start("calibrating familiarity", Some(total), "images");
     let mut kinds = [Kind::default(), Kind::default()];
@@ -307,7 +306,7 @@ pub fn optimize(
     seed: u64,
     progress: &dyn Progress,
     mut draw: impl FnMut(&mut Pcg64Mcg) -> Batch,
-) -> anyhow::Result<(Net, Vec<f32>)> {
+) -> crate::Result<(Net, Vec<f32>)> {
     // A loaded network's parameters are frozen until put back in training.
     let mut net = net.train();
     let mut optim = AdamWConfig::new().init();
@@ -318,7 +317,7 @@ pub fn optimize(
         let batch = draw(&mut rng);
         let loss = losses_of(&net, &batch);
         let value = floats(loss.clone())?.first().copied().unwrap_or(f32::NAN);
-        ensure!(
+        rollfuse_io::require!(
             value.is_finite(),
             "training diverged at step {}: the loss is {value}",
             step + 1

@@ -17,7 +17,6 @@ use super::net::Net;
 use super::targets::{MIN_IOU, Tally, tally};
 use super::train::{Batch, Crop, MAX_BATCH, MAX_STEPS, Schedule, crop, optimize};
 use super::{Detector, MIN_SIDE};
-use anyhow::ensure;
 use burn::module::Module;
 use burn::tensor::Device;
 use rand::seq::SliceRandom;
@@ -78,20 +77,20 @@ pub fn tune(
     opts: &TuneOptions,
     made_by: &str,
     progress: &dyn Progress,
-) -> anyhow::Result<(Net, About, TuneReport)> {
-    ensure!(
+) -> crate::Result<(Net, About, TuneReport)> {
+    rollfuse_io::require!(
         (0.0..0.9).contains(&opts.validation),
         "the validation share must be in 0..0.9, got {}",
         opts.validation
     );
-    ensure!(
+    rollfuse_io::require!(
         opts.steps > 0 && opts.batch > 0,
         "fine-tuning needs steps and crops"
     );
-    ensure!(opts.batch <= MAX_BATCH, "at most {MAX_BATCH} crops a step");
-    ensure!(opts.steps <= MAX_STEPS, "at most {MAX_STEPS} steps");
+    rollfuse_io::require!(opts.batch <= MAX_BATCH, "at most {MAX_BATCH} crops a step");
+    rollfuse_io::require!(opts.steps <= MAX_STEPS, "at most {MAX_STEPS} steps");
     let (training, validation) = split(images, opts);
-    ensure!(
+    rollfuse_io::require!(
         training.iter().any(|s| !s.boxes.is_empty()),
         "none of the {} training images has a labelled defect: nothing to learn from",
         training.len()
@@ -167,7 +166,7 @@ fn crop_side(images: &[Sample], largest: usize) -> usize {
 }
 
 /// Kind-aware hits, false alarms and misses of the network on `images`.
-fn measure(net: &Net, about: &About, images: &[Sample]) -> anyhow::Result<Option<Tally>> {
+fn measure(net: &Net, about: &About, images: &[Sample]) -> crate::Result<Option<Tally>> {
     if images.is_empty() {
         return Ok(None);
     }

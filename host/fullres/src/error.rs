@@ -4,6 +4,9 @@
 use rollfuse_io::files::WriteError;
 use std::path::PathBuf;
 
+/// A result of this crate.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
 /// Why fusion, placement or a strip's files failed.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {

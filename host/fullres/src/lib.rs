@@ -24,16 +24,13 @@ pub mod strip_file;
 pub mod window;
 
 use align::Offset;
-pub use error::Error;
+pub use error::{Error, Result};
 use rayon::prelude::*;
 use rollfuse_core::fusion::{
     Join, LlWeight, Sequential, U8Pair, U8Work, fuse_scratch_len, fuse_u8,
 };
 use rollfuse_core::{Dims, FuseConfig, float};
 use rollfuse_io::image::{PixelLimit, Planes};
-
-/// A result of this crate.
-pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 /// Which arithmetic fuses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]

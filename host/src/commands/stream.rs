@@ -260,8 +260,8 @@ fn print_defects(d: &serve::findings::DetectorStatus) {
 fn live_model(args: &Args) -> anyhow::Result<serve::detect::LiveModel> {
     use serve::detect::LiveModel;
     let Some(path) = args.normal.as_deref() else {
-        return rollfuse::detect::Detector::load_or_built_in(args.model.as_deref())
-            .map(|d| LiveModel::Defects(Box::new(d)));
+        let detector = rollfuse::detect::Detector::load_or_built_in(args.model.as_deref())?;
+        return Ok(LiveModel::Defects(Box::new(detector)));
     };
     let model = rollfuse::detect::anomaly::NormalModel::load(path)?;
     anyhow::ensure!(
