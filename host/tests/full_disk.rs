@@ -64,6 +64,10 @@ fn survives_a_full_disk(dir: &Path, args: &[&str], again: &[&str]) {
             err.contains("no space left"),
             "{again:?}: the error does not say why: {err}"
         );
+        assert!(
+            err.contains("cannot write "),
+            "{again:?}: the error does not say what it was writing: {err}"
+        );
         let after = snapshot(dir);
         let changed: Vec<_> = after
             .keys()

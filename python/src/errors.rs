@@ -8,7 +8,7 @@ use pyo3::exceptions::{PyOSError, PyValueError};
 /// message is the whole chain, as the command line prints it.
 pub fn to_py(e: anyhow::Error) -> PyErr {
     let message = format!("{e:#}");
-    if e.chain().any(|c| c.is::<std::io::Error>()) {
+    if e.chain().any(|c| rollfuse::files::io_cause(c).is_some()) {
         PyOSError::new_err(message)
     } else {
         PyValueError::new_err(message)

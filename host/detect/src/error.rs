@@ -30,7 +30,7 @@ impl Error {
 
 /// The first I/O error among the causes of `e`.
 fn io_cause(e: &anyhow::Error) -> Option<&std::io::Error> {
-    e.chain().find_map(|c| c.downcast_ref::<std::io::Error>())
+    e.chain().find_map(rollfuse_io::files::io_cause)
 }
 
 impl From<anyhow::Error> for Error {

@@ -57,17 +57,31 @@ impl WriteError {
     }
 
     /// The operating system's error kind where the file system failed (for the content's
-    /// error, anywhere in its chain): `StorageFull` for a full disk.
+    /// error, anywhere among its causes): `StorageFull` for a full disk (`Other`, with the
+    /// system's message, where the PNG encoder passed it on).
     pub fn io_kind(&self) -> Option<std::io::ErrorKind> {
         match self {
             Self::Io { source, .. } => Some(source.kind()),
             Self::Refused(_) => None,
-            Self::Content(e) => e
-                .chain()
-                .find_map(|c| c.downcast_ref::<std::io::Error>())
-                .map(std::io::Error::kind),
+            Self::Content(e) => e.chain().find_map(io_cause).map(std::io::Error::kind),
         }
     }
+}
+
+/// The first I/O error among `e` and its causes, looking into the content errors an
+/// output keeps (a chain passes over their causes: they are transparent).
+pub fn io_cause<'a>(e: &'a (dyn std::error::Error + 'static)) -> Option<&'a std::io::Error> {
+    let mut next = Some(e);
+    while let Some(cause) = next {
+        if let Some(io) = cause.downcast_ref::<std::io::Error>() {
+            return Some(io);
+        }
+        if let Some(WriteError::Content(content)) = cause.downcast_ref::<WriteError>() {
+            return content.chain().find_map(io_cause);
+        }
+        next = cause.source();
+    }
+    None
 }
 
 /// A temporary path beside `target`: same folder (so the rename stays on one file
@@ -670,7 +684,11 @@ pub fn add_png(
     layout: PngLayout,
 ) -> Result<(), WriteError> {
     require_png_name(target)?;
-    batch.add(target, |out| Ok(encode_png(out, data, size, layout)?))
+    batch.add(target, |out| {
+        encode_png(out, data, size, layout).map_err(|e| {
+            anyhow::Error::from(e).context(format!("cannot write {}", target.display()))
+        })
+    })
 }
 
 /// Encodes a `width × height` PNG of `data` (samples row by row in `layout`) into `out`.
@@ -693,7 +711,12 @@ pub fn encode_png(
     };
     image::codecs::png::PngEncoder::new(out)
         .write_image(data, w, h, layout.color())
-        .map_err(|e| WriteError::Content(e.into()))
+        .map_err(|e| match e {
+            // Kept as the cause itself: the encoder's wrapper hides it from `source()`,
+            // and a full disk must be found among the causes.
+            image::ImageError::IoError(io) => WriteError::Content(io.into()),
+            other => WriteError::Content(other.into()),
+        })
 }
 
 /// Fails early, with the path in the message, if `path` cannot be written, before any

@@ -1,0 +1,33 @@
+//! A disk that fills while a PNG is being encoded: the error names the file and says the
+//! disk is full, and nothing is left at the target. Its own test binary, because the
+//! full-disk seam is read once per process.
+
+use rollfuse_io::files::{FAIL_WRITES_AFTER, PngLayout, write_png};
+
+#[test]
+fn a_disk_that_fills_mid_image_names_the_image() {
+    // SAFETY: set before any output of this process is written, and this binary's only
+    // test: no other thread reads the environment.
+    unsafe { std::env::set_var(FAIL_WRITES_AFTER, "1000") };
+    let dir = tempfile::tempdir().unwrap();
+    let target = dir.path().join("noise.png");
+    // Incompressible pixels, more than the writer buffers: the disk fills mid-encoding.
+    let mut state = 1u32;
+    let pixels: Vec<u8> = (0..512 * 512)
+        .map(|_| {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 24) as u8
+        })
+        .collect();
+    let e = write_png(&target, &pixels, (512, 512), PngLayout::Gray8).unwrap_err();
+    // An I/O error among the causes (the PNG encoder passes the disk's error on with its
+    // message, as kind `Other`).
+    assert!(e.io_kind().is_some(), "{e:?}");
+    let message = format!("{:#}", anyhow::Error::from(e));
+    assert!(
+        message.contains(&format!("cannot write {}", target.display()))
+            && message.contains("no space left on device"),
+        "{message}"
+    );
+    assert!(!target.exists());
+}
