@@ -60,11 +60,7 @@ impl WriteError {
     /// error, anywhere among its causes): `StorageFull` for a full disk (`Other`, with the
     /// system's message, where the PNG encoder passed it on).
     pub fn io_kind(&self) -> Option<std::io::ErrorKind> {
-        match self {
-            Self::Io { source, .. } => Some(source.kind()),
-            Self::Refused(_) => None,
-            Self::Content(e) => e.chain().find_map(io_cause).map(std::io::Error::kind),
-        }
+        io_cause(self).map(std::io::Error::kind)
     }
 }
 
