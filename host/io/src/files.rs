@@ -11,6 +11,7 @@
 //! bytes have been written in all, as a disk that fills up midway would
 //! (`ErrorKind::StorageFull`).
 
+use crate::invalid;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -44,6 +45,12 @@ pub enum WriteError {
     /// The content could not be made: the error of the code that writes it.
     #[error(transparent)]
     Content(anyhow::Error),
+}
+
+impl crate::invalid::Invalid for WriteError {
+    fn invalid(message: String) -> Self {
+        Self::Refused(message)
+    }
 }
 
 impl WriteError {
@@ -223,18 +230,15 @@ pub fn output_target(target: &Path) -> Result<PathBuf, WriteError> {
             continue;
         }
         if !kind.is_file() {
-            return Err(WriteError::Refused(format!(
+            invalid!(
                 "{} is {}: outputs are written to regular files only",
                 target.display(),
                 special_kind(&kind)
-            )));
+            );
         }
         return Ok(at);
     }
-    Err(WriteError::Refused(format!(
-        "{} is a loop of symbolic links",
-        target.display()
-    )))
+    invalid!("{} is a loop of symbolic links", target.display())
 }
 
 /// What a file that is not a regular file is, in words.
@@ -281,11 +285,11 @@ pub fn refuse_overwriting(outputs: &[&Path], inputs: &[(&str, &Path)]) -> Result
     for out in outputs {
         let target = resolved(out);
         if let Some((what, input)) = inputs.iter().find(|(_, p)| resolved(p) == target) {
-            return Err(WriteError::Refused(format!(
+            invalid!(
                 "{} is the {what} {}: refusing to overwrite an input",
                 out.display(),
                 input.display()
-            )));
+            );
         }
     }
     Ok(())
@@ -297,10 +301,10 @@ pub fn refuse_duplicate_outputs(outputs: &[&Path], what: &str) -> Result<(), Wri
     let mut seen = std::collections::HashSet::new();
     for out in outputs {
         if !seen.insert(resolved(out)) {
-            return Err(WriteError::Refused(format!(
+            invalid!(
                 "{} would be written twice ({what}): refusing to lose one of them",
                 out.display()
-            )));
+            );
         }
     }
     Ok(())
@@ -328,11 +332,11 @@ pub fn refuse_inside(folder: &Path, inputs: &[(&str, &Path)]) -> Result<(), Writ
         .iter()
         .find(|(_, p)| resolved(p).starts_with(&folder_at))
     {
-        return Err(WriteError::Refused(format!(
+        invalid!(
             "the {what} {} is inside {}, which is replaced whole: refusing to remove an input",
             input.display(),
             folder.display()
-        )));
+        );
     }
     Ok(())
 }
@@ -603,10 +607,10 @@ pub fn require_png_name(target: &Path) -> Result<(), WriteError> {
     {
         return Ok(());
     }
-    Err(WriteError::Refused(format!(
+    invalid!(
         "{}: images are written as PNG; name the file .png",
         target.display()
-    )))
+    )
 }
 
 /// PNG sample layouts written by [`write_png`].
@@ -631,9 +635,9 @@ impl PngLayout {
             (1, 16) => Self::Gray16,
             (3, 16) => Self::Rgb16,
             _ => {
-                return Err(WriteError::Refused(format!(
+                invalid!(
                     "PNG output is gray or RGB of 8 or 16 bits, not {channels} channels of {bits} bits"
-                )));
+                );
             }
         })
     }
@@ -700,10 +704,10 @@ pub fn encode_png(
         .and_then(|n| n.checked_mul(layout.bytes_per_pixel()))
         == Some(data.len());
     let (Ok(w), Ok(h), true) = (u32::try_from(width), u32::try_from(height), sized) else {
-        return Err(WriteError::Refused(format!(
+        invalid!(
             "{} bytes are not a {width}×{height} image of {layout:?}",
             data.len()
-        )));
+        );
     };
     image::codecs::png::PngEncoder::new(out)
         .write_image(data, w, h, layout.color())
@@ -733,11 +737,11 @@ pub fn check_writable(path: &Path) -> Result<(), WriteError> {
         .find(|p| p.exists())
         .unwrap_or(Path::new("."));
     if !existing.is_dir() {
-        return Err(WriteError::Refused(format!(
+        invalid!(
             "cannot write {}: {} is not a folder",
             path.display(),
             existing.display()
-        )));
+        );
     }
     let probe = if path.exists() {
         std::fs::OpenOptions::new()

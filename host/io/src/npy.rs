@@ -1,6 +1,7 @@
 //! Writes NumPy `.npy` files (format 1.0): `numpy.load` reads them as they are.
 
 use crate::files::WriteError;
+use crate::invalid;
 
 /// Encodes a row-major `rows × cols` array of `f32` as `.npy` bytes (little-endian `<f4`).
 pub fn encode_f32(data: &[f32], rows: usize, cols: usize) -> Result<Vec<u8>, WriteError> {
@@ -11,11 +12,11 @@ pub fn encode_f32(data: &[f32], rows: usize, cols: usize) -> Result<Vec<u8>, Wri
 pub fn encode_f32_shaped(data: &[f32], shape: &[usize]) -> Result<Vec<u8>, WriteError> {
     let dims: Vec<String> = shape.iter().map(usize::to_string).collect();
     if data.len() != shape.iter().product::<usize>() {
-        return Err(WriteError::Refused(format!(
+        invalid!(
             "npy: {} values do not make a {} array",
             data.len(),
             dims.join("×")
-        )));
+        );
     }
     // A tuple of one needs its comma: (5,).
     let tuple = match dims.as_slice() {
@@ -28,10 +29,10 @@ pub fn encode_f32_shaped(data: &[f32], shape: &[usize]) -> Result<Vec<u8>, Write
     header.push_str(&" ".repeat(total.next_multiple_of(64) - total));
     header.push('\n');
     let Ok(header_len) = u16::try_from(header.len()) else {
-        return Err(WriteError::Refused(format!(
+        invalid!(
             "npy: a {}-dimensional shape is too long for the header",
             shape.len()
-        )));
+        );
     };
     let mut out = Vec::with_capacity(10 + header.len() + 4 * data.len());
     out.extend_from_slice(b"\x93NUMPY\x01\x00");

@@ -8,8 +8,8 @@ use super::scene::Object;
 use super::textile;
 use crate::Error;
 use rollfuse_io::files::{Batch, PngLayout, WriteError, add_png};
-use rollfuse_io::npy;
 use rollfuse_io::progress::Progress;
+use rollfuse_io::{invalid, npy};
 use serde::Serialize;
 use std::path::Path;
 
@@ -99,11 +99,11 @@ pub fn refuse_overwriting(input: &Path, what: &str, out: &Path) -> Result<(), Wr
                     .any(|o| n == *o)
             }));
     if named_as_output || at.starts_with(dir.join("truth")) {
-        return Err(WriteError::Refused(format!(
+        invalid!(
             "the {what} {} is where the simulation writes into {}: refusing to overwrite an input",
             input.display(),
             out.display()
-        )));
+        );
     }
     Ok(())
 }
@@ -119,9 +119,7 @@ fn add_truth(
 ) -> Result<Vec<(String, String)>, Error> {
     // Validation bounds every scene value; this is the last word on what is written.
     if !strip.height_mm.iter().all(|h| h.is_finite()) {
-        return Err(Error::Invalid(
-            "the scene's height map is not finite everywhere: nothing written".into(),
-        ));
+        invalid!("the scene's height map is not finite everywhere: nothing written");
     }
     let truth_dir = out.join("truth");
     batch.add_bytes(
