@@ -32,14 +32,9 @@ use rollfuse_core::fusion::{
 use rollfuse_core::{Dims, FuseConfig, float};
 use rollfuse_io::image::{PixelLimit, Planes};
 
-/// Which arithmetic fuses.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-pub enum Precision {
-    /// `f32` (the host's full-resolution path).
-    F32,
-    /// The MCU's integer path on 8-bit data (16-bit input is rounded to 8 bits).
-    Fixed,
-}
+/// Which arithmetic fuses: the core's [`Precision`](rollfuse_core::device::Precision), here
+/// on frames of any size (the integer path rounds 16-bit input to 8 bits).
+pub use rollfuse_core::device::Precision;
 
 /// A frame and where it lies on the canvas.
 #[derive(Debug, Clone, Copy)]

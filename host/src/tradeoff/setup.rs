@@ -1,5 +1,6 @@
 //! One configuration of the trade-off sweep, and the whole sweep.
 
+use crate::names::Named;
 use rollfuse_core::device::Precision;
 use rollfuse_core::protocol::{DeviceConfig, NormMode, WaveletId};
 
@@ -46,18 +47,12 @@ impl Setup {
 
     /// "haar", "db2".
     pub fn wavelet_name(&self) -> &'static str {
-        match self.wavelet {
-            WaveletId::Haar => "haar",
-            WaveletId::Db2 => "db2",
-        }
+        self.wavelet.name()
     }
 
     /// "fixed", "f32".
     pub fn precision_name(&self) -> &'static str {
-        match self.precision {
-            Precision::Fixed => "fixed",
-            Precision::F32 => "f32",
-        }
+        self.precision.name()
     }
 
     /// "frame", "tile".

@@ -37,13 +37,15 @@ pub const MAX_FRAMES_PER_TILE: usize = 16;
 /// The largest refinement search, rows either side.
 pub const MAX_REFINE_ROWS: usize = 16;
 
-/// The arithmetic a pipeline fuses tiles in. Tiles are 8-bit either way.
+/// The arithmetic that fuses: on the device (whose tiles are 8-bit either way) and on the
+/// host's full-resolution path alike.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Precision {
-    /// The integer path ([`crate::fusion::fuse_u8`]): what the firmware runs.
+    /// The integer path ([`crate::fusion::fuse_u8`]) on 8-bit data: what the firmware runs.
     #[default]
     Fixed,
-    /// The `f32` path ([`crate::float::fuse_pair`]) on the MCU's FPU.
+    /// The `f32` path ([`crate::float::fuse_pair`]): the host's default, and on the MCU its
+    /// FPU.
     F32,
 }
 
