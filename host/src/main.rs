@@ -103,12 +103,25 @@ fn parse() -> Result<Cli, ExitCode> {
     Err(ExitCode::FAILURE)
 }
 
+/// The tests' full disk: outputs fail after as many bytes as
+/// `ROLLFUSE_FAIL_WRITES_AFTER` says, when it is set.
+fn full_disk_seam() {
+    use rollfuse::files::{FAIL_WRITES_AFTER, fail_writes_after};
+    if let Some(bytes) = std::env::var(FAIL_WRITES_AFTER)
+        .ok()
+        .and_then(|v| v.parse().ok())
+    {
+        fail_writes_after(bytes);
+    }
+}
+
 fn main() -> ExitCode {
     let cli = match parse() {
         Ok(cli) => cli,
         Err(code) => return code,
     };
     let limit = rollfuse::image::PixelLimit(cli.max_pixels);
+    full_disk_seam();
     let show = Show {
         mode: cli.progress,
         every: Duration::from_secs(cli.progress_every),

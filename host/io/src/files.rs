@@ -7,16 +7,18 @@
 //! every file is written and synced before the first is renamed into place, so a failure
 //! leaves the old set whole.
 //!
-//! For tests, `ROLLFUSE_FAIL_WRITES_AFTER=N` makes the process's outputs fail once `N`
-//! bytes have been written in all, as a disk that fills up midway would
-//! (`ErrorKind::StorageFull`).
+//! For tests, [`fail_writes_after`] makes the process's outputs fail once so many bytes
+//! have been written in all, as a disk that fills up midway would
+//! (`ErrorKind::StorageFull`); the `rollfuse` command sets it from the environment
+//! variable [`FAIL_WRITES_AFTER`].
 
 use crate::invalid;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-/// The environment variable that makes outputs fail after so many bytes (tests).
+/// The environment variable from which the `rollfuse` command sets [`fail_writes_after`]
+/// (tests).
 pub const FAIL_WRITES_AFTER: &str = "ROLLFUSE_FAIL_WRITES_AFTER";
 
 /// Why an output was not written: the file system's fault ([`WriteError::Io`]: a full
@@ -310,18 +312,19 @@ pub fn refuse_duplicate_outputs(outputs: &[&Path], what: &str) -> Result<(), Wri
     Ok(())
 }
 
-/// The bytes every output of this process may still take, when [`FAIL_WRITES_AFTER`] is
-/// set.
+/// The bytes every output of this process may still take, once [`fail_writes_after`] set
+/// them.
+static ROOM: std::sync::OnceLock<std::sync::atomic::AtomicU64> = std::sync::OnceLock::new();
+
+/// Makes this process's outputs fail once `bytes` have been written in all, as a disk
+/// that fills up midway would (a test seam). Set once, before the first output: returns
+/// `false`, changing nothing, if it was set already.
+pub fn fail_writes_after(bytes: u64) -> bool {
+    ROOM.set(std::sync::atomic::AtomicU64::new(bytes)).is_ok()
+}
+
 fn room() -> Option<&'static std::sync::atomic::AtomicU64> {
-    static ROOM: std::sync::OnceLock<Option<std::sync::atomic::AtomicU64>> =
-        std::sync::OnceLock::new();
-    ROOM.get_or_init(|| {
-        std::env::var(FAIL_WRITES_AFTER)
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .map(std::sync::atomic::AtomicU64::new)
-    })
-    .as_ref()
+    ROOM.get()
 }
 
 /// Refuses, before any work, inputs inside `folder`, an output folder replaced whole

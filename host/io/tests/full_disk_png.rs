@@ -1,14 +1,12 @@
 //! A disk that fills while a PNG is being encoded: the error names the file and says the
 //! disk is full, and nothing is left at the target. Its own test binary, because the
-//! full-disk seam is read once per process.
+//! full-disk seam holds for the whole process.
 
-use rollfuse_io::files::{FAIL_WRITES_AFTER, PngLayout, write_png};
+use rollfuse_io::files::{PngLayout, fail_writes_after, write_png};
 
 #[test]
 fn a_disk_that_fills_mid_image_names_the_image() {
-    // SAFETY: set before any output of this process is written, and this binary's only
-    // test: no other thread reads the environment.
-    unsafe { std::env::set_var(FAIL_WRITES_AFTER, "1000") };
+    assert!(fail_writes_after(1000));
     let dir = tempfile::tempdir().unwrap();
     let target = dir.path().join("noise.png");
     // Incompressible pixels, more than the writer buffers: the disk fills mid-encoding.
