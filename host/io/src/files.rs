@@ -317,14 +317,10 @@ pub fn refuse_duplicate_outputs(outputs: &[&Path], what: &str) -> Result<(), Wri
 static ROOM: std::sync::OnceLock<std::sync::atomic::AtomicU64> = std::sync::OnceLock::new();
 
 /// Makes this process's outputs fail once `bytes` have been written in all, as a disk
-/// that fills up midway would (a test seam). Set once, before the first output: returns
+/// that fills up midway would (a test seam), counting from the call. Set once: returns
 /// `false`, changing nothing, if it was set already.
 pub fn fail_writes_after(bytes: u64) -> bool {
     ROOM.set(std::sync::atomic::AtomicU64::new(bytes)).is_ok()
-}
-
-fn room() -> Option<&'static std::sync::atomic::AtomicU64> {
-    ROOM.get()
 }
 
 /// Refuses, before any work, inputs inside `folder`, an output folder replaced whole
@@ -360,7 +356,7 @@ impl Write for Output {
     fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
         use std::sync::atomic::Ordering::Relaxed;
         let mut n = buf.len();
-        if let Some(room) = room() {
+        if let Some(room) = ROOM.get() {
             let left = room.load(Relaxed);
             if left == 0 && n > 0 {
                 return Err(std::io::Error::new(
@@ -371,7 +367,7 @@ impl Write for Output {
             n = n.min(usize::try_from(left).unwrap_or(usize::MAX));
         }
         let n = self.file.write(&buf[..n])?;
-        if let Some(room) = room() {
+        if let Some(room) = ROOM.get() {
             room.fetch_sub(n as u64, Relaxed);
         }
         Ok(n)
