@@ -2,9 +2,11 @@
 //! contact band narrow (features touch the gel only near the apex, the belt itself pressed
 //! into a band across the frame), middling or covering the whole frame; a texture-free
 //! stretch in every roll; a speed varying by ±30 % from frame to frame; a belt wandering
-//! sideways; 640 × 480 frames. On each: no lost belt (every step within 3 px of the
-//! truth), every position within 2 % of the roll's travel (3 % where the contact band is
-//! narrow: see [`NARROW`]), and the placement trusted.
+//! sideways; 640 × 480 frames. Each regime is tried on [`SEEDS`] rolls (the same features,
+//! the speed, noise and wander drawn anew): on every roll the placement is trusted, no belt is lost
+//! (every step between two matched frames within 3 px of the truth) and every position
+//! is within [`WORST_DRIFT`] of the travel; over the rolls, the median of the worst
+//! position error is within 2 % of the travel.
 
 use rollfuse::fullres::contact::{ContactProfile, MEASURE_FRAMES};
 use rollfuse::fullres::register::{Placement, Source, TrackParams, Tracker};
@@ -23,9 +25,18 @@ struct Case {
     frames: usize,
     /// Sideways moves of up to this many pixels a frame (0: none).
     wander: f64,
-    /// The largest position error allowed, a fraction of the travel.
-    drift: f64,
 }
+
+/// The rolls each regime is tried on. A roll's bare start and texture-free stretch rest
+/// on the speed, and the belt's own ±30 % steps there are random: over the third of a
+/// 640 × 480 roll's travel that rests on them, about 2 % of the travel by themselves. So
+/// a regime is judged on the median of several rolls, and each roll on a looser bound.
+const SEEDS: [u64; 3] = [5, 6, 7];
+/// The largest position error allowed on any one roll, a fraction of the travel.
+const WORST_DRIFT: f64 = 0.04;
+/// The largest median (over [`SEEDS`]) of a roll's worst position error, a fraction of
+/// the travel.
+const DRIFT: f64 = 0.02;
 
 /// Raised spheres and boxes along `length` mm of a belt `width` mm wide, none between
 /// 35 % and 55 % of the length (a texture-free stretch).
@@ -65,7 +76,7 @@ impl Case {
         7.0 * self.mm_per_px
     }
 
-    fn scene(&self) -> Scene {
+    fn scene(&self, seed: u64) -> Scene {
         let (w, h) = self.size;
         let length = self.spacing_mm() * self.frames as f64;
         let wander = if self.wander > 0.0 {
@@ -75,7 +86,7 @@ impl Case {
         };
         let text = format!(
             r#"
-seed = 5
+seed = {seed}
 effects = ["speed"{wander}, "contact", "gel", "gray", "defocus", "noise"]
 [params]
 speed_jitter = 0.3
@@ -128,18 +139,23 @@ fn place(sim: &Simulator, drift: usize) -> (Vec<Placement>, Vec<String>) {
     (placed, tracker.summary().doubts(n))
 }
 
-fn check(case: &Case) {
-    let sim = Simulator::new(&case.scene()).unwrap();
+/// One roll of `case`: its checks, and its worst position error as a fraction of the
+/// travel.
+fn one_roll(case: &Case, seed: u64) -> f64 {
+    let name = format!("{} (seed {seed})", case.name);
+    let sim = Simulator::new(&case.scene(seed)).unwrap();
     let truth: Vec<f64> = (0..sim.frames())
         .map(|k| sim.strip_row_of_top(sim.frame(k).actual_offset_mm))
         .collect();
     let truth: Vec<f64> = truth.iter().map(|t| t - truth[0]).collect();
     let drift = if case.wander > 0.0 { 3 } else { 0 };
     let (placed, doubts) = place(&sim, drift);
-    assert!(doubts.is_empty(), "{}: {doubts:?}", case.name);
+    assert!(doubts.is_empty(), "{name}: {doubts:?}");
     let travel = truth[truth.len() - 1];
+    let matched = |p: &Placement| matches!(p.source, Source::Matched | Source::First);
     let worst_step = placed
         .windows(2)
+        .filter(|p| matched(&p[0]) && matched(&p[1]))
         .map(|p| {
             let (a, b) = (p[0].frame, p[1].frame);
             ((p[1].row - p[0].row) - (truth[b] - truth[a])).abs()
@@ -151,31 +167,21 @@ fn check(case: &Case) {
         .fold(0f64, f64::max);
     let count = |s: Source| placed.iter().filter(|p| p.source == s).count();
     eprintln!(
-        "{}: worst step error {worst_step:.2} px, worst position error {worst:.1} px of {travel:.0} \
-         ({:.2} %); {} matched, {} predicted, {} unmatched",
-        case.name,
+        "{name}: worst matched step error {worst_step:.2} px, worst position error {worst:.1} px \
+         of {travel:.0} ({:.2} %); {} matched, {} predicted, {} unmatched",
         100.0 * worst / travel,
         count(Source::Matched),
         count(Source::Predicted),
         count(Source::Unmatched)
     );
+    assert!(worst_step <= 3.0, "{name}: a step {worst_step:.2} px off");
     assert!(
-        worst_step <= 3.0,
-        "{}: a step {worst_step:.2} px off",
-        case.name
-    );
-    assert!(
-        worst <= case.drift * travel,
-        "{}: {worst:.1} px off over {travel:.0} px of travel",
-        case.name
+        worst <= WORST_DRIFT * travel,
+        "{name}: {worst:.1} px off over {travel:.0} px of travel"
     );
     // The texture-free stretch was there, and so were the features.
-    assert!(
-        count(Source::Predicted) >= case.frames / 10,
-        "{}",
-        case.name
-    );
-    assert!(count(Source::Matched) >= case.frames / 2, "{}", case.name);
+    assert!(count(Source::Predicted) >= case.frames / 10, "{name}");
+    assert!(count(Source::Matched) >= case.frames / 2, "{name}");
     if case.wander > 0.0 {
         // Sideways: the frame's column 0 lies at the belt's sideways offset, within 3
         // columns on average over the matched frames.
@@ -189,16 +195,36 @@ fn check(case: &Case) {
             .map(|p| (p.col as f64 - moved(p.frame)).abs())
             .sum::<f64>()
             / matched.len() as f64;
-        eprintln!("{}: {off:.2} columns off sideways on average", case.name);
-        assert!(off <= 3.0, "{}: {off:.2} columns off sideways", case.name);
+        eprintln!("{name}: {off:.2} columns off sideways on average");
+        assert!(off <= 3.0, "{name}: {off:.2} columns off sideways");
     }
+    worst / travel
+}
+
+/// Every roll of `case` passes its checks, and the median of their position errors is
+/// within [`DRIFT`].
+fn check(case: &Case) {
+    let mut errors: Vec<f64> = SEEDS.iter().map(|&seed| one_roll(case, seed)).collect();
+    errors.sort_by(f64::total_cmp);
+    let median = errors[errors.len() / 2];
+    eprintln!(
+        "{}: median position error {:.2} %",
+        case.name,
+        100.0 * median
+    );
+    assert!(
+        median <= DRIFT,
+        "{}: the median roll is {:.2} % of its travel off",
+        case.name,
+        100.0 * median
+    );
 }
 
 /// Features touching the gel only within about ±50 rows of the apex, the belt itself
 /// within ±30: the fixture's regime. Here the simulator's gel, smoothing a feature where
-/// the gel lifts from it, makes every match 2–3 % short; without a motion record nothing
-/// tells that from the belt's own speed, so a roll drifts by up to 3 % of its travel
-/// (docs/fusion.md).
+/// the gel lifts from it, makes a match of a feature cut off at the band's edge 1–3 %
+/// short; without a motion record nothing tells that from the belt's own speed, so a roll
+/// drifts by 1–2 % of its travel (docs/fusion.md).
 const NARROW: Case = Case {
     name: "narrow contact band",
     radius: 9.0,
@@ -208,7 +234,6 @@ const NARROW: Case = Case {
     mm_per_px: 0.05,
     frames: 200,
     wander: 0.0,
-    drift: 0.03,
 };
 
 #[test]
@@ -216,16 +241,25 @@ fn a_narrow_contact_band_is_followed() {
     check(&NARROW);
 }
 
+const MIDDLING: Case = Case {
+    name: "middling contact band",
+    radius: 12.0,
+    press: 0.5,
+    height: 0.4,
+    ..NARROW
+};
+
 #[test]
 fn a_middling_contact_band_is_followed() {
-    check(&Case {
-        name: "middling contact band",
-        radius: 12.0,
-        press: 0.5,
-        height: 0.4,
-        drift: 0.02,
-        ..NARROW
-    });
+    check(&MIDDLING);
+}
+
+/// On this roll frame 1 matches nothing and frame 2 matches frame 1: counting the step
+/// from 0 to 1, which no match measured, once made the speed zero, and the speed's prior
+/// then outweighed every right match for a hundred frames (44 % of the travel off).
+#[test]
+fn a_step_no_match_measured_does_not_set_the_speed() {
+    assert!(one_roll(&MIDDLING, 4) <= DRIFT);
 }
 
 #[test]
@@ -235,7 +269,6 @@ fn contact_over_the_whole_frame_is_followed() {
         radius: 40.0,
         press: 1.0,
         height: 0.6,
-        drift: 0.02,
         ..NARROW
     });
 }
@@ -256,7 +289,6 @@ fn frames_of_640_by_480_are_followed() {
         size: (640, 480),
         mm_per_px: 0.025,
         frames: 120,
-        drift: 0.02,
         ..NARROW
     });
 }

@@ -192,7 +192,10 @@ pub struct Summary {
     pub travel_rows: f64,
     /// The longest run of predicted or unmatched frames: its length and first frame.
     pub longest_guess: (usize, usize),
-    /// The longest run of unmatched frames: its length and first frame.
+    /// The longest run of textured frames with no match kept (unmatched, or matched
+    /// only by matches rejected or dropped): its length and first frame. Single frames
+    /// where a feature enters or leaves the contact band are left to the prediction; a
+    /// run of them is a belt lost.
     pub longest_lost: (usize, usize),
     /// Matches dropped as inconsistent with the others.
     pub inconsistent: usize,
@@ -212,7 +215,7 @@ impl Summary {
         let (run, at) = self.longest_lost;
         if run >= LOST_RUN {
             why.push(format!(
-                "the belt was lost for {run} textured frames from frame {at} (they matched nothing)"
+                "the belt was lost for {run} textured frames from frame {at} (no match kept)"
             ));
         }
         let textured = self.matched + self.unmatched;
@@ -373,11 +376,8 @@ impl Tracker {
         }
         // Until the motion is known from a few steps, frames wait (up to
         // [`HOLD_UNTIL_MOTION`]): the speed then places the bare frames before it.
-        let known = self.held.iter().any(|h| h.commanded.is_some())
-            || self.last_speed.is_some()
-            || self
-                .measured_speed()
-                .is_some_and(|(_, n)| n >= SPEED_TO_START);
+        let known =
+            self.held.iter().any(|h| h.commanded.is_some()) || self.settled_speed().is_some();
         let hold = if known { WINDOW } else { HOLD_UNTIL_MOTION };
         let mut out = Vec::new();
         while self.next_index() - self.placed > hold {
@@ -402,19 +402,31 @@ impl Tracker {
     }
 
     /// The robust mean of the last [`SPEED_STEPS`] measured steps (between consecutive
-    /// matched frames, the newest frame left out; the middle 60 % averaged). It holds
+    /// frames a match joins, the newest frame left out; the middle 60 % averaged). It holds
     /// through a stretch with nothing to match, however long.
     fn speed(&self) -> Option<f64> {
         self.measured_speed().map(|(v, _)| v).or(self.last_speed)
     }
 
+    /// The speed once [`SPEED_TO_START`] steps are measured: only then does it carry
+    /// frames (a prior on every step), so that one wrong early match, which the search
+    /// still centres on, cannot outweigh the right ones after it.
+    fn settled_speed(&self) -> Option<f64> {
+        match self.measured_speed() {
+            Some((v, n)) if n >= SPEED_TO_START => Some(v),
+            _ => self.last_speed,
+        }
+    }
+
     /// The speed from the measured steps at hand, and how many there are.
     fn measured_speed(&self) -> Option<(f64, usize)> {
         let newest = self.next_index().saturating_sub(1);
-        let matched = |k: usize| k == 0 || self.edges.iter().any(|e| e.to == k || e.from == k);
+        // A step counts when a match joins its two frames: a frame matched only to
+        // later ones says nothing of the step before it.
+        let measured = |k: usize| self.edges.iter().any(|e| e.to == k && e.from + 1 == k);
         let unplaced = (self.placed.max(1)..newest).filter_map(|k| {
             let (a, b) = (self.frame(k - 1)?, self.frame(k)?);
-            (matched(k - 1) && matched(k)).then_some(b.position - a.position)
+            measured(k).then_some(b.position - a.position)
         });
         let mut steps: Vec<f64> = self.steps.iter().copied().chain(unplaced).collect();
         let keep = steps.len().saturating_sub(SPEED_STEPS);
@@ -635,7 +647,7 @@ impl Tracker {
                 sigma: e.sigma,
             })
             .collect();
-        let speed = self.speed();
+        let speed = self.settled_speed();
         let mut priors = Vec::new();
         let mut anchors = Vec::new();
         let offset = self.anchor_offset();
@@ -733,7 +745,8 @@ impl Tracker {
             col: h.col.round() as i64,
         };
         let position = h.position;
-        self.count(&placement, position);
+        let unkept = k > 0 && h.textured && best_kept.is_none();
+        self.count(&placement, position, unkept);
         let matched = matches!(source, Source::Matched | Source::First);
         if let Some((previous, true)) = self.last_placed
             && matched
@@ -745,7 +758,7 @@ impl Tracker {
             self.steps.push_back(position - previous);
         }
         self.last_placed = Some((position, matched));
-        self.last_speed = self.speed();
+        self.last_speed = self.settled_speed();
         self.placed += 1;
         // Frames more than the longest lag before the oldest unplaced one are not matched
         // again.
@@ -762,8 +775,9 @@ impl Tracker {
         placement
     }
 
-    /// Adds a placed frame (at matched `position`) to the summary.
-    fn count(&mut self, p: &Placement, position: f64) {
+    /// Adds a placed frame (at matched `position`; `unkept`: textured, but no match kept)
+    /// to the summary.
+    fn count(&mut self, p: &Placement, position: f64, unkept: bool) {
         let s = &mut self.summary;
         match p.source {
             Source::Matched => s.matched += 1,
@@ -793,11 +807,7 @@ impl Tracker {
             }
         };
         run(&mut self.guess_run, guessed, &mut s.longest_guess);
-        run(
-            &mut self.lost_run,
-            p.source == Source::Unmatched,
-            &mut s.longest_lost,
-        );
+        run(&mut self.lost_run, unkept, &mut s.longest_lost);
     }
 }
 

@@ -11,7 +11,7 @@ pub use args::{AlignArg, Args, ModeArg};
 use crate::commands::bars::Show;
 use anyhow::bail;
 use rollfuse::frames::{self, manifest_path, motion_offsets};
-use rollfuse::fullres::register::Tracker;
+use rollfuse::fullres::register::{LOST_RUN, Tracker};
 use rollfuse::image::{ImageFormat, PixelLimit, Planes};
 use rollfuse_core::{FuseConfig, SaliencyNorm};
 
@@ -143,12 +143,16 @@ fn plan(args: &Args, limit: PixelLimit) -> anyhow::Result<(Plan, &'static str)> 
     }
     let frames = frames::load(&args.frames, limit)?;
     let params = args.track_params(frames[0].height);
-    let rows: Vec<f64> = Tracker::place_all(&frames, params)
-        .0
-        .iter()
-        .map(|p| p.row)
-        .collect();
-    Ok(if span(&mut rows.into_iter()) >= h {
+    let (placed, summary) = Tracker::place_all(&frames, params);
+    if summary.longest_lost.0 >= LOST_RUN {
+        // A run of textured frames that matched nothing: their span is as unknown as
+        // their placement, so they are fused as a roll, which says so.
+        return Ok((
+            Plan::Roll(Some(frames)),
+            "roll (textured frames matched nothing: their span is unknown)",
+        ));
+    }
+    Ok(if span(&mut placed.iter().map(|p| p.row)) >= h {
         (Plan::Roll(Some(frames)), ROLL)
     } else {
         (Plan::Mosaic(frames), MOSAIC)
