@@ -12,8 +12,9 @@
 //!   or leaving the contact band, or a wide flat plateau fills it, scores lower and is
 //!   left to the prediction rather than let shorten the belt.
 //! - **Prediction.** The commanded motion when there is a manifest; otherwise the robust
-//!   mean of the last measured steps (the speed), with a standard deviation of 17 % of a
-//!   step (a speed varying by ±30 %).
+//!   mean of the last measured steps (the speed: steps between frames a match joins), with
+//!   a standard deviation of 17 % of a step (a speed varying by ±30 %). The search centres
+//!   on it from the first measured step; it carries frames once 4 are measured.
 //! - **Positions** ([`solve`]). Least squares over the last [`WINDOW`] frames, the older
 //!   ones held: every kept match, the prediction of every step, and with a manifest each
 //!   frame's commanded row (loosely: it carries the belt's unknown error); inconsistent
