@@ -282,13 +282,25 @@ fn a_belt_wandering_sideways_is_followed_where_allowed() {
     });
 }
 
+const VGA: Case = Case {
+    name: "640 × 480",
+    size: (640, 480),
+    mm_per_px: 0.025,
+    frames: 120,
+    ..NARROW
+};
+
 #[test]
 fn frames_of_640_by_480_are_followed() {
-    check(&Case {
-        name: "640 × 480",
-        size: (640, 480),
-        mm_per_px: 0.025,
-        frames: 120,
-        ..NARROW
-    });
+    check(&VGA);
+}
+
+/// On this roll the first match, made over the whole reach before the roll's typical
+/// score is known, is a feature entering the contact band (1.2 rows against about 5)
+/// and scores 0.71 where later matches score 0.95: kept as it was, it set the search
+/// for the frames after it (a step 3.7 px off, 5.8 % of the travel). It is judged again
+/// once the typical score is known, and dropped.
+#[test]
+fn a_first_match_is_judged_again_once_the_roll_is_known() {
+    assert!(one_roll(&VGA, 4) <= DRIFT);
 }

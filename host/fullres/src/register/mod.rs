@@ -10,7 +10,8 @@
 //!   score is within [`GATE`] times the roll's typical mismatch (1 − score) and its peak is
 //!   sharp; its standard deviation grows with both. A view in which a feature is entering
 //!   or leaving the contact band, or a wide flat plateau fills it, scores lower and is
-//!   left to the prediction rather than let shorten the belt.
+//!   left to the prediction rather than let shorten the belt. Matches kept before the
+//!   typical mismatch is known are judged again once it is.
 //! - **Prediction.** The commanded motion when there is a manifest; otherwise the robust
 //!   mean of the last measured steps (the speed: steps between frames a match joins), with
 //!   a standard deviation of 17 % of a step (a speed varying by ±30 %). The search centres
@@ -71,6 +72,16 @@ const ANCHOR_FRAMES: usize = 40;
 pub const LOST_RUN: usize = 8;
 /// Commanded travel after which matched steps are rescaled to it, rows.
 const SCALE_AFTER: f64 = 100.0;
+
+/// Standard deviation of a predicted step, a fraction of the speed (a speed varying by
+/// ±30 %), and at least [`MIN_PREDICTION_SIGMA`] rows.
+const PREDICTION_SIGMA: f64 = 0.173;
+const MIN_PREDICTION_SIGMA: f64 = 0.5;
+
+/// The standard deviation of a step of `rows` predicted from the speed.
+fn prediction_sigma(rows: f64) -> f64 {
+    (PREDICTION_SIGMA * rows.abs()).max(MIN_PREDICTION_SIGMA)
+}
 
 /// Registration settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -257,6 +268,10 @@ struct Edge {
     rows: f64,
     sigma: f64,
     score: f32,
+    /// How sharp the correlation's peak was.
+    sharpness: f32,
+    /// Kept before the roll's typical mismatch was known: judged again once it is.
+    provisional: bool,
 }
 
 /// The running registration: feed it frames in acquisition order; it hands back each
@@ -473,15 +488,21 @@ impl Tracker {
         if wide && m.score - m.runner_up < 0.1 {
             return None;
         }
+        self.gated_sigma(m.score, m.sharpness)
+    }
+
+    /// The standard deviation of a match of `score` and peak `sharpness`, or `None` when
+    /// its mismatch is past [`GATE`] times the roll's typical one.
+    fn gated_sigma(&self, score: f32, sharpness: f32) -> Option<f64> {
         let mismatch = match self.typical_mismatch() {
-            Some(t) => ((1.0 - m.score) / t).max(1.0),
+            Some(t) => ((1.0 - score) / t).max(1.0),
             None => 1.0,
         };
         if mismatch > GATE {
             return None;
         }
         let from_score = 0.15 * f64::from(mismatch * mismatch);
-        let from_peak = 0.005 / f64::from(m.sharpness.max(1e-6));
+        let from_peak = 0.005 / f64::from(sharpness.max(1e-6));
         Some(from_score.hypot(from_peak))
     }
 
@@ -572,6 +593,8 @@ impl Tracker {
             rows: m.shift,
             sigma,
             score: m.score,
+            sharpness: m.sharpness,
+            provisional: self.typical_mismatch().is_none(),
         })
     }
 
@@ -632,8 +655,37 @@ impl Tracker {
         self.held[i].col -= drift;
     }
 
+    /// Judges again, once the roll's typical mismatch is known, the matches kept before it
+    /// was: the first match of a roll, over the whole reach, may be a feature entering
+    /// the contact band, which scores well only against nothing better.
+    fn judge_provisional(&mut self) {
+        if self.typical_mismatch().is_none() || !self.edges.iter().any(|e| e.provisional) {
+            return;
+        }
+        let judged: Vec<Option<f64>> = self
+            .edges
+            .iter()
+            .map(|e| match e.provisional {
+                true => self.gated_sigma(e.score, e.sharpness),
+                false => Some(e.sigma),
+            })
+            .collect();
+        let before = self.edges.len();
+        let mut judged = judged.into_iter();
+        self.edges.retain_mut(|e| match judged.next().flatten() {
+            Some(sigma) => {
+                e.sigma = sigma;
+                e.provisional = false;
+                true
+            }
+            None => false,
+        });
+        self.summary.matches -= before - self.edges.len();
+    }
+
     /// Solves the free frames' positions and drops the matches that contradict the rest.
     fn solve(&mut self) {
+        self.judge_provisional();
         let free_from = self.placed.max(1) - self.first_held;
         let positions: Vec<f64> = self.held.iter().map(|h| h.position).collect();
         let scale = self.apparent_scale();
@@ -667,7 +719,7 @@ impl Tracker {
                             from: i - 1,
                             to: i,
                             rows: v,
-                            sigma: (0.173 * v.abs()).max(0.5),
+                            sigma: prediction_sigma(v),
                         });
                     }
                 }
