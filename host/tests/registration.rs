@@ -1,12 +1,12 @@
 //! Registration without a motion record over the regimes a roll can be in: the roller's
 //! contact band narrow (features touch the gel only near the apex, the belt itself pressed
 //! into a band across the frame), middling or covering the whole frame; a texture-free
-//! stretch in every roll; a speed varying by ±30 % from frame to frame; a belt wandering
-//! sideways; 640 × 480 frames. Each regime is tried on [`SEEDS`] rolls (the same features,
-//! the speed, noise and wander drawn anew): on every roll the placement is trusted, no belt is lost
-//! (every step between two matched frames within 3 px of the truth) and every position
-//! is within [`WORST_DRIFT`] of the travel; over the rolls, the median of the worst
-//! position error is within 2 % of the travel.
+//! stretch in every roll; a speed varying by ±30 % from frame to frame around 7 px; a belt
+//! wandering sideways; 640 × 480 frames. Each regime is tried on [`SEEDS`] rolls (the same
+//! features, the speed, noise and wander drawn anew): on every roll the placement is
+//! trusted, no belt is lost (every step between two matched frames within 3 px of the
+//! truth) and every position is within [`WORST_DRIFT`] of the travel; over the rolls, the
+//! median of the worst position error is within 2 % of the travel.
 
 use rollfuse::fullres::contact::{ContactProfile, MEASURE_FRAMES};
 use rollfuse::fullres::register::{Placement, Source, TrackParams, Tracker};
@@ -23,6 +23,8 @@ struct Case {
     size: (usize, usize),
     mm_per_px: f64,
     frames: usize,
+    /// The belt's mean travel a frame, pixels.
+    step_px: f64,
     /// Sideways moves of up to this many pixels a frame (0: none).
     wander: f64,
 }
@@ -71,9 +73,8 @@ fn features(length: f64, width: f64, height: f64) -> String {
 }
 
 impl Case {
-    /// 7 px a frame on average.
     fn spacing_mm(&self) -> f64 {
-        7.0 * self.mm_per_px
+        self.step_px * self.mm_per_px
     }
 
     fn scene(&self, seed: u64) -> Scene {
@@ -233,6 +234,7 @@ const NARROW: Case = Case {
     size: (320, 240),
     mm_per_px: 0.05,
     frames: 200,
+    step_px: 7.0,
     wander: 0.0,
 };
 
@@ -262,15 +264,32 @@ fn a_step_no_match_measured_does_not_set_the_speed() {
     assert!(one_roll(&MIDDLING, 4) <= DRIFT);
 }
 
+const WHOLE_FRAME: Case = Case {
+    name: "contact over the whole frame",
+    radius: 40.0,
+    press: 1.0,
+    height: 0.6,
+    ..NARROW
+};
+
 #[test]
 fn contact_over_the_whole_frame_is_followed() {
-    check(&Case {
-        name: "contact over the whole frame",
-        radius: 40.0,
-        press: 1.0,
-        height: 0.6,
-        ..NARROW
-    });
+    check(&WHOLE_FRAME);
+}
+
+/// At 3 px a frame the last features of this roll stay in view for dozens of frames while
+/// their matches with the frame before score lower and lower (0.93 down to 0.5), under
+/// the gate, yet find the predicted step. Counted as frames that kept no match, they made
+/// a lost belt of 15 frames, a doubt on a roll 0.6 % off: weak matches that agree with
+/// the motion are not a lost belt.
+#[test]
+fn weak_matches_that_find_the_predicted_step_are_not_a_lost_belt() {
+    let slow = Case {
+        name: "whole frame, 3 px a frame",
+        step_px: 3.0,
+        ..WHOLE_FRAME
+    };
+    assert!(one_roll(&slow, 5) <= DRIFT);
 }
 
 #[test]
