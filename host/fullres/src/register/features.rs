@@ -15,6 +15,9 @@ const MAX_GROUPS: usize = 80;
 /// How far the background follows a frame, gray levels a frame: slow enough that a
 /// feature passing in a few frames does not enter it, fast enough for lighting drift.
 const BACKGROUND_RATE: f32 = 0.25;
+/// Width (standard deviation, a fraction of the band) of the weight given to belt rows
+/// by how evenly their two views straddle the apex.
+const EVEN_WIDTH: f32 = 0.5;
 
 /// The rows a frame is matched over and their visibility.
 #[derive(Debug, Clone, PartialEq)]
@@ -84,6 +87,15 @@ impl Band {
             .max_by(|a, b| a.1.total_cmp(b.1))
             .map_or(0, |(i, _)| i)
     }
+
+    /// The weight of a belt row by how evenly its two views straddle the apex, given the
+    /// band row midway between them: a Gaussian of [`EVEN_WIDTH`] of the band around
+    /// the apex. Where the views straddle it evenly, the contrast profile pulls neither
+    /// way; toward the band's ends a feature is cut off where the gel lifts from it.
+    pub fn evenness(&self) -> impl Fn(f32) -> f32 + use<> {
+        let (apex, tau) = (self.apex() as f32, EVEN_WIDTH * self.rows() as f32);
+        move |mid: f32| (-((mid - apex) / tau).powi(2)).exp()
+    }
 }
 
 /// A frame's residual over the band: `band rows × groups`, and how much it holds above
@@ -92,7 +104,8 @@ impl Band {
 pub struct Features {
     /// Residual gray levels, row-major.
     pub data: Vec<f32>,
-    /// Mean square of the residual weighted by visibility, in units of the noise's.
+    /// Mean square of the residual weighted by visibility and by closeness to the apex
+    /// (as matches weigh rows), in units of the noise's.
     pub content: f32,
 }
 
@@ -168,9 +181,13 @@ impl Featurizer {
             *b += BACKGROUND_RATE * residual.signum().min(residual.abs());
             *v = residual;
         }
+        // Weighted as the matches weigh rows: texture only at the band's ends, which no
+        // match can use, is not texture to match.
+        let evenness = self.band.evenness();
         let (mut sum, mut weights) = (0f64, 0f64);
-        for (row, &w) in data.chunks_exact(self.groups).zip(&self.band.weights) {
-            let w2 = f64::from(w * w);
+        let rows = data.chunks_exact(self.groups).zip(&self.band.weights);
+        for (r, (row, &w)) in rows.enumerate() {
+            let w2 = f64::from((w * evenness(r as f32)).powi(2));
             let mean_square = row.iter().map(|&v| f64::from(v * v)).sum::<f64>() / row.len() as f64;
             sum += w2 * mean_square;
             weights += w2;

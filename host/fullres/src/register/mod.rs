@@ -258,9 +258,6 @@ struct Held {
     /// The best correlation found against any earlier frame.
     best_score: Option<f32>,
     textured: bool,
-    /// Its match with the frame before was too weak to keep but found the predicted step
-    /// (within the prediction's standard deviation): weak evidence, not a lost belt.
-    weak_but_agrees: bool,
 }
 
 /// A kept match between two frames (roll indices).
@@ -382,7 +379,6 @@ impl Tracker {
             col: self.held.back().map_or(0.0, |p| p.col),
             best_score: None,
             textured,
-            weak_but_agrees: false,
         });
         if k > 0 {
             self.match_new(k);
@@ -572,7 +568,6 @@ impl Tracker {
         wide: bool,
     ) -> Option<Edge> {
         let (later, earlier) = (self.frame(k)?, self.frame(j)?);
-        let predicted = later.position - earlier.position;
         let band = self.featurizer.band();
         let m = best_match(
             &later.features,
@@ -591,17 +586,7 @@ impl Tracker {
             }
             self.typical.push_back(m.score);
         }
-        let judged = self.judge(&m, wide);
-        if judged.is_none()
-            && k - j == 1
-            && !wide
-            && self.settled_speed().is_some()
-            && m.score >= self.params.min_score
-            && (m.shift - predicted).abs() <= prediction_sigma(predicted)
-        {
-            self.held[i].weak_but_agrees = true;
-        }
-        let sigma = judged?;
+        let sigma = self.judge(&m, wide)?;
         Some(Edge {
             from: j,
             to: k,
@@ -813,7 +798,7 @@ impl Tracker {
             col: h.col.round() as i64,
         };
         let position = h.position;
-        let unkept = k > 0 && h.textured && best_kept.is_none() && !h.weak_but_agrees;
+        let unkept = k > 0 && h.textured && best_kept.is_none();
         self.count(&placement, position, unkept);
         let matched = matches!(source, Source::Matched | Source::First);
         if let Some((previous, true)) = self.last_placed

@@ -14,10 +14,6 @@
 
 use super::features::{Band, Features};
 
-/// Width (standard deviation, a fraction of the band) of the weight given to belt rows
-/// by how evenly their two views straddle the apex.
-const EVEN_WIDTH: f32 = 0.5;
-
 /// The fewest rows two bands must share to be compared.
 pub const MIN_SHARED_ROWS: usize = 12;
 
@@ -49,14 +45,13 @@ fn score_at(
     if hi - lo < MIN_SHARED_ROWS.min(band.rows()) as i64 {
         return None;
     }
-    let apex = band.apex() as f32;
-    let tau = EVEN_WIDTH * band.rows() as f32;
+    let evenness = band.evenness();
     let (mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0f64, 0f64, 0f64, 0f64, 0f64);
     for i in lo..hi {
         let (a, b) = (i as usize, (i + d) as usize);
         // Where the two views of this belt row straddle the apex evenly, the contrast
         // profile pulls neither way.
-        let even = (-((i as f32 + 0.5 * d as f32 - apex) / tau).powi(2)).exp();
+        let even = evenness(i as f32 + 0.5 * d as f32);
         let (wa, wb) = (band.weights[b] * even, band.weights[a] * even);
         let ra = &later.data[a * groups..(a + 1) * groups];
         let rb = &earlier.data[b * groups..(b + 1) * groups];
