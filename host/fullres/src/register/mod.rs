@@ -662,25 +662,23 @@ impl Tracker {
         if self.typical_mismatch().is_none() || !self.edges.iter().any(|e| e.provisional) {
             return;
         }
-        let judged: Vec<Option<f64>> = self
-            .edges
-            .iter()
-            .map(|e| match e.provisional {
-                true => self.gated_sigma(e.score, e.sharpness),
-                false => Some(e.sigma),
-            })
-            .collect();
-        let before = self.edges.len();
-        let mut judged = judged.into_iter();
-        self.edges.retain_mut(|e| match judged.next().flatten() {
-            Some(sigma) => {
-                e.sigma = sigma;
-                e.provisional = false;
-                true
+        let mut edges = std::mem::take(&mut self.edges);
+        let before = edges.len();
+        edges.retain_mut(|e| {
+            if !e.provisional {
+                return true;
             }
-            None => false,
+            e.provisional = false;
+            match self.gated_sigma(e.score, e.sharpness) {
+                Some(sigma) => {
+                    e.sigma = sigma;
+                    true
+                }
+                None => false,
+            }
         });
-        self.summary.matches -= before - self.edges.len();
+        self.summary.matches -= before - edges.len();
+        self.edges = edges;
     }
 
     /// Solves the free frames' positions and drops the matches that contradict the rest.
