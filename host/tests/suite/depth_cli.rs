@@ -4,9 +4,8 @@
 use rollfuse::depth::lights::Lights;
 use rollfuse::depth::synthetic::ball;
 use std::path::Path;
-mod common;
 
-use common::{fails, rollfuse};
+use crate::common::{fails, rollfuse};
 
 fn lights() -> Lights {
     Lights::product(0.02)

@@ -1,5 +1,8 @@
 //! Helpers shared by the command-line tests.
 
+pub mod docs;
+pub mod strip_score;
+
 use std::process::{Command, Output};
 
 /// Runs the `rollfuse` binary with `args`.

@@ -14,9 +14,8 @@ use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::path::Path;
 use std::time::Duration;
-mod session;
 
-use session::{letters, options};
+use crate::session::{letters, options};
 
 fn server() -> Server {
     Server::start(&ServeOptions {

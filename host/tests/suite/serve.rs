@@ -12,9 +12,8 @@ use std::io::{BufRead, BufReader, Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
-mod session;
 
-use session::{letters, options};
+use crate::session::{letters, options};
 
 fn serve_options(control: bool) -> ServeOptions {
     ServeOptions {

@@ -16,12 +16,9 @@
 //! run fails this test, so an example cannot drift from the tool unnoticed. Own harness
 //! rather than trycmd: the examples are shell lines (brace expansion, folders made by
 //! the line before) inside prose, and the docs' synopses are checked for names and
-//! options by `host/tests/cli.rs`.
+//! options by `host/tests/suite/cli.rs`.
 
-#[path = "common/docs.rs"]
-mod docs;
-
-use docs::{named_text, pages, repo};
+use crate::common::docs::{named_text, pages, repo};
 use std::path::Path;
 use std::process::Command;
 
@@ -372,7 +369,7 @@ fn every_documented_example_runs_as_written() {
 /// command whose output the running test compares (`<!-- output of: COMMAND -->`), the
 /// command that measures them where it cannot run here (`<!-- measured by: COMMAND -->`;
 /// a script it names must exist, a `rollfuse` command's options are checked by
-/// host/tests/cli.rs), or why the table is not a measurement (`<!-- not measured:
+/// host/tests/suite/cli.rs), or why the table is not a measurement (`<!-- not measured:
 /// REASON -->`: options, limits, a scene file's fields).
 #[test]
 fn every_table_of_figures_says_where_they_come_from() {

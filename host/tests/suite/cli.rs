@@ -1,7 +1,6 @@
 //! The `rollfuse` command line: help, version, unknown commands, and each command's basics.
 
-#[path = "common/docs.rs"]
-mod docs;
+use crate::common::docs;
 
 use std::process::Command;
 

@@ -2,9 +2,7 @@
 //! the records, its defects found and recorded, read back by `rolls list/show/map`; run
 //! again without anything recorded twice; and a clear line for what cannot be had.
 
-mod common;
-
-use common::{fails, rollfuse};
+use crate::common::{fails, rollfuse};
 use std::path::Path;
 
 fn ok(args: &[&str]) -> String {

@@ -8,9 +8,8 @@ use rollfuse::detect::net::{Net, Widths};
 use rollfuse::detect::{Detector, data};
 use rollfuse::image::{PixelLimit, Planes};
 use std::path::Path;
-mod common;
 
-use common::{fails, rollfuse};
+use crate::common::{fails, rollfuse};
 
 const TINY: Widths = Widths([4, 8, 8, 8]);
 

@@ -9,9 +9,8 @@ use rollfuse::detect::tune::{TuneOptions, tune};
 use rollfuse::detect::{Detector, model};
 use rollfuse::image::PixelLimit;
 use std::path::Path;
-mod common;
 
-use common::{fails, rollfuse};
+use crate::common::{fails, rollfuse};
 
 /// The fused tiles of rolls `seeds` drawn in `style`, with their defects.
 fn tiles(seeds: std::ops::Range<u64>, shape: &RollShape, style: Style) -> Vec<LabelledImage> {

@@ -3,8 +3,7 @@
 //! alone with the default options, and judged as the fixture's README says: every feature
 //! that passed under the apex in the strip, in order, matching the ideal belt.
 
-#[path = "common/strip_score.rs"]
-mod strip_score;
+use crate::common::strip_score;
 
 use rollfuse::image::{PixelLimit, Planes};
 use std::path::Path;
