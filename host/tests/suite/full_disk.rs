@@ -450,8 +450,8 @@ fn eval_and_tradeoff_leave_their_outputs_whole_on_a_full_disk() {
     survives_a_full_disk(tmp.path(), &tradeoff, &tradeoff);
 }
 
-/// Apart from the others: its detection stage is most of this file's time, and the tests
-/// of one file run side by side.
+/// Apart from the others: its detection stage is most of this file's time, and the
+/// suite's tests run side by side.
 #[test]
 fn the_demo_leaves_its_report_whole_on_a_full_disk() {
     let tmp = tempfile::tempdir().unwrap();
