@@ -1,15 +1,7 @@
 //! The `rollfuse` command line: help, version, unknown commands, and each command's basics.
 
 use crate::common::docs;
-
-use std::process::Command;
-
-fn rollfuse(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_rollfuse"))
-        .args(args)
-        .output()
-        .expect("run rollfuse")
-}
+use crate::common::rollfuse;
 
 #[test]
 fn help_lists_the_demo() {

@@ -1,15 +1,9 @@
 //! `rollfuse fuse` and `rollfuse metrics` from the command line: alignment, outputs, and a
 //! clear one-line error with a non-zero exit for every kind of bad input.
 
+use crate::common::rollfuse;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn rollfuse(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rollfuse"))
-        .args(args)
-        .output()
-        .expect("run rollfuse")
-}
+use std::process::Output;
 
 fn simulate(dir: &Path, scene: &str, frames: usize) -> Vec<PathBuf> {
     let scene = format!("{}/scenes/{scene}.toml", env!("CARGO_MANIFEST_DIR"));

@@ -2,17 +2,10 @@
 //! stem for `depth`'s set of one map, a folder for many files; missing parent folders are
 //! made, and made folders go again when the command fails before writing into them.
 
+use crate::common::rollfuse;
 use rollfuse::depth::lights::Lights;
 use rollfuse::depth::synthetic::ball;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn rollfuse(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rollfuse"))
-        .args(args)
-        .output()
-        .expect("run rollfuse")
-}
 
 fn ok(args: &[&str]) {
     let run = rollfuse(args);

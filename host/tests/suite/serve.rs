@@ -2,6 +2,7 @@
 //! event stream delivering every tile in order, the control token, clients that read
 //! slowly or not at all, and the command line's outputs unchanged by serving.
 
+use crate::common::rollfuse;
 use rollfuse::detect::Detector;
 use rollfuse::link::sim::{DeviceMemory, SimDevice};
 use rollfuse::progress::Silent;
@@ -289,13 +290,6 @@ fn stuck_and_many_clients_change_nothing_in_the_stream() {
         let tiles = r.join().unwrap().tiles;
         assert!(tiles.windows(2).all(|w| w[0].index < w[1].index));
     }
-}
-
-fn rollfuse(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_rollfuse"))
-        .args(args)
-        .output()
-        .unwrap()
 }
 
 fn scene_path() -> PathBuf {

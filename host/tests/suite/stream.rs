@@ -4,6 +4,7 @@
 //! may panic. Also: a stream cut off midway keeps what arrived, and the command line
 //! fails clearly when there is no USB device.
 
+use crate::common::rollfuse;
 use proptest::prelude::*;
 use rollfuse::link::sim::SimDevice;
 use rollfuse::link::{self, Received, Transport};
@@ -13,7 +14,6 @@ use rollfuse::stream::{self, Options};
 use rollfuse_core::protocol::{self, DeviceMessage, MAX_MESSAGE};
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::process::Command;
 use std::sync::OnceLock;
 use std::time::Duration;
 
@@ -221,13 +221,6 @@ fn a_stream_cut_off_midway_keeps_every_tile_received() {
         serde_json::from_str(&std::fs::read_to_string(tmp.path().join("manifest.json")).unwrap())
             .unwrap();
     assert_eq!(manifest["tiles_received"], expected.len() as u64);
-}
-
-fn rollfuse(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_rollfuse"))
-        .args(args)
-        .output()
-        .unwrap()
 }
 
 #[test]

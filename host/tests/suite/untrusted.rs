@@ -1,15 +1,8 @@
 //! Inputs whose sizes come from outside are checked against the pixel limit before
 //! anything is allocated: an image's header, a manifest's offsets.
 
+use crate::common::rollfuse;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn rollfuse(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rollfuse"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 /// A PNG whose header says `w × h` gray pixels, with an empty compressed stream for its
 /// pixel data.
