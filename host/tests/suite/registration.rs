@@ -143,6 +143,11 @@ fn place(sim: &Simulator, drift: usize) -> (Vec<Placement>, Vec<String>) {
 /// One roll of `case`: its checks, and its worst position error as a fraction of the
 /// travel.
 fn one_roll(case: &Case, seed: u64) -> f64 {
+    one_roll_within(case, seed, 3.0)
+}
+
+/// [`one_roll`], every step between matched frames within `step_px` of the truth.
+fn one_roll_within(case: &Case, seed: u64, step_px: f64) -> f64 {
     let name = format!("{} (seed {seed})", case.name);
     let sim = Simulator::new(&case.scene(seed)).unwrap();
     let truth: Vec<f64> = (0..sim.frames())
@@ -175,7 +180,10 @@ fn one_roll(case: &Case, seed: u64) -> f64 {
         count(Source::Predicted),
         count(Source::Unmatched)
     );
-    assert!(worst_step <= 3.0, "{name}: a step {worst_step:.2} px off");
+    assert!(
+        worst_step <= step_px,
+        "{name}: a step {worst_step:.2} px off"
+    );
     assert!(
         worst <= WORST_DRIFT * travel,
         "{name}: {worst:.1} px off over {travel:.0} px of travel"
@@ -322,4 +330,20 @@ fn frames_of_640_by_480_are_followed() {
 #[test]
 fn a_first_match_is_judged_again_once_the_roll_is_known() {
     assert!(one_roll(&VGA, 4) <= DRIFT);
+}
+
+/// At 12 px a frame a feature is in the narrow band for about 8 frames. On this roll
+/// frame 161 matched no frame before it, so only the speed's prior (12 ± 2 px) and longer
+/// matches across it joined it to frame 160; one of those, 6.5 px short, pulled the step
+/// to itself (6.9 px placed, 13.4 true). A match over several frames is now judged
+/// against the fit without it. The bound is looser than 3 px: the belt's own ±30 % is
+/// ±3.6 px a frame here.
+#[test]
+fn a_long_match_alone_across_a_weak_step_is_judged_by_the_rest() {
+    let fast = Case {
+        name: "narrow contact band, 12 px a frame",
+        step_px: 12.0,
+        ..NARROW
+    };
+    assert!(one_roll_within(&fast, 1, 3.5) <= WORST_DRIFT);
 }
