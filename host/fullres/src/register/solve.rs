@@ -206,7 +206,7 @@ impl Fit {
     fn deleted_misfit(&self, m: &Relation, free_from: usize) -> Option<(f64, f64)> {
         let misfit = self.misfit(m);
         let variance = match &self.covariance {
-            Some(cov) if m.to - m.from > 1 => {
+            Some(cov) if m.to.abs_diff(m.from) > 1 => {
                 let (to, from) = (m.to.checked_sub(free_from), m.from.checked_sub(free_from));
                 let c = |a: Option<usize>, b: Option<usize>| match (a, b) {
                     (Some(a), Some(b)) => cov[(a, b)],
