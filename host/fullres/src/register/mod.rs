@@ -70,6 +70,14 @@ const COMMANDED_SIGMA: f64 = 2.0;
 const ANCHOR_FRAMES: usize = 40;
 /// A run of this many textured frames matching nothing means the belt was lost.
 pub const LOST_RUN: usize = 8;
+/// A stretch of at least this many predicted frames has its speed checked against the
+/// matched steps after it…
+pub const SPEED_CHECK_FRAMES: usize = 8;
+/// …over this many of them (their median)…
+const SPEED_CHECK_STEPS: usize = 8;
+/// …and is a doubt when the two differ by more than this fraction of the matched speed
+/// (the median of 8 steps of a belt varying by ±30 % is good to about 8 %).
+pub const SPEED_DISAGREEMENT: f64 = 0.3;
 /// Commanded travel after which matched steps are rescaled to it, rows.
 const SCALE_AFTER: f64 = 100.0;
 
@@ -215,6 +223,30 @@ pub struct Summary {
     pub matches: usize,
     /// Times the belt was found again by a search over the whole reach.
     pub found_again: usize,
+    /// The predicted stretch whose speed most disagreed with the matched steps after it,
+    /// if any disagreed by more than [`SPEED_DISAGREEMENT`].
+    pub speed_disagreement: Option<SpeedDisagreement>,
+}
+
+/// A stretch of predicted frames placed at a speed the belt, matched after it, did not
+/// have: its length on the belt is wrong by about the difference.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct SpeedDisagreement {
+    /// The stretch's first frame.
+    pub first: usize,
+    /// Its length, frames.
+    pub frames: usize,
+    /// Its mean placed step, rows a frame.
+    pub predicted: f64,
+    /// The median matched step after it, rows a frame.
+    pub matched: f64,
+}
+
+impl SpeedDisagreement {
+    /// The difference as a fraction of the matched speed.
+    pub fn fraction(&self) -> f64 {
+        (self.predicted - self.matched).abs() / self.matched.abs().max(1e-9)
+    }
 }
 
 impl Summary {
@@ -235,6 +267,16 @@ impl Summary {
             why.push(format!(
                 "{} of {textured} textured frames matched nothing",
                 self.unmatched
+            ));
+        }
+        if let Some(d) = &self.speed_disagreement {
+            why.push(format!(
+                "frames {}–{} were placed at {:.2} rows a frame, but the belt matched at {:.2} \
+                 after them: that stretch's length rests on a wrong speed",
+                d.first,
+                d.first + d.frames - 1,
+                d.predicted,
+                d.matched
             ));
         }
         if self.matches > 0 && self.inconsistent * 5 > self.matches {
@@ -306,7 +348,60 @@ pub struct Tracker {
     summary: Summary,
     guess_run: (usize, usize),
     lost_run: (usize, usize),
+    speed_check: SpeedCheck,
     width: usize,
+}
+
+/// Checks each stretch of predicted frames against the matched steps after it.
+#[derive(Default)]
+struct SpeedCheck {
+    /// The current stretch: first frame, frames, rows placed.
+    stretch: (usize, usize, f64),
+    /// A finished stretch waiting for matched steps, and those seen.
+    pending: Option<((usize, usize, f64), Vec<f64>)>,
+}
+
+impl SpeedCheck {
+    /// Takes frame `k`'s step (`None`: the first frame), whether it was guessed, and
+    /// whether the step was measured (both ends matched); returns a disagreement once
+    /// one is known.
+    fn place(
+        &mut self,
+        k: usize,
+        step: Option<f64>,
+        guessed: bool,
+        measured: bool,
+    ) -> Option<SpeedDisagreement> {
+        let step = step?;
+        if guessed {
+            if self.stretch.1 == 0 {
+                self.stretch.0 = k;
+            }
+            self.stretch.1 += 1;
+            self.stretch.2 += step;
+            return None;
+        }
+        if self.stretch.1 >= SPEED_CHECK_FRAMES {
+            self.pending = Some((self.stretch, Vec::new()));
+        }
+        self.stretch = (0, 0, 0.0);
+        let ((first, frames, rows), steps) = self.pending.as_mut()?;
+        if measured {
+            steps.push(step);
+        }
+        if steps.len() < SPEED_CHECK_STEPS {
+            return None;
+        }
+        steps.sort_by(f64::total_cmp);
+        let found = SpeedDisagreement {
+            first: *first,
+            frames: *frames,
+            predicted: *rows / *frames as f64,
+            matched: steps[steps.len() / 2],
+        };
+        self.pending = None;
+        (found.fraction() > SPEED_DISAGREEMENT).then_some(found)
+    }
 }
 
 impl Tracker {
@@ -330,6 +425,7 @@ impl Tracker {
             summary: Summary::default(),
             guess_run: (0, 0),
             lost_run: (0, 0),
+            speed_check: SpeedCheck::default(),
             width: profile.width,
         }
     }
@@ -844,6 +940,14 @@ impl Tracker {
                 s.predicted_rows += step;
             }
         }
+        let step = self.last_placed.map(|(previous, _)| position - previous);
+        let measured = !guessed && self.last_placed.is_some_and(|(_, m)| m);
+        if let Some(d) = self.speed_check.place(p.frame, step, guessed, measured)
+            && s.speed_disagreement
+                .is_none_or(|w| d.fraction() > w.fraction())
+        {
+            s.speed_disagreement = Some(d);
+        }
         let run = |run: &mut (usize, usize), on: bool, longest: &mut (usize, usize)| {
             if on {
                 if run.0 == 0 {
@@ -936,5 +1040,39 @@ fn sideways(
             s as f64 + frac
         }
         _ => 0.0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Frame 0 first, frames 1–10 predicted at `predicted`, then matched frames at
+    /// `matched` rows a frame.
+    fn check(predicted: f64, matched: f64) -> Option<SpeedDisagreement> {
+        let mut c = SpeedCheck::default();
+        let mut found = c.place(0, None, false, false);
+        for k in 1..=10 {
+            found = found.or(c.place(k, Some(predicted), true, false));
+        }
+        // The step into the first matched frame joins it to a predicted one: not measured.
+        found = found.or(c.place(11, Some(matched), false, false));
+        for k in 12..=12 + SPEED_CHECK_STEPS {
+            found = found.or(c.place(k, Some(matched), false, true));
+        }
+        found
+    }
+
+    #[test]
+    fn a_stretch_at_a_speed_the_belt_did_not_have_is_found() {
+        let d = check(1.35, 2.94).expect("a disagreement");
+        assert_eq!((d.first, d.frames), (1, 10));
+        assert!((d.predicted - 1.35).abs() < 1e-9 && (d.matched - 2.94).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_stretch_within_the_belt_s_own_variation_is_not() {
+        assert_eq!(check(2.5, 2.94), None);
+        assert_eq!(check(3.4, 2.94), None);
     }
 }
