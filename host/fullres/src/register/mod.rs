@@ -355,10 +355,19 @@ pub struct Tracker {
 /// Checks each stretch of predicted frames against the matched steps after it.
 #[derive(Default)]
 struct SpeedCheck {
-    /// The current stretch: first frame, frames, rows placed.
-    stretch: (usize, usize, f64),
+    /// The stretch being placed.
+    stretch: Stretch,
     /// A finished stretch waiting for matched steps, and those seen.
-    pending: Option<((usize, usize, f64), Vec<f64>)>,
+    pending: Option<(Stretch, Vec<f64>)>,
+}
+
+/// A run of frames placed by the prediction.
+#[derive(Default, Clone, Copy)]
+struct Stretch {
+    first: usize,
+    frames: usize,
+    /// The steps into its frames, summed.
+    rows: f64,
 }
 
 impl SpeedCheck {
@@ -374,18 +383,18 @@ impl SpeedCheck {
     ) -> Option<SpeedDisagreement> {
         let step = step?;
         if guessed {
-            if self.stretch.1 == 0 {
-                self.stretch.0 = k;
+            if self.stretch.frames == 0 {
+                self.stretch.first = k;
             }
-            self.stretch.1 += 1;
-            self.stretch.2 += step;
+            self.stretch.frames += 1;
+            self.stretch.rows += step;
             return None;
         }
-        if self.stretch.1 >= SPEED_CHECK_FRAMES {
-            self.pending = Some((self.stretch, Vec::new()));
+        let ended = std::mem::take(&mut self.stretch);
+        if ended.frames >= SPEED_CHECK_FRAMES {
+            self.pending = Some((ended, Vec::new()));
         }
-        self.stretch = (0, 0, 0.0);
-        let ((first, frames, rows), steps) = self.pending.as_mut()?;
+        let (stretch, steps) = self.pending.as_mut()?;
         if measured {
             steps.push(step);
         }
@@ -394,9 +403,9 @@ impl SpeedCheck {
         }
         steps.sort_by(f64::total_cmp);
         let found = SpeedDisagreement {
-            first: *first,
-            frames: *frames,
-            predicted: *rows / *frames as f64,
+            first: stretch.first,
+            frames: stretch.frames,
+            predicted: stretch.rows / stretch.frames as f64,
             matched: steps[steps.len() / 2],
         };
         self.pending = None;
