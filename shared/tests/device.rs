@@ -61,8 +61,9 @@ fn the_default_configuration_needs_what_the_formula_says() {
         m.work_words,
         2 * t * w + w + 2 * (w / 2 + 1) * (t / 2 + 1) + 2 * 1024
     );
-    assert_eq!(m.profile_words, 2 * (h - 1));
-    assert_eq!(m.total_bytes(), 118_648);
+    // Four bands of columns a row.
+    assert_eq!(m.profile_words, 2 * (h - 1) * 4);
+    assert_eq!(m.total_bytes(), 120_520);
 
     // The firmware's buffers hold it, and the 2×-downsampled configurations users pick.
     assert!(m.fits(&rollfuse_core::device::MCU_CAPACITY));

@@ -147,15 +147,17 @@ pub fn reference(acq: &Acquisition, setup: &Setup, offsets: &[u64]) -> anyhow::R
     let (w, h) = (acq.sensor.width, acq.sensor.height);
     let t = usize::from(wire.tile_rows) * d;
     let n = usize::from(wire.frames_per_tile);
-    let schedule = Schedule::new(h, t, n, usize::from(wire.frame_spacing_px));
+    let dev = PipelineConfig::from_wire(&wire, acq.sensor)
+        .map_err(|r| anyhow::anyhow!("{}: the device refuses it ({r:?})", setup.label()))?;
+    // The device's spacing in whole downsampled rows, so a spacing that is not a multiple
+    // of `d` plans the same observations here as there.
+    let schedule = Schedule::new(h, t, n, dev.spacing_rows() * d);
     ensure!(
         schedule.window_rows <= h,
         "the reference's observation window ({} rows) is taller than the frame ({h})",
         schedule.window_rows
     );
     let tile = Dims::new(w, t)?;
-    let dev = PipelineConfig::from_wire(&wire, acq.sensor)
-        .map_err(|r| anyhow::anyhow!("{}: the device refuses it ({r:?})", setup.label()))?;
     ensure!(
         offsets.len() == acq.frames.len(),
         "{} offsets for {} frames",
@@ -224,14 +226,11 @@ pub struct Accuracy {
     pub pixels: usize,
 }
 
-/// Compares `tiles` (downsampled `d`×) with `reference` over the tiles both have with all
-/// `observations` (the run's first and last tiles see fewer frames).
-pub fn compare(
-    tiles: &Tiles<u8>,
-    reference: &Tiles<f64>,
-    d: usize,
-    observations: u8,
-) -> anyhow::Result<Accuracy> {
+/// Compares `tiles` (downsampled `d`×) with `reference` over the tiles both have with the
+/// most observations any tile got: the run's first and last tiles see fewer frames, and a
+/// spacing that is not a whole number of downsampled rows (10 px at 4×) may give every
+/// tile fewer than the frames per tile.
+pub fn compare(tiles: &Tiles<u8>, reference: &Tiles<f64>, d: usize) -> anyhow::Result<Accuracy> {
     ensure!(
         tiles.width * d == reference.width && tiles.rows * d == reference.rows,
         "tiles of {}×{} at {d}× do not cover the reference's {}×{}",
@@ -241,6 +240,7 @@ pub fn compare(
         reference.rows
     );
     let w = reference.width;
+    let observations = tiles.tiles.values().map(|(obs, _)| *obs).max().unwrap_or(0);
     let (mut ours, mut theirs) = (Vec::new(), Vec::new());
     for (index, (obs, px)) in &tiles.tiles {
         let Some((ref_obs, ref_px)) = reference.tiles.get(index) else {
@@ -258,7 +258,7 @@ pub fn compare(
     }
     ensure!(
         !ours.is_empty(),
-        "no tile got all {observations} observations in both runs: the scene is too short"
+        "no tile got the same {observations} observations in both runs: the scene is too short"
     );
     let n = ours.len();
     let (mut sq, mut max_abs) = (0.0, 0f64);
@@ -340,15 +340,9 @@ pub fn study(
             }
             let camera_px = acq.sensor.width * acq.sensor.height;
             ns += run.secs_per_frame * 1e9 / camera_px as f64;
-            let observations = acq.base.frames_per_tile;
             per_scene.push(
-                compare(
-                    &run.tiles,
-                    &references[&key],
-                    usize::from(setup.downsample),
-                    observations,
-                )
-                .with_context(|| format!("{} on {}", setup.label(), acq.name))?,
+                compare(&run.tiles, &references[&key], usize::from(setup.downsample))
+                    .with_context(|| format!("{} on {}", setup.label(), acq.name))?,
             );
         }
         let m = per_scene.len() as f64;

@@ -14,6 +14,7 @@ mod demo;
 mod depth;
 mod depth_cli;
 mod detect;
+mod device_roll;
 mod doc_examples;
 mod eval;
 mod fixture_roll;

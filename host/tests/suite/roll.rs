@@ -382,8 +382,8 @@ fn the_contact_window_strip_beats_time_splicing_and_the_device_strip_comes_close
             "{name}: MS-SSIM {ours:.4} for the contact-window strip, {splice:.4} for time splicing"
         );
         assert!(ours > ms("single apex frame"), "{name}");
-        // The module's strip at its default (1×), placed by its own refined and anchored
-        // offsets, within 0.03 of the host's.
+        // The module's strip at its default (1×), placed by its own matched steps drawn
+        // toward its commanded positions, within 0.03 of the host's.
         let device = ms("device strip");
         assert!(
             device >= ours - 0.03,

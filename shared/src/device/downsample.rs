@@ -1,5 +1,6 @@
 //! Camera frames to downsampled 8-bit luma.
 
+use super::refine::{PROFILE_BANDS, band_columns};
 use crate::packed;
 use crate::protocol::PixelFormat;
 use crate::{Dims, Error};
@@ -127,17 +128,15 @@ fn yuyv_luma_row(out: &mut [u8], row: &[u8]) {
     }
 }
 
-/// [`yuyv_luma_row`] that also returns the row's sum of luma: the lanes of luma the
-/// conversion has in hand are added up as they pass (two additions per four pixels, where
-/// a separate [`crate::packed::row_sum`] pass read the row again).
+/// The lumas of whole groups of four YUYV pixels (two camera words each) into `out`,
+/// returning their sum: the lanes of luma the conversion has in hand are added up as they
+/// pass (two additions per four pixels, where a separate [`crate::packed::row_sum`] pass
+/// read the row again).
 #[inline(always)]
-fn yuyv_luma_row_sum(out: &mut [u8], row: &[u8]) -> u32 {
-    let (out4, out_rest) = out.as_chunks_mut::<4>();
-    let (groups, _) = row.as_chunks::<4>();
-    let (pairs, single) = groups.as_chunks::<2>();
+fn yuyv_luma_groups_sum(out: &mut [[u8; 4]], pairs: &[[[u8; 4]; 2]]) -> u32 {
     let mut total = 0;
     // A lane gains at most 2·255 per group of four pixels: 128 groups keep it below 2¹⁶.
-    for (out4, pairs) in out4.chunks_mut(128).zip(pairs.chunks(128)) {
+    for (out4, pairs) in out.chunks_mut(128).zip(pairs.chunks(128)) {
         let mut acc = 0u32;
         for (o, [a, b]) in out4.iter_mut().zip(pairs) {
             let a = u32::from_le_bytes(*a) & 0x00FF_00FF;
@@ -148,21 +147,45 @@ fn yuyv_luma_row_sum(out: &mut [u8], row: &[u8]) -> u32 {
         }
         total += (acc & 0xFFFF) + (acc >> 16);
     }
+    total
+}
+
+/// [`yuyv_luma_row`] that also returns the sums of luma of the row's bands of columns
+/// ([`band_columns`]; they end at multiples of four pixels, so each is whole groups of
+/// the conversion, and the last takes the up to three pixels left over).
+#[inline(always)]
+fn yuyv_luma_row_band_sums(out: &mut [u8], row: &[u8]) -> [u32; PROFILE_BANDS] {
+    let w = out.len();
+    let (out4, out_rest) = out.as_chunks_mut::<4>();
+    let (groups, _) = row.as_chunks::<4>();
+    let (pairs, single) = groups.as_chunks::<2>();
     let done = 4 * out4.len();
+    let mut sums = [0u32; PROFILE_BANDS];
+    let (mut out4, mut pairs) = (out4, pairs);
+    let mut at = 0;
+    for (b, sum) in sums.iter_mut().enumerate() {
+        let n = (band_columns(w, b).end / 4)
+            .saturating_sub(at)
+            .min(out4.len());
+        let (band_out, rest_out) = core::mem::take(&mut out4).split_at_mut(n);
+        let (band_pairs, rest_pairs) = pairs.split_at(n.min(pairs.len()));
+        *sum = yuyv_luma_groups_sum(band_out, band_pairs);
+        (out4, pairs, at) = (rest_out, rest_pairs, at + n);
+    }
     let tail = single
         .iter()
         .flatten()
         .chain(row.get(2 * done + 4 * single.len()..).unwrap_or(&[]));
     for (o, &y) in out_rest.iter_mut().zip(tail.step_by(2)) {
         *o = y;
-        total += u32::from(y);
+        sums[PROFILE_BANDS - 1] += u32::from(y);
     }
-    total
+    sums
 }
 
 /// [`downsample_rows`] that also writes the band's row profile, as
-/// [`super::refine::row_profile`] of the band would (`dims.height() − 1` first
-/// differences of the row sums into `profile`): at 1× from YUYV the sums are taken during
+/// [`super::refine::row_profile`] of the band would (`dims.height() − 1` rows of first
+/// differences of the [`PROFILE_BANDS`] band sums into `profile`): at 1× from YUYV the sums are taken during
 /// the conversion, otherwise by that function after it.
 pub fn downsample_rows_profiled(
     src: &[u8],
@@ -196,17 +219,20 @@ pub fn downsample_rows_profiled(
         .chunks_exact(row_bytes)
         .skip(rows.start)
         .take(rows.len());
+    let w = dims.width();
     let mut previous = None;
-    let mut diffs = profile.iter_mut();
-    for (row, out_row) in camera_rows.zip(out.chunks_exact_mut(dims.width())) {
+    let mut diffs = profile.chunks_exact_mut(PROFILE_BANDS);
+    for (row, out_row) in camera_rows.zip(out.chunks_exact_mut(w)) {
         // A row of bytes sums to far below 2³¹.
-        let sum = yuyv_luma_row_sum(out_row, row) as i32;
+        let sums = yuyv_luma_row_band_sums(out_row, row).map(|s| s as i32);
         if let Some(p) = previous
             && let Some(d) = diffs.next()
         {
-            *d = sum - p;
+            for ((d, &s), &p) in d.iter_mut().zip(&sums).zip(&p) {
+                *d = s - p;
+            }
         }
-        previous = Some(sum);
+        previous = Some(sums);
     }
     Ok(dims)
 }
@@ -415,7 +441,7 @@ mod tests {
                                 let n = d.width() * (end - start);
                                 let mut want = std::vec![0xa5u8; n + 3];
                                 let mut got = want.clone();
-                                let mut want_p = std::vec![-7; end - start + 2];
+                                let mut want_p = std::vec![-7; (end - start + 2) * PROFILE_BANDS];
                                 let mut got_p = want_p.clone();
                                 let fr = (w, h);
                                 let wd = downsample_rows(
@@ -448,7 +474,7 @@ mod tests {
                         }
                         // The same refusals.
                         let mut band = std::vec![0u8; w * h];
-                        let mut p = std::vec![0; h];
+                        let mut p = std::vec![0; h * PROFILE_BANDS];
                         let rows = 0..d.height() + 1;
                         assert_eq!(
                             downsample_rows_profiled(

@@ -21,7 +21,7 @@
 //! Memory is the caller's ([`PipelineBuffers`]), sized by [`PipelineConfig::memory`].
 
 use super::downsample::{downsample_rows_profiled, downsampled_dims};
-use super::refine::{SUBROWS, refine_shift};
+use super::refine::{PROFILE_BANDS, SUBROWS, refine_shift};
 use crate::float;
 use crate::fusion::{ImagePair, LlWeight, U8Pair, U8Work, fuse_scratch_words, fuse_u8};
 use crate::protocol::{DeviceConfig, NakReason, NormMode, PixelFormat, Tile, WaveletId};
@@ -77,7 +77,7 @@ impl Sensor {
 ///
 /// let cfg = PipelineConfig::from_wire(&DeviceConfig::default(), CAMERA).unwrap();
 /// assert_eq!(cfg.downsample(), 1);
-/// assert_eq!(cfg.memory().total_bytes(), 118_648);
+/// assert_eq!(cfg.memory().total_bytes(), 120_520);
 /// ```
 ///
 /// A validated configuration cannot be changed out of range afterwards:
@@ -125,7 +125,7 @@ pub struct PipelineConfig {
 /// - `work`: two fusion work images and the fusion scratch, `2·T·W +`
 ///   [`fuse_scratch_words`]`(W, T)` words;
 /// - `profiles`: this frame's and the previous frame's row profiles (of the window),
-///   `2·(n·s + T − 2)` words.
+///   `2·(n·s + T − 2)·B` words, `B` = [`PROFILE_BANDS`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Memory {
     /// Bytes of `frame`.
@@ -314,7 +314,7 @@ impl PipelineConfig {
                     Precision::Fixed => fuse_scratch_words(w, t),
                     Precision::F32 => float::fuse_scratch_len(self.tile),
                 },
-            profile_words: 2 * (h - 1),
+            profile_words: 2 * (h - 1) * PROFILE_BANDS,
         }
     }
 }
@@ -442,54 +442,83 @@ pub enum FrameError {
     NothingTaken,
 }
 
-/// Frames over which the refined positions are anchored to the commanded ones.
-pub const ANCHOR_FRAMES: i64 = 16;
+/// Variance of a matched step's error, 1/1024 row²: about 0.1 row (root mean square) on
+/// the built-in scenes rolled as `rollfuse eval --roll` rolls them.
+pub const STEP_VARIANCE: u64 = 10;
 
-/// Where the frames lie on the belt: each step from the last refined by matching (the
-/// shape of the run), the whole run anchored to the commanded motion (its place).
-///
-/// Matched steps carry no drift of their own but add up their small errors; the
-/// commanded positions carry the belt's unknown error of a few pixels a frame but no
-/// drift. So a frame's offset is its refined position plus the running mean (over about
-/// [`ANCHOR_FRAMES`] frames) of commanded minus refined position, in sixteenths of a
-/// row, rounded to whole rows and never moving back.
+/// Variance of a commanded position's error, 1/1024 camera pixel²: the belt's unknown
+/// error of up to ±2 px a frame, uniform (4/3 px²), that the simulator's `jitter` models.
+pub const COMMANDED_VARIANCE_PX: u64 = 1365;
+
+/// Where the frames lie on the belt: each frame's place predicted from the last by the
+/// matched step, then drawn toward its commanded position by how sure each is (a
+/// Kalman filter of one state: the matched steps carry no error of the belt's own but
+/// add up theirs, [`STEP_VARIANCE`] a step; the commanded positions carry the belt's
+/// error, [`COMMANDED_VARIANCE_PX`], but do not drift). A frame no match refines is
+/// placed where commanded. Offsets are the places rounded to whole rows, never moving
+/// back.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Track {
     /// The first frame's commanded position, camera pixels.
     origin_px: u64,
     /// The last frame's commanded position, camera pixels.
     commanded_at: u64,
-    /// The last frame's refined position, sixteenths of a row.
-    refined: i64,
-    /// [`ANCHOR_FRAMES`] times the running mean of commanded minus refined position.
-    anchor: i64,
+    /// The last frame's place, sixteenths of a row.
+    place: i64,
+    /// Its variance, 1/1024 row².
+    variance: u64,
+    /// A commanded position's variance, 1/1024 row².
+    commanded_variance: u64,
+    /// Camera pixels a row.
+    downsample: u64,
     /// The last offset handed out, rows.
     offset: u64,
 }
 
 impl Track {
-    fn start(position_px: u64) -> Self {
+    /// The first frame, at `position_px`, rows `downsample` camera pixels tall: where
+    /// commanded.
+    fn start(position_px: u64, downsample: u64) -> Self {
+        let commanded_variance = COMMANDED_VARIANCE_PX / (downsample * downsample).max(1);
         Self {
             origin_px: position_px,
             commanded_at: position_px,
-            refined: 0,
-            anchor: 0,
+            place: 0,
+            variance: commanded_variance,
+            commanded_variance: commanded_variance.max(1),
+            downsample: downsample.max(1),
             offset: 0,
         }
     }
 
-    /// The next frame, `step` sixteenths of a row after the last and commanded
-    /// `commanded` sixteenths from the first (at `position_px`): its offset and the rows
-    /// it moved on from the last.
-    fn follow(&mut self, step: i64, commanded: i64, position_px: u64) -> (u64, i64) {
-        self.refined = self.refined.saturating_add(step);
-        let residual = commanded.saturating_sub(self.refined);
-        self.anchor = self
-            .anchor
-            .saturating_add(residual)
-            .saturating_sub(self.anchor / ANCHOR_FRAMES);
-        let place = self.refined.saturating_add(self.anchor / ANCHOR_FRAMES);
-        let rows = place.saturating_add(SUBROWS / 2).div_euclid(SUBROWS).max(0) as u64;
+    /// The next frame, `step` sixteenths of a row after the last if a match measured it,
+    /// commanded to `position_px`, `commanded_rows` whole rows from the first: its offset
+    /// and the rows it moved on from the last.
+    fn follow(&mut self, step: Option<i64>, commanded_rows: i64, position_px: u64) -> (u64, i64) {
+        // The commanded position itself, unrounded: sixteenths are whole for every factor.
+        let since_start_px = position_px as i64 - self.origin_px as i64;
+        let commanded = since_start_px.saturating_mul(SUBROWS) / self.downsample as i64;
+        (self.place, self.variance) = match step {
+            Some(step) => {
+                let predicted = self.place.saturating_add(step);
+                let variance = self.variance.saturating_add(STEP_VARIANCE);
+                let total = variance.saturating_add(self.commanded_variance);
+                // The gain `variance / total` in 1/1024: the correction's product stays
+                // far inside i64 (an innovation of a few rows, in sixteenths).
+                let gain = ((variance << 10) / total) as i64;
+                let innovation = commanded.saturating_sub(predicted);
+                let correction = innovation.saturating_mul(gain).div_euclid(1 << 10);
+                let left = (variance * self.commanded_variance) / total;
+                (predicted.saturating_add(correction), left)
+            }
+            None => (commanded, self.commanded_variance),
+        };
+        // The commanded row moved by the filter's correction in whole rows: where the
+        // filter agrees with the command, the command's own rounding of a fractional
+        // spacing (2.5 rows: 0, 3, 5, 8, …) stays, so the tiles see the frames the
+        // schedule plans.
+        let correction = (self.place - commanded + SUBROWS / 2).div_euclid(SUBROWS);
+        let rows = commanded_rows.saturating_add(correction).max(0) as u64;
         let offset = rows.max(self.offset);
         let moved = (offset - self.offset) as i64;
         self.offset = offset;
@@ -572,7 +601,7 @@ impl<'a> Pipeline<'a> {
         let cfg = self.cfg;
         let schedule = cfg.schedule();
         let window = schedule.window_top..schedule.window_top + schedule.window_rows;
-        let p = window.len().saturating_sub(1);
+        let p = window.len().saturating_sub(1) * PROFILE_BANDS;
         let (_, current) = profile_halves(self.bufs.profiles, p, self.previous_profile_first)?;
         // The band and its row profile, the profile's sums taken while converting at 1×;
         // `downsample_rows_profiled` checks the band fits the frame.
@@ -602,12 +631,12 @@ impl<'a> Pipeline<'a> {
         let cfg = self.cfg;
         let schedule = cfg.schedule();
         let f = cfg.downsample as u64;
-        let p = schedule.window_rows.saturating_sub(1);
+        let p = schedule.window_rows.saturating_sub(1) * PROFILE_BANDS;
         let (previous, current) =
             profile_halves(self.bufs.profiles, p, self.previous_profile_first)?;
         let (offset, shift) = match &mut self.track {
             None => {
-                self.track = Some(Track::start(position_px));
+                self.track = Some(Track::start(position_px, f));
                 (0, 0)
             }
             Some(track) => {
@@ -622,14 +651,14 @@ impl<'a> Pipeline<'a> {
                     // Within a quarter row of the commanded shift is the sensor's noise:
                     // exact motion stays exact.
                     Some(step) if (step - commanded * SUBROWS).abs() <= SUBROWS / 4 => {
-                        commanded * SUBROWS
+                        Some(commanded * SUBROWS)
                     }
-                    Some(step) => step.max(0),
-                    None if commanded >= 0 => commanded * SUBROWS,
+                    Some(step) => Some(step.max(0)),
+                    None if commanded >= 0 => None,
                     None => return Err(FrameError::Backwards),
                 };
                 let since_start = rows(position_px) as i64 - rows(track.origin_px) as i64;
-                track.follow(step, since_start * SUBROWS, position_px)
+                track.follow(step, since_start, position_px)
             }
         };
         self.previous_profile_first = !self.previous_profile_first;

@@ -79,7 +79,7 @@ impl Default for DeviceConfig {
             tile_rows: 16,
             frames_per_tile: 4,
             frame_spacing_px: 16,
-            refine_rows: 2,
+            refine_rows: 3,
             norm: NormMode::PerFrame,
         }
     }

@@ -7,7 +7,7 @@ use super::frames::{self, FRAME_BYTES, HEIGHT, SPACING_PX, WIDTH};
 use core::fmt;
 use cortex_m_semihosting::hprintln;
 use rollfuse_core::device::downsample::{downsample, downsample_rows};
-use rollfuse_core::device::refine::{refine_shift, row_profile};
+use rollfuse_core::device::refine::{PROFILE_BANDS, refine_shift, row_profile};
 use rollfuse_core::device::{
     CAMERA, MCU_CAPACITY, Pipeline, PipelineBuffers, PipelineConfig, Precision, Sensor,
 };
@@ -116,7 +116,7 @@ struct Buffers {
     frame: [u8; WIDTH * HEIGHT],
     tiles: [u8; 16 * 16 * WIDTH],
     work: [i32; 32 * 1024],
-    profiles: [i32; 2 * HEIGHT],
+    profiles: [i32; 2 * HEIGHT * PROFILE_BANDS],
     ints: [i32; 16 * WIDTH],
     fa: [f32; 16 * WIDTH],
     fb: [f32; 16 * WIDTH],
@@ -130,7 +130,7 @@ impl Buffers {
             frame: [0; WIDTH * HEIGHT],
             tiles: [0; 16 * 16 * WIDTH],
             work: [0; 32 * 1024],
-            profiles: [0; 2 * HEIGHT],
+            profiles: [0; 2 * HEIGHT * PROFILE_BANDS],
             ints: [0; 16 * WIDTH],
             fa: [0.0; 16 * WIDTH],
             fb: [0.0; 16 * WIDTH],
@@ -332,12 +332,13 @@ fn kernels(clock: &Clock, b: &mut Buffers, setup: Setup, out: &mut impl FnMut(&R
         return false;
     };
     row("downsample", band.pixels(), i);
-    let p = band.height() - 1;
+    let p = (band.height() - 1) * PROFILE_BANDS;
     let (previous, current) = b.profiles.split_at_mut(p);
     row_profile(&b.frame, band, previous);
     let ((), i) = clock.instructions(|| row_profile(&b.frame, band, &mut current[..p]));
     row("row_profile", band.pixels(), i);
-    let (_, i) = clock.instructions(|| refine_shift(previous, &current[..p], 8, 2));
+    let radius = u32::from(DeviceConfig::default().refine_rows);
+    let (_, i) = clock.instructions(|| refine_shift(previous, &current[..p], 8, radius));
     row("refine_shift", band.pixels(), i);
     // Over the rows the frame's tiles cover, as the pipeline takes it.
     let rows = schedule.observed_rows(0);
