@@ -20,7 +20,8 @@
 //!   ones held: every kept match, the prediction of every step, and with a manifest each
 //!   frame's commanded row (loosely: it carries the belt's unknown error); inconsistent
 //!   matches are dropped one at a time. A frame is placed for good once [`WINDOW`] newer
-//!   frames have been seen.
+//!   frames have been seen. Every match has the roll's pull toward no motion added back
+//!   ([`pull`]), measured where a long match and the lag-1 matches along it disagree.
 //! - **Lost and found.** A textured frame that matches nothing near the prediction is
 //!   searched for over the whole reach (`first_search_rows` either side) and kept if the
 //!   match is unambiguous.
@@ -30,11 +31,13 @@
 
 pub mod features;
 pub mod pairs;
+pub mod pull;
 pub mod solve;
 
 use crate::contact::{ContactProfile, MEASURE_FRAMES};
 use features::{Features, Featurizer};
 use pairs::{Match, best_match};
+use pull::Pull;
 use rollfuse_io::image::Planes;
 use solve::{Anchor, Problem, Relation};
 use std::collections::VecDeque;
@@ -302,6 +305,17 @@ struct Held {
     textured: bool,
 }
 
+/// Travel over lag-1 matches between commanded frames.
+#[derive(Debug, Clone, Copy, Default)]
+struct Travel {
+    /// Rows the matches measured…
+    matched: f64,
+    /// …the pull's share in them ([`Pull::share`])…
+    pull_share: f64,
+    /// …and rows commanded.
+    commanded: f64,
+}
+
 /// A kept match between two frames (roll indices).
 #[derive(Debug, Clone, Copy)]
 struct Edge {
@@ -339,8 +353,10 @@ pub struct Tracker {
     anchor: VecDeque<f64>,
     /// Best lag-1 scores of recent frames.
     typical: VecDeque<f32>,
-    /// Matched and commanded travel over lag-1 matches (for the apparent scale).
-    travel: (f64, f64),
+    /// Travel over lag-1 matches between commanded frames (for the apparent scale).
+    travel: Travel,
+    /// The matches' pull toward no motion.
+    pull: Pull,
     /// The previous frame's gray levels, when sideways drift is allowed.
     previous_gray: Vec<f32>,
     /// Step standard deviations from the last solve, per held frame.
@@ -428,7 +444,8 @@ impl Tracker {
             last_speed: None,
             anchor: VecDeque::new(),
             typical: VecDeque::new(),
-            travel: (0.0, 0.0),
+            travel: Travel::default(),
+            pull: Pull::default(),
             previous_gray: Vec::new(),
             step_sigma: Vec::new(),
             summary: Summary::default(),
@@ -710,8 +727,9 @@ impl Tracker {
             && let (Some(a), Some(b)) = (self.frame(edge.from), self.frame(edge.to))
             && let (Some(ca), Some(cb)) = (a.commanded, b.commanded)
         {
-            self.travel.0 += edge.rows;
-            self.travel.1 += cb - ca;
+            self.travel.matched += edge.rows;
+            self.travel.pull_share += Pull::share(edge.rows);
+            self.travel.commanded += cb - ca;
         }
         self.edges.push(edge);
         self.summary.matches += 1;
@@ -719,7 +737,8 @@ impl Tracker {
 
     /// Matched rows per commanded row, once enough has been commanded.
     fn apparent_scale(&self) -> f64 {
-        let (measured, commanded) = self.travel;
+        let t = &self.travel;
+        let (measured, commanded) = (t.matched + self.pull.rows() * t.pull_share, t.commanded);
         if commanded.abs() >= SCALE_AFTER {
             (measured / commanded).clamp(0.5, 2.0)
         } else {
@@ -799,7 +818,7 @@ impl Tracker {
             .map(|e| Relation {
                 from: at(e.from),
                 to: at(e.to),
-                rows: e.rows / scale,
+                rows: self.pull.corrected(e.rows) / scale,
                 sigma: e.sigma,
             })
             .collect();
@@ -865,6 +884,7 @@ impl Tracker {
     /// can need.
     fn place_oldest(&mut self) -> Placement {
         let k = self.placed;
+        self.observe_pull(k);
         let i = k - self.first_held;
         let kept = self.edges.iter().filter(|e| e.from == k || e.to == k);
         let best_kept = kept.map(|e| e.score).reduce(f32::max);
@@ -929,6 +949,29 @@ impl Tracker {
         let first = self.first_held;
         self.edges.retain(|e| e.from >= first);
         placement
+    }
+
+    /// Measures the pull on each long match ending at frame `k` that lag-1 matches
+    /// also span.
+    fn observe_pull(&mut self, k: usize) {
+        let lag1 = |to: usize| {
+            self.edges
+                .iter()
+                .find(|e| e.to == to && e.from + 1 == to)
+                .map(|e| e.rows)
+        };
+        let chains: Vec<(f64, f64, usize)> = self
+            .edges
+            .iter()
+            .filter(|e| e.to == k && e.from + 1 < k)
+            .filter_map(|e| {
+                let chain = (e.from + 1..=k).map(lag1).sum::<Option<f64>>()?;
+                Some((e.rows, chain, k - e.from))
+            })
+            .collect();
+        for (long, chain, lag) in chains {
+            self.pull.observe(long, chain, lag);
+        }
     }
 
     /// Adds a placed frame (at matched `position`; `unkept`: textured, but no match kept)
