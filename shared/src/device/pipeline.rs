@@ -455,8 +455,8 @@ pub const COMMANDED_VARIANCE_PX: u64 = 1365;
 /// Kalman filter of one state: the matched steps carry no error of the belt's own but
 /// add up theirs, [`STEP_VARIANCE`] a step; the commanded positions carry the belt's
 /// error, [`COMMANDED_VARIANCE_PX`], but do not drift). A frame no match refines is
-/// placed where commanded. Offsets are the places rounded to whole rows, never moving
-/// back.
+/// placed where commanded. A frame's offset is its commanded row moved by the filter's
+/// correction (place minus commanded position) in whole rows, never moving back.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Track {
     /// The first frame's commanded position, camera pixels.
@@ -496,7 +496,7 @@ impl Track {
     /// and the rows it moved on from the last.
     fn follow(&mut self, step: Option<i64>, commanded_rows: i64, position_px: u64) -> (u64, i64) {
         // The commanded position itself, unrounded: sixteenths are whole for every factor.
-        let since_start_px = position_px as i64 - self.origin_px as i64;
+        let since_start_px = (position_px as i64).saturating_sub(self.origin_px as i64);
         let commanded = since_start_px.saturating_mul(SUBROWS) / self.downsample as i64;
         (self.place, self.variance) = match step {
             Some(step) => {
@@ -508,7 +508,7 @@ impl Track {
                 let gain = ((variance << 10) / total) as i64;
                 let innovation = commanded.saturating_sub(predicted);
                 let correction = innovation.saturating_mul(gain).div_euclid(1 << 10);
-                let left = (variance * self.commanded_variance) / total;
+                let left = variance.saturating_mul(self.commanded_variance) / total;
                 (predicted.saturating_add(correction), left)
             }
             None => (commanded, self.commanded_variance),
@@ -517,7 +517,11 @@ impl Track {
         // filter agrees with the command, the command's own rounding of a fractional
         // spacing (2.5 rows: 0, 3, 5, 8, …) stays, so the tiles see the frames the
         // schedule plans.
-        let correction = (self.place - commanded + SUBROWS / 2).div_euclid(SUBROWS);
+        let correction = self
+            .place
+            .saturating_sub(commanded)
+            .saturating_add(SUBROWS / 2)
+            .div_euclid(SUBROWS);
         let rows = commanded_rows.saturating_add(correction).max(0) as u64;
         let offset = rows.max(self.offset);
         let moved = (offset - self.offset) as i64;

@@ -108,7 +108,7 @@ pub fn refine_shift(previous: &[i32], current: &[i32], commanded: i64, radius: u
     // The search's mismatches, kept for the V through the best one's neighbours.
     let mut seen = [None; REMEMBERED];
     let slot = |d: i64| {
-        let i = usize::try_from(d - (commanded - r)).ok()?;
+        let i = usize::try_from(d.saturating_sub(commanded.saturating_sub(r))).ok()?;
         (i < REMEMBERED && d <= commanded + r).then_some(i)
     };
     let (mut best, mut sum, mut count): (Option<(i64, i64)>, i64, i64) = (None, 0, 0);
