@@ -507,7 +507,12 @@ impl Track {
                 // far inside i64 (an innovation of a few rows, in sixteenths).
                 let gain = ((variance << 10) / total) as i64;
                 let innovation = commanded.saturating_sub(predicted);
-                let correction = innovation.saturating_mul(gain).div_euclid(1 << 10);
+                // Rounded to the nearest sixteenth: a floor here would pull every frame
+                // back by half a sixteenth, which the small gain lets add up to half a row.
+                let correction = innovation
+                    .saturating_mul(gain)
+                    .saturating_add(1 << 9)
+                    .div_euclid(1 << 10);
                 let left = variance.saturating_mul(self.commanded_variance) / total;
                 (predicted.saturating_add(correction), left)
             }
