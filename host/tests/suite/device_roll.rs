@@ -47,8 +47,9 @@ fn mean_and_spread(errors: &[f64]) -> (f64, f64) {
 
 /// The commanded positions alone are off by up to ±2 px (a spread of 1.15); matched steps
 /// anchored to them bring every scene within a row, and the scenes to 0.7 on average. No
-/// scene's strip is moved as a whole by more than 0.4 rows (rounding the filter's
-/// corrections down once moved them by half a row).
+/// scene's strip is moved as a whole by more than 0.4 rows: the filter rounds each
+/// correction to the nearest sixteenth of a row (rounded down, the half sixteenth lost
+/// every frame adds up, through the filter's small gain, to half a row).
 #[test]
 fn the_device_places_frames_within_a_row_of_the_belt() {
     let scenes = ["letters", "dots", "lines", "curves"];

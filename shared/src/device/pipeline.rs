@@ -507,8 +507,8 @@ impl Track {
                 // far inside i64 (an innovation of a few rows, in sixteenths).
                 let gain = ((variance << 10) / total) as i64;
                 let innovation = commanded.saturating_sub(predicted);
-                // Rounded to the nearest sixteenth: a floor here would pull every frame
-                // back by half a sixteenth, which the small gain lets add up to half a row.
+                // Rounded to the nearest sixteenth: rounded down, every frame would lose
+                // half a sixteenth, which the small gain lets add up to half a row.
                 let correction = innovation
                     .saturating_mul(gain)
                     .saturating_add(1 << 9)
