@@ -1,6 +1,6 @@
 //! Camera frames to downsampled 8-bit luma.
 
-use super::refine::{PROFILE_BANDS, band_columns};
+use super::refine::{PROFILE_BANDS, band_columns, write_differences};
 use crate::packed;
 use crate::protocol::PixelFormat;
 use crate::{Dims, Error};
@@ -156,12 +156,11 @@ fn yuyv_luma_groups_sum(out: &mut [[u8; 4]], pairs: &[[[u8; 4]; 2]]) -> u32 {
 #[inline(always)]
 fn yuyv_luma_row_band_sums(out: &mut [u8], row: &[u8]) -> [u32; PROFILE_BANDS] {
     let w = out.len();
-    let (out4, out_rest) = out.as_chunks_mut::<4>();
+    let (mut out4, out_rest) = out.as_chunks_mut::<4>();
     let (groups, _) = row.as_chunks::<4>();
-    let (pairs, single) = groups.as_chunks::<2>();
+    let (mut pairs, single) = groups.as_chunks::<2>();
     let done = 4 * out4.len();
     let mut sums = [0u32; PROFILE_BANDS];
-    let (mut out4, mut pairs) = (out4, pairs);
     let mut at = 0;
     for (b, sum) in sums.iter_mut().enumerate() {
         let n = (band_columns(w, b).end / 4)
@@ -219,21 +218,11 @@ pub fn downsample_rows_profiled(
         .chunks_exact(row_bytes)
         .skip(rows.start)
         .take(rows.len());
-    let w = dims.width();
-    let mut previous = None;
-    let mut diffs = profile.chunks_exact_mut(PROFILE_BANDS);
-    for (row, out_row) in camera_rows.zip(out.chunks_exact_mut(w)) {
-        // A row of bytes sums to far below 2³¹.
-        let sums = yuyv_luma_row_band_sums(out_row, row).map(|s| s as i32);
-        if let Some(p) = previous
-            && let Some(d) = diffs.next()
-        {
-            for ((d, &s), &p) in d.iter_mut().zip(&sums).zip(&p) {
-                *d = s - p;
-            }
-        }
-        previous = Some(sums);
-    }
+    let out_rows = out.chunks_exact_mut(dims.width());
+    let sums = camera_rows
+        .zip(out_rows)
+        .map(|(row, out_row)| yuyv_luma_row_band_sums(out_row, row));
+    write_differences(sums, profile);
     Ok(dims)
 }
 

@@ -3,7 +3,7 @@
 //! reports the same version and, by default, refuses what does not fit the same memory.
 
 use super::pipeline::{Memory, PipelineBuffers, Sensor};
-use super::refine::PROFILE_BANDS;
+use super::refine::profile_len;
 use crate::protocol::PixelFormat;
 
 /// The firmware version `Info` reports, on the module and on the virtual device.
@@ -26,7 +26,7 @@ pub const MCU_CAPACITY: Memory = Memory {
     frame_bytes: CAMERA.width * CAMERA.height,
     tile_bytes: 48 * 1024,
     work_words: 16 * 1024,
-    profile_words: 2 * (CAMERA.height - 1) * PROFILE_BANDS,
+    profile_words: 2 * profile_len(CAMERA.height),
 };
 
 /// The downsampled observation window at [`MCU_CAPACITY`]: written once per frame and

@@ -21,7 +21,7 @@
 //! Memory is the caller's ([`PipelineBuffers`]), sized by [`PipelineConfig::memory`].
 
 use super::downsample::{downsample_rows_profiled, downsampled_dims};
-use super::refine::{PROFILE_BANDS, SUBROWS, refine_shift};
+use super::refine::{SUBROWS, profile_len, refine_shift};
 use crate::float;
 use crate::fusion::{ImagePair, LlWeight, U8Pair, U8Work, fuse_scratch_words, fuse_u8};
 use crate::protocol::{DeviceConfig, NakReason, NormMode, PixelFormat, Tile, WaveletId};
@@ -125,7 +125,7 @@ pub struct PipelineConfig {
 /// - `work`: two fusion work images and the fusion scratch, `2·T·W +`
 ///   [`fuse_scratch_words`]`(W, T)` words;
 /// - `profiles`: this frame's and the previous frame's row profiles (of the window),
-///   `2·(n·s + T − 2)·B` words, `B` = [`PROFILE_BANDS`].
+///   `2·(n·s + T − 2)·B` words, `B` = [`PROFILE_BANDS`](super::refine::PROFILE_BANDS).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Memory {
     /// Bytes of `frame`.
@@ -314,7 +314,7 @@ impl PipelineConfig {
                     Precision::Fixed => fuse_scratch_words(w, t),
                     Precision::F32 => float::fuse_scratch_len(self.tile),
                 },
-            profile_words: 2 * (h - 1) * PROFILE_BANDS,
+            profile_words: 2 * profile_len(h),
         }
     }
 }
@@ -610,7 +610,7 @@ impl<'a> Pipeline<'a> {
         let cfg = self.cfg;
         let schedule = cfg.schedule();
         let window = schedule.window_top..schedule.window_top + schedule.window_rows;
-        let p = window.len().saturating_sub(1) * PROFILE_BANDS;
+        let p = profile_len(window.len());
         let (_, current) = profile_halves(self.bufs.profiles, p, self.previous_profile_first)?;
         // The band and its row profile, the profile's sums taken while converting at 1×;
         // `downsample_rows_profiled` checks the band fits the frame.
@@ -640,7 +640,7 @@ impl<'a> Pipeline<'a> {
         let cfg = self.cfg;
         let schedule = cfg.schedule();
         let f = cfg.downsample as u64;
-        let p = schedule.window_rows.saturating_sub(1) * PROFILE_BANDS;
+        let p = profile_len(schedule.window_rows);
         let (previous, current) =
             profile_halves(self.bufs.profiles, p, self.previous_profile_first)?;
         let (offset, shift) = match &mut self.track {

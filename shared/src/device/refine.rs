@@ -10,10 +10,6 @@
 //! themselves, so a change of overall brightness does not pull the match. A frame with no
 //! structure along the belt (a flat profile) matches every shift about equally and is
 //! refined to nothing: the caller keeps the commanded shift.
-//!
-//! On the built-in scenes rolled as `rollfuse eval --roll` rolls them, one band's
-//! matched steps were off by 0.2 rows (root mean square) and 8 of 450 by more than a row;
-//! four bands' by 0.1, none by more than a row (docs/device.md).
 
 use crate::Dims;
 
@@ -35,28 +31,43 @@ pub fn band_columns(width: usize, band: usize) -> core::ops::Range<usize> {
     edge(band)..edge(band + 1)
 }
 
+/// Values in the row profile of a band of `rows` rows: [`PROFILE_BANDS`] for each row
+/// after the first.
+pub const fn profile_len(rows: usize) -> usize {
+    rows.saturating_sub(1) * PROFILE_BANDS
+}
+
 /// Writes the first differences of the band sums ([`band_columns`]) of the rows of
-/// `frame` (packed `dims`) to `out`: `(dims.height() − 1) · PROFILE_BANDS` values, each
-/// row's bands together; nothing for a one-row frame.
+/// `frame` (packed `dims`) to `out`: [`profile_len`] values, each row's bands together;
+/// nothing for a one-row frame.
 pub fn row_profile(frame: &[u8], dims: Dims, out: &mut [i32]) {
     let w = dims.width();
-    let mut previous = [0i32; PROFILE_BANDS];
-    let mut diffs = out.chunks_exact_mut(PROFILE_BANDS);
-    for (y, row) in frame.chunks_exact(w).take(dims.height()).enumerate() {
-        let mut sums = [0i32; PROFILE_BANDS];
-        for (b, sum) in sums.iter_mut().enumerate() {
-            // A row of bytes sums to far below 2³¹ (its width is at most `MAX_DIMENSION`).
+    let sums = frame.chunks_exact(w).take(dims.height()).map(|row| {
+        core::array::from_fn(|b| {
             let band = row.get(band_columns(w, b)).unwrap_or(&[]);
-            *sum = crate::packed::row_sum(band) as i32;
-        }
-        if y > 0
+            crate::packed::row_sum(band)
+        })
+    });
+    write_differences(sums, out);
+}
+
+/// Writes the first differences of consecutive rows' band sums to `out` (as many rows as
+/// it holds), drawing every row from `sums` however many that is.
+#[inline(always)]
+pub(crate) fn write_differences(sums: impl Iterator<Item = [u32; PROFILE_BANDS]>, out: &mut [i32]) {
+    let mut diffs = out.chunks_exact_mut(PROFILE_BANDS);
+    let mut previous = None;
+    for sums in sums {
+        // A row of bytes sums to far below 2³¹ (its width is at most `MAX_DIMENSION`).
+        let sums = sums.map(|s| s as i32);
+        if let Some(p) = previous
             && let Some(d) = diffs.next()
         {
-            for ((d, &s), &p) in d.iter_mut().zip(&sums).zip(&previous) {
+            for ((d, &s), &p) in d.iter_mut().zip(&sums).zip(&p) {
                 *d = s - p;
             }
         }
-        previous = sums;
+        previous = Some(sums);
     }
 }
 

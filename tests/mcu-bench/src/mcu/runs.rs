@@ -7,7 +7,7 @@ use super::frames::{self, FRAME_BYTES, HEIGHT, SPACING_PX, WIDTH};
 use core::fmt;
 use cortex_m_semihosting::hprintln;
 use rollfuse_core::device::downsample::{downsample, downsample_rows};
-use rollfuse_core::device::refine::{PROFILE_BANDS, refine_shift, row_profile};
+use rollfuse_core::device::refine::{PROFILE_BANDS, profile_len, refine_shift, row_profile};
 use rollfuse_core::device::{
     CAMERA, MCU_CAPACITY, Pipeline, PipelineBuffers, PipelineConfig, Precision, Sensor,
 };
@@ -332,7 +332,7 @@ fn kernels(clock: &Clock, b: &mut Buffers, setup: Setup, out: &mut impl FnMut(&R
         return false;
     };
     row("downsample", band.pixels(), i);
-    let p = (band.height() - 1) * PROFILE_BANDS;
+    let p = profile_len(band.height());
     let (previous, current) = b.profiles.split_at_mut(p);
     row_profile(&b.frame, band, previous);
     let ((), i) = clock.instructions(|| row_profile(&b.frame, band, &mut current[..p]));
